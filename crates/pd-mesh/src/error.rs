@@ -1,0 +1,69 @@
+//! The error type of this crate.
+
+use crate::ElementKind;
+
+/// Everything that can be wrong with a mesh, a generator's parameters or a
+/// vertex selection. Each variant names the vertex, element or parameter.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum MeshError {
+    /// A vertex coordinate is NaN or infinite.
+    #[error("vertex {vertex} has a non-finite coordinate")]
+    NonFiniteVertex {
+        /// Index of the vertex.
+        vertex: usize,
+    },
+    /// An element refers to a vertex that does not exist.
+    #[error("{kind} {element} refers to vertex {index}, but the mesh has {num_vertices} vertices")]
+    IndexOutOfRange {
+        /// Kind of element.
+        kind: ElementKind,
+        /// Index of the element.
+        element: usize,
+        /// The offending vertex index.
+        index: usize,
+        /// Number of vertices in the mesh.
+        num_vertices: usize,
+    },
+    /// An element uses the same vertex twice.
+    #[error("{kind} {element} uses vertex {vertex} more than once")]
+    RepeatedVertex {
+        /// Kind of element.
+        kind: ElementKind,
+        /// Index of the element.
+        element: usize,
+        /// The repeated vertex.
+        vertex: usize,
+    },
+    /// A tetrahedron has zero or negative rest volume (inverted or flat).
+    #[error(
+        "tetrahedron {element} has non-positive rest volume {volume:e} m^3 (inverted or flat; \
+         swap two of its vertices if it is inverted)"
+    )]
+    NonPositiveVolume {
+        /// Index of the tetrahedron.
+        element: usize,
+        /// Its signed volume.
+        volume: f64,
+    },
+    /// A triangle has zero rest area.
+    #[error("triangle {element} has zero rest area")]
+    ZeroArea {
+        /// Index of the triangle.
+        element: usize,
+    },
+    /// A density is not finite and positive.
+    #[error("density must be finite and > 0, got {density}")]
+    InvalidDensity {
+        /// The rejected value.
+        density: f64,
+    },
+    /// A generator or selection parameter is out of its domain.
+    #[error("invalid {name}: {reason}")]
+    InvalidParameter {
+        /// Name of the parameter, e.g. `cells`.
+        name: &'static str,
+        /// What is wrong with it.
+        reason: String,
+    },
+}
