@@ -1,1 +1,80 @@
-//! placeholder
+//! Projective Dynamics constraints: the energy terms
+//! `w/2 |G x - P(G x)|^2`, their local projections, energies and gradients,
+//! and the assembly of the constant operators the global step needs.
+//!
+//! A [`Constraint`] describes one term; a [`ConstraintSet`] stores many of one
+//! kind contiguously; the solver sees each set through the object-safe
+//! [`ConstraintBlock`] trait, one virtual call per range of constraints. The
+//! kinds are [`TetStrain`] (corotational strain, optionally strain-limited),
+//! [`Spring`] and [`Attachment`]. The mathematics is in
+//! `docs/constraints.md`.
+//!
+//! ```
+//! use pd_constraints::{assembly, ConstraintBlock, ConstraintSet, Spring};
+//! use pd_mesh::generators;
+//!
+//! // A chain of 3 springs; its Laplacian is the 1D stiffness matrix.
+//! let chain = generators::chain(4, 3.0).unwrap();
+//! let springs = ConstraintSet::new(
+//!     chain.edges().iter().map(|&e| Spring::new(chain.vertices(), e, 2.0)).collect::<Result<Vec<_>, _>>().unwrap(),
+//! );
+//! let blocks: Vec<Box<dyn ConstraintBlock>> = vec![Box::new(springs)];
+//! let l = assembly::laplacian(&blocks, 4, assembly::LaplacianKind::System);
+//! assert_eq!(l.row(1).collect::<Vec<_>>(), vec![(0, -2.0), (1, 4.0), (2, -2.0)]);
+//!
+//! // At rest every spring is satisfied: zero energy.
+//! assert_eq!(blocks[0].energy_range(chain.vertices(), 0..3), 0.0);
+//! ```
+
+pub mod assembly;
+mod attachment;
+mod constraint;
+mod set;
+mod sparse;
+mod spring;
+pub mod tet_strain;
+
+pub use attachment::Attachment;
+pub use constraint::Constraint;
+pub use set::{ConstraintBlock, ConstraintSet, MAX_ROWS};
+pub use sparse::{CsrMatrix, Triplet};
+pub use spring::Spring;
+pub use tet_strain::TetStrain;
+
+/// What can be wrong with a constraint's parameters.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ConstraintError {
+    /// A stiffness is negative, NaN or infinite.
+    #[error("stiffness must be finite and >= 0, got {stiffness}")]
+    InvalidStiffness {
+        /// The rejected value.
+        stiffness: f64,
+    },
+    /// Strain limits outside `0 <= min <= 1 <= max`.
+    #[error("strain limits must satisfy 0 <= min <= 1 <= max, got [{min}, {max}]")]
+    InvalidStrainLimits {
+        /// Lower limit.
+        min: f64,
+        /// Upper limit.
+        max: f64,
+    },
+    /// A spring rest length is negative or not finite.
+    #[error("rest length must be finite and >= 0, got {rest_length}")]
+    InvalidRestLength {
+        /// The rejected value.
+        rest_length: f64,
+    },
+    /// An attachment target is not finite.
+    #[error("attachment target of vertex {vertex} is not finite")]
+    NonFiniteTarget {
+        /// The attached vertex.
+        vertex: usize,
+    },
+    /// An element's rest shape is flat or inverted.
+    #[error("element with vertices {vertices:?} has a flat or inverted rest shape")]
+    DegenerateElement {
+        /// Its vertices.
+        vertices: Vec<usize>,
+    },
+}

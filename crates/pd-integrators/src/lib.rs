@@ -1,1 +1,112 @@
-//! placeholder
+//! Time integrators for Projective Dynamics, all in one form: each step
+//! minimises
+//!
+//! `g(x) = 1/(2h^2) |x - y|_M^2 + c1 E(c2 x + z) + Phi(x)`
+//!
+//! where `y` is the inertial target (external forces folded in), `E` the PD
+//! energy and `Phi` the implicit damping potential
+//! `1/2 c1 c2 gamma (x - x_hat)^T D (x - x_hat)`. An [`Integrator`] supplies
+//! `c1`, `c2`, `gamma`, the targets `y`, `z`, `x_hat`, and the velocity
+//! update; it owns whatever history it needs. The coefficient table and the
+//! derivation are in `docs/integrators.md` (DESIGN.md section 3.1).
+//!
+//! ```
+//! use pd_integrators::{BackwardEuler, Integrator, StepTargets};
+//! use nalgebra::Vector3;
+//!
+//! let mut be = BackwardEuler::new();
+//! let c = be.coefficients(0.1);
+//! assert_eq!((c.c1, c.c2), (1.0, 1.0));
+//!
+//! // One vertex at rest under gravity: the inertial target is x + h^2 g.
+//! let x = [Vector3::zeros()];
+//! let v = [Vector3::zeros()];
+//! let mut targets = StepTargets::with_len(1);
+//! let g = Vector3::new(0.0, -10.0, 0.0);
+//! be.prepare(0.1, &x, &v, g, &mut targets);
+//! assert!((targets.inertial[0].y + 0.1).abs() < 1e-15);
+//! ```
+
+mod backward_euler;
+
+pub use backward_euler::BackwardEuler;
+
+use nalgebra::Vector3;
+
+/// A position, velocity or acceleration of one vertex (SI units).
+pub type Point = Vector3<f64>;
+
+/// The scalars of one step's objective (DESIGN.md 3.1 and 3.2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepCoefficients {
+    /// Factor `c1` of the elastic energy.
+    pub c1: f64,
+    /// Factor `c2` of `x` inside the energy, `E(c2 x + z)`.
+    pub c2: f64,
+    /// `gamma` in 1/s: the damping force is evaluated at the velocity
+    /// `gamma (x - x_hat)`.
+    pub gamma: f64,
+}
+
+/// The per-vertex targets of one step, computed by [`Integrator::prepare`].
+/// Buffers are sized once and reused, so preparing a step allocates nothing.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct StepTargets {
+    /// The inertial target `y` (m).
+    pub inertial: Vec<Point>,
+    /// The offset `z` inside the energy, `E(c2 x + z)` (m).
+    pub offset: Vec<Point>,
+    /// The damping anchor `x_hat` (m).
+    pub damping_anchor: Vec<Point>,
+}
+
+impl StepTargets {
+    /// Zeroed targets for `n` vertices.
+    pub fn with_len(n: usize) -> Self {
+        Self {
+            inertial: vec![Point::zeros(); n],
+            offset: vec![Point::zeros(); n],
+            damping_anchor: vec![Point::zeros(); n],
+        }
+    }
+}
+
+/// One integrator of the form above.
+///
+/// A step is `coefficients()`, then `prepare(...)`, then the solver's
+/// minimisation, then `finish(...)`, which computes the new velocities and
+/// updates the history.
+pub trait Integrator: std::fmt::Debug + Send + Sync {
+    /// Name as scenes spell it (`backward-euler`).
+    fn name(&self) -> &'static str;
+
+    /// Coefficients of the coming step of length `h` (s). They may change
+    /// between steps (a multistep method's start-up), so the solver keys its
+    /// cached factorisations on them.
+    fn coefficients(&self, h: f64) -> StepCoefficients;
+
+    /// Fills `targets` for a step of length `h` (s) from positions `x_n`,
+    /// velocities `v_n` and a uniform external acceleration (m/s^2).
+    fn prepare(
+        &self,
+        h: f64,
+        positions: &[Point],
+        velocities: &[Point],
+        acceleration: Point,
+        targets: &mut StepTargets,
+    );
+
+    /// Writes the new velocities for the solved positions and records the
+    /// step in the history.
+    fn finish(
+        &mut self,
+        h: f64,
+        previous_positions: &[Point],
+        previous_velocities: &[Point],
+        positions: &[Point],
+        velocities: &mut [Point],
+    );
+
+    /// Forgets the history (after the state is replaced from outside).
+    fn reset(&mut self) {}
+}

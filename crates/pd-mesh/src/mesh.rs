@@ -98,7 +98,10 @@ impl Mesh {
         triangles: Vec<[usize; 3]>,
         edges: Option<Vec<[usize; 2]>>,
     ) -> Result<Self, MeshError> {
-        if let Some(vertex) = vertices.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+        if let Some(vertex) = vertices
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
             return Err(MeshError::NonFiniteVertex { vertex });
         }
         let n = vertices.len();
@@ -184,7 +187,10 @@ impl Mesh {
 
     /// Rest volume of every tetrahedron, in m^3 (all positive by construction).
     pub fn tet_volumes(&self) -> Vec<f64> {
-        self.tets.iter().map(|t| tet_volume(&self.vertices, t)).collect()
+        self.tets
+            .iter()
+            .map(|t| tet_volume(&self.vertices, t))
+            .collect()
     }
 
     /// Rest area of every triangle, in m^2.
@@ -199,9 +205,11 @@ impl Mesh {
     /// vertices.
     pub fn bounding_box(&self) -> Option<(Point, Point)> {
         let first = *self.vertices.first()?;
-        Some(self.vertices.iter().fold((first, first), |(lo, hi), p| {
-            (lo.inf(p), hi.sup(p))
-        }))
+        Some(
+            self.vertices
+                .iter()
+                .fold((first, first), |(lo, hi), p| (lo.inf(p), hi.sup(p))),
+        )
     }
 
     /// Lumped vertex masses from a density, in kg.
@@ -319,7 +327,10 @@ mod tests {
     #[test]
     fn inverted_tet_is_rejected_with_its_index() {
         let err = Mesh::from_tets(unit_tet(), vec![[0, 1, 2, 3], [0, 2, 1, 3]]).unwrap_err();
-        assert!(matches!(err, MeshError::NonPositiveVolume { element: 1, .. }), "{err}");
+        assert!(
+            matches!(err, MeshError::NonPositiveVolume { element: 1, .. }),
+            "{err}"
+        );
     }
 
     #[test]
@@ -327,7 +338,10 @@ mod tests {
         let mut v = unit_tet();
         v[3] = Point::new(0.3, 0.3, 0.0);
         let err = Mesh::from_tets(v, vec![[0, 1, 2, 3]]).unwrap_err();
-        assert!(matches!(err, MeshError::NonPositiveVolume { element: 0, .. }));
+        assert!(matches!(
+            err,
+            MeshError::NonPositiveVolume { element: 0, .. }
+        ));
         assert!(err.to_string().contains("tetrahedron 0"), "{err}");
     }
 
@@ -359,7 +373,11 @@ mod tests {
 
     #[test]
     fn edge_masses_use_length() {
-        let v = vec![Point::zeros(), Point::new(2.0, 0.0, 0.0), Point::new(2.0, 1.0, 0.0)];
+        let v = vec![
+            Point::zeros(),
+            Point::new(2.0, 0.0, 0.0),
+            Point::new(2.0, 1.0, 0.0),
+        ];
         let mesh = Mesh::from_edges(v, vec![[0, 1], [2, 1], [1, 0]]).unwrap();
         assert_eq!(mesh.edges(), &[[0, 1], [1, 2]]);
         let m = mesh.lumped_masses(3.0).unwrap();

@@ -1,0 +1,55 @@
+//! Assembly of the constant PD operators from a list of constraint blocks:
+//! the system Laplacian `L_sys = sum_i w_i G_i^T G_i`, the damping Laplacian
+//! `L_d` (translation-invariant constraints only) and the projection operator
+//! `B = sum_i w_i G_i^T S_i` that maps stacked projections to forces.
+
+use crate::{ConstraintBlock, CsrMatrix, Triplet};
+
+/// Which constraints a Laplacian is assembled from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LaplacianKind {
+    /// Every constraint: the system Laplacian `L_sys` of the global step.
+    System,
+    /// Only translation-invariant (elastic) constraints: the damping
+    /// Laplacian `L_d`, for which `L_d 1 = 0`.
+    Damping,
+}
+
+/// Assembles the n x n Laplacian of `blocks` over `num_vertices` vertices.
+pub fn laplacian(
+    blocks: &[Box<dyn ConstraintBlock>],
+    num_vertices: usize,
+    kind: LaplacianKind,
+) -> CsrMatrix {
+    let mut triplets: Vec<Triplet> = Vec::new();
+    for block in blocks {
+        if kind == LaplacianKind::System || block.translation_invariant() {
+            block.add_laplacian(&mut triplets);
+        }
+    }
+    CsrMatrix::from_triplets(num_vertices, num_vertices, &triplets)
+}
+
+/// First projection row of each block and the total number of rows, for a
+/// stacked projection vector holding every block's rows in order.
+pub fn projection_offsets(blocks: &[Box<dyn ConstraintBlock>]) -> (Vec<usize>, usize) {
+    let mut offsets = Vec::with_capacity(blocks.len());
+    let mut total = 0;
+    for block in blocks {
+        offsets.push(total);
+        total += block.len() * block.rows_per_constraint();
+    }
+    (offsets, total)
+}
+
+/// Assembles the n x R projection operator `B = sum_i w_i G_i^T S_i`, so that
+/// `B p` is the constraint part of the global step's right-hand side for
+/// stacked projections `p` (R rows, block by block).
+pub fn projection_operator(blocks: &[Box<dyn ConstraintBlock>], num_vertices: usize) -> CsrMatrix {
+    let (offsets, total) = projection_offsets(blocks);
+    let mut triplets = Vec::new();
+    for (block, first_row) in blocks.iter().zip(offsets) {
+        block.add_projection_operator(first_row, &mut triplets);
+    }
+    CsrMatrix::from_triplets(num_vertices, total, &triplets)
+}

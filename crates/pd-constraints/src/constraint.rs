@@ -1,0 +1,49 @@
+//! The [`Constraint`] trait: one PD energy term `w/2 |G x - P(G x)|^2`.
+
+use pd_mesh::Point;
+
+/// One Projective Dynamics constraint: a weight `w`, a stencil of vertices,
+/// a linear operator `G` (ROWS x STENCIL, applied to each of the x, y, z
+/// columns alike) and a projection `P` onto the constraint set. Its energy is
+/// `E(x) = w/2 |G x - P(G x)|^2` and, because `P` is the closest-point
+/// projection, its gradient is `w G^T (G x - P(G x))`
+/// (`docs/constraints.md`).
+///
+/// Implementations describe a single constraint; [`crate::ConstraintSet`]
+/// stores many of one kind contiguously and runs the loops.
+pub trait Constraint: Clone + std::fmt::Debug + Send + Sync + 'static {
+    /// Number of vertices in the stencil.
+    const STENCIL: usize;
+    /// Number of rows of `G x` (and of the projection).
+    const ROWS: usize;
+    /// Whether `G 1 = 0`: the constraint sees only relative positions, so it
+    /// exerts no net force and belongs in the damping Laplacian.
+    const TRANSLATION_INVARIANT: bool;
+    /// Short name of the kind, as scenes spell it (`tet-strain`).
+    const KIND: &'static str;
+
+    /// The stencil: `STENCIL` vertex indices.
+    fn vertices(&self) -> &[usize];
+    /// The weight `w` (N/m for springs and attachments, N/m^2 x m^3 = N m for
+    /// strain).
+    fn weight(&self) -> f64;
+    /// Entry `(row, column)` of `G`, `row < ROWS`, `column < STENCIL`.
+    fn operator(&self, row: usize, column: usize) -> f64;
+    /// Projects `gx` (the `ROWS` rows of `G x`) onto the constraint set,
+    /// writing `ROWS` rows into `out`.
+    fn project(&self, gx: &[Point], out: &mut [Point]);
+}
+
+/// Computes the `ROWS` rows of `G q` for one constraint into `gx`.
+#[inline]
+pub(crate) fn apply_operator<C: Constraint>(c: &C, q: &[Point], gx: &mut [Point]) {
+    for (row, out) in gx.iter_mut().enumerate() {
+        *out = c
+            .vertices()
+            .iter()
+            .enumerate()
+            .fold(Point::zeros(), |acc, (col, &v)| {
+                acc + q[v] * c.operator(row, col)
+            });
+    }
+}

@@ -1,0 +1,164 @@
+//! Contiguous storage of one constraint kind and the object-safe interface
+//! the solver iterates over.
+
+use std::ops::Range;
+
+use pd_mesh::Point;
+
+use crate::{Constraint, Triplet, constraint::apply_operator};
+
+/// Largest `ROWS` of any constraint kind: the local step keeps `G q` and the
+/// projection of one constraint on the stack.
+pub const MAX_ROWS: usize = 4;
+
+/// Many constraints of one kind `C`, stored contiguously so that the loops
+/// over them are monomorphic.
+#[derive(Debug, Clone)]
+pub struct ConstraintSet<C: Constraint> {
+    constraints: Vec<C>,
+}
+
+impl<C: Constraint> ConstraintSet<C> {
+    /// Wraps a vector of constraints of one kind.
+    pub fn new(constraints: Vec<C>) -> Self {
+        const { assert!(C::ROWS <= MAX_ROWS) };
+        Self { constraints }
+    }
+
+    /// The constraints.
+    pub fn constraints(&self) -> &[C] {
+        &self.constraints
+    }
+}
+
+/// What the solver needs of a set of constraints, independent of their kind.
+/// One virtual call covers a whole range of constraints, so dynamic dispatch
+/// never sits in the inner loop.
+pub trait ConstraintBlock: std::fmt::Debug + Send + Sync {
+    /// The kind's name, as scenes spell it.
+    fn kind(&self) -> &'static str;
+    /// Number of constraints.
+    fn len(&self) -> usize;
+    /// Whether the block holds no constraint.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Projection rows per constraint (`ROWS`).
+    fn rows_per_constraint(&self) -> usize;
+    /// Whether every constraint has `G 1 = 0` (no net force).
+    fn translation_invariant(&self) -> bool;
+    /// Largest vertex index used, if any.
+    fn max_vertex(&self) -> Option<usize>;
+    /// Appends the entries of `sum_i w_i G_i^T G_i` (n x n, duplicates to be
+    /// summed).
+    fn add_laplacian(&self, out: &mut Vec<Triplet>);
+    /// Appends the entries of `sum_i w_i G_i^T S_i`, the operator that maps
+    /// the stacked projections to the right-hand side: entry (vertex, row),
+    /// with this block's projection rows starting at `first_row`.
+    fn add_projection_operator(&self, first_row: usize, out: &mut Vec<Triplet>);
+    /// Local step for constraints `first..first + out.len() / ROWS`: projects
+    /// each at the positions `q`, writing its rows into `out`.
+    fn project_range(&self, q: &[Point], first: usize, out: &mut [Point]);
+    /// Energy `sum w_i/2 |G_i q - P_i(G_i q)|^2` of the constraints in `range`, in J.
+    fn energy_range(&self, q: &[Point], range: Range<usize>) -> f64;
+    /// Adds the energy gradient `w_i G_i^T (G_i q - P_i(G_i q))` of every
+    /// constraint to `gradient` (one entry per vertex, in N).
+    fn add_gradient(&self, q: &[Point], gradient: &mut [Point]);
+}
+
+impl<C: Constraint> ConstraintBlock for ConstraintSet<C> {
+    fn kind(&self) -> &'static str {
+        C::KIND
+    }
+
+    fn len(&self) -> usize {
+        self.constraints.len()
+    }
+
+    fn rows_per_constraint(&self) -> usize {
+        C::ROWS
+    }
+
+    fn translation_invariant(&self) -> bool {
+        C::TRANSLATION_INVARIANT
+    }
+
+    fn max_vertex(&self) -> Option<usize> {
+        self.constraints
+            .iter()
+            .flat_map(|c| c.vertices().iter().copied())
+            .max()
+    }
+
+    fn add_laplacian(&self, out: &mut Vec<Triplet>) {
+        out.reserve(self.constraints.len() * C::STENCIL * C::STENCIL);
+        for c in &self.constraints {
+            let w = c.weight();
+            for (a, &va) in c.vertices().iter().enumerate() {
+                for (b, &vb) in c.vertices().iter().enumerate() {
+                    let value: f64 = (0..C::ROWS)
+                        .map(|r| c.operator(r, a) * c.operator(r, b))
+                        .sum();
+                    out.push(Triplet::new(va, vb, w * value));
+                }
+            }
+        }
+    }
+
+    fn add_projection_operator(&self, first_row: usize, out: &mut Vec<Triplet>) {
+        out.reserve(self.constraints.len() * C::STENCIL * C::ROWS);
+        for (i, c) in self.constraints.iter().enumerate() {
+            let w = c.weight();
+            for (a, &va) in c.vertices().iter().enumerate() {
+                for r in 0..C::ROWS {
+                    out.push(Triplet::new(
+                        va,
+                        first_row + i * C::ROWS + r,
+                        w * c.operator(r, a),
+                    ));
+                }
+            }
+        }
+    }
+
+    fn project_range(&self, q: &[Point], first: usize, out: &mut [Point]) {
+        let count = out.len() / C::ROWS;
+        let mut gx = [Point::zeros(); MAX_ROWS];
+        for (c, rows) in self.constraints[first..first + count]
+            .iter()
+            .zip(out.chunks_exact_mut(C::ROWS))
+        {
+            apply_operator(c, q, &mut gx[..C::ROWS]);
+            c.project(&gx[..C::ROWS], rows);
+        }
+    }
+
+    fn energy_range(&self, q: &[Point], range: Range<usize>) -> f64 {
+        let mut gx = [Point::zeros(); MAX_ROWS];
+        let mut p = [Point::zeros(); MAX_ROWS];
+        self.constraints[range]
+            .iter()
+            .map(|c| {
+                apply_operator(c, q, &mut gx[..C::ROWS]);
+                c.project(&gx[..C::ROWS], &mut p[..C::ROWS]);
+                let distance2: f64 = (0..C::ROWS).map(|r| (gx[r] - p[r]).norm_squared()).sum();
+                0.5 * c.weight() * distance2
+            })
+            .sum()
+    }
+
+    fn add_gradient(&self, q: &[Point], gradient: &mut [Point]) {
+        let mut gx = [Point::zeros(); MAX_ROWS];
+        let mut p = [Point::zeros(); MAX_ROWS];
+        for c in &self.constraints {
+            apply_operator(c, q, &mut gx[..C::ROWS]);
+            c.project(&gx[..C::ROWS], &mut p[..C::ROWS]);
+            for (a, &v) in c.vertices().iter().enumerate() {
+                let g: Point = (0..C::ROWS)
+                    .map(|r| (gx[r] - p[r]) * c.operator(r, a))
+                    .sum();
+                gradient[v] += g * c.weight();
+            }
+        }
+    }
+}

@@ -1,0 +1,235 @@
+//! Corotational tetrahedral strain: `w/2 |F - R|^2` with `R` the closest
+//! proper rotation to the deformation gradient `F`, optionally relaxed to a
+//! strain limit on its singular values.
+
+use nalgebra::{Matrix3, Vector3};
+use pd_mesh::Point;
+
+use crate::{Constraint, ConstraintError};
+
+/// A tetrahedral strain constraint.
+///
+/// With rest edge matrix `Dm = [X1 - X0, X2 - X0, X3 - X0]` and `B = Dm^-1`,
+/// the deformation gradient is `F = Ds B`, and `F^T = G [x0; x1; x2; x3]`
+/// with the 3 x 4 operator `G = B^T [-1 | I]`: the rows of `G x` are the
+/// columns of `F`. The projection is the closest proper rotation `R = U V^T`
+/// from a signed SVD (so an inverted element projects to a rotation, not a
+/// reflection), or with strain limits `[min, max]` the matrix
+/// `U clamp(S, min, max) V^T`. The weight is `stiffness * rest volume`; with
+/// Poisson ratio 0 the stiffness plays the part of Young's modulus (Pa).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TetStrain {
+    vertices: [usize; 4],
+    weight: f64,
+    operator: [[f64; 4]; 3],
+    limits: Option<(f64, f64)>,
+}
+
+impl TetStrain {
+    /// Builds the constraint of tetrahedron `tet` from rest positions.
+    ///
+    /// `stiffness` is in Pa; `limits`, if given, are the allowed range of the
+    /// principal stretches, `0 <= min <= 1 <= max`.
+    ///
+    /// # Errors
+    /// A degenerate rest shape, or a negative or non-finite stiffness or
+    /// limit.
+    pub fn new(
+        rest: &[Point],
+        tet: [usize; 4],
+        stiffness: f64,
+        limits: Option<(f64, f64)>,
+    ) -> Result<Self, ConstraintError> {
+        check_stiffness(stiffness)?;
+        if let Some((min, max)) = limits {
+            if !(min.is_finite() && max.is_finite() && 0.0 <= min && min <= 1.0 && max >= 1.0) {
+                return Err(ConstraintError::InvalidStrainLimits { min, max });
+            }
+        }
+        let [x0, x1, x2, x3] = tet.map(|v| rest[v]);
+        let rest_edges = Matrix3::from_columns(&[x1 - x0, x2 - x0, x3 - x0]);
+        let volume = rest_edges.determinant() / 6.0;
+        let inverse = rest_edges.try_inverse().filter(|_| volume > 0.0).ok_or(
+            ConstraintError::DegenerateElement {
+                vertices: tet.to_vec(),
+            },
+        )?;
+        let mut operator = [[0.0; 4]; 3];
+        for (row, g) in operator.iter_mut().enumerate() {
+            // Row `row` of B^T [-1 | I]: B^T[row][j] = B[j][row].
+            g[0] = -(0..3).map(|j| inverse[(j, row)]).sum::<f64>();
+            for j in 0..3 {
+                g[j + 1] = inverse[(j, row)];
+            }
+        }
+        Ok(Self {
+            vertices: tet,
+            weight: stiffness * volume,
+            operator,
+            limits,
+        })
+    }
+}
+
+impl Constraint for TetStrain {
+    const STENCIL: usize = 4;
+    const ROWS: usize = 3;
+    const TRANSLATION_INVARIANT: bool = true;
+    const KIND: &'static str = "tet-strain";
+
+    fn vertices(&self) -> &[usize] {
+        &self.vertices
+    }
+
+    fn weight(&self) -> f64 {
+        self.weight
+    }
+
+    fn operator(&self, row: usize, column: usize) -> f64 {
+        self.operator[row][column]
+    }
+
+    fn project(&self, gx: &[Point], out: &mut [Point]) {
+        let f = Matrix3::from_columns(&[gx[0], gx[1], gx[2]]);
+        let target = match self.limits {
+            None => closest_rotation(&f),
+            Some((min, max)) => clamp_singular_values(&f, min, max),
+        };
+        for (row, p) in out.iter_mut().enumerate() {
+            *p = target.column(row).into_owned();
+        }
+    }
+}
+
+/// Signed SVD `F = U diag(s) V^T` with `U`, `V` proper rotations; the sign of
+/// `det F` goes to the smallest singular value. Falls back to the identity
+/// factors for a non-finite `F` so that the caller's divergence check, not a
+/// panic, reports it.
+pub fn signed_svd(f: &Matrix3<f64>) -> (Matrix3<f64>, Vector3<f64>, Matrix3<f64>) {
+    let svd = f.svd(true, true);
+    let (Some(mut u), Some(v_t)) = (svd.u, svd.v_t) else {
+        return (
+            Matrix3::identity(),
+            Vector3::from_element(f64::NAN),
+            Matrix3::identity(),
+        );
+    };
+    let mut s = svd.singular_values;
+    let mut v = v_t.transpose();
+    let smallest = s.imin();
+    if u.determinant() < 0.0 {
+        u.column_mut(smallest).neg_mut();
+        s[smallest] = -s[smallest];
+    }
+    if v.determinant() < 0.0 {
+        v.column_mut(smallest).neg_mut();
+        s[smallest] = -s[smallest];
+    }
+    (u, s, v)
+}
+
+/// The proper rotation closest to `f` in the Frobenius norm.
+pub fn closest_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
+    let (u, _, v) = signed_svd(f);
+    u * v.transpose()
+}
+
+fn clamp_singular_values(f: &Matrix3<f64>, min: f64, max: f64) -> Matrix3<f64> {
+    let (u, s, v) = signed_svd(f);
+    let clamped = s.map(|sigma| sigma.clamp(min, max));
+    u * Matrix3::from_diagonal(&clamped) * v.transpose()
+}
+
+pub(crate) fn check_stiffness(stiffness: f64) -> Result<(), ConstraintError> {
+    if stiffness.is_finite() && stiffness >= 0.0 {
+        Ok(())
+    } else {
+        Err(ConstraintError::InvalidStiffness { stiffness })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn is_proper_rotation(r: &Matrix3<f64>) -> bool {
+        // Orthonormality and det = +1 hold to a few ulps of the SVD's
+        // 1e-14 accuracy (ECOSYSTEM.md).
+        (r.transpose() * r - Matrix3::identity()).norm() < 1e-12
+            && (r.determinant() - 1.0).abs() < 1e-12
+    }
+
+    #[test]
+    fn inverted_and_degenerate_gradients_project_to_rotations() {
+        let cases = [
+            Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, -1.0)),
+            Matrix3::from_diagonal(&Vector3::new(2.0, 0.5, -0.1)),
+            Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 0.0)),
+            Matrix3::from_diagonal(&Vector3::new(1.0, 0.0, 0.0)),
+            Matrix3::zeros(),
+            Matrix3::new(0.3, -1.2, 0.5, 2.0, 0.1, -0.7, -0.4, 0.9, 0.2),
+            -Matrix3::identity(),
+        ];
+        for f in cases {
+            let r = closest_rotation(&f);
+            assert!(is_proper_rotation(&r), "F = {f}, R = {r}");
+        }
+    }
+
+    #[test]
+    fn rotation_of_a_rotation_is_itself() {
+        let r = nalgebra::Rotation3::from_euler_angles(0.3, -1.1, 2.0).into_inner();
+        assert!((closest_rotation(&r) - r).norm() < 1e-12);
+        assert!((closest_rotation(&(r * 2.5)) - r).norm() < 1e-12);
+    }
+
+    #[test]
+    fn reflection_projects_to_closest_rotation() {
+        // F = diag(3, 2, -1): the closest rotation flips the axis of the
+        // smallest |sigma| only, giving diag(1, 1, 1) at distance |(-1) - 1| = 2
+        // (flipping any other axis costs more).
+        let f = Matrix3::from_diagonal(&Vector3::new(3.0, 2.0, -1.0));
+        let r = closest_rotation(&f);
+        assert!((r - Matrix3::identity()).norm() < 1e-12, "{r}");
+    }
+
+    #[test]
+    fn strain_limits_clamp_stretches() {
+        let f = Matrix3::from_diagonal(&Vector3::new(1.5, 0.5, 1.0));
+        let p = clamp_singular_values(&f, 0.9, 1.1);
+        assert!((p - Matrix3::from_diagonal(&Vector3::new(1.1, 0.9, 1.0))).norm() < 1e-12);
+    }
+
+    #[test]
+    fn operator_reproduces_deformation_gradient() {
+        let rest = vec![
+            Point::new(0.0, 0.0, 0.0),
+            Point::new(1.0, 0.0, 0.0),
+            Point::new(0.0, 2.0, 0.0),
+            Point::new(0.0, 0.0, 0.5),
+        ];
+        let c = TetStrain::new(&rest, [0, 1, 2, 3], 10.0, None).unwrap();
+        assert!((c.weight() - 10.0 * (1.0 / 6.0)).abs() < 1e-14);
+        let a = Matrix3::new(1.1, 0.2, -0.3, 0.0, 0.9, 0.4, 0.5, -0.1, 1.3);
+        let deformed: Vec<Point> = rest
+            .iter()
+            .map(|x| a * x + Point::new(1.0, 2.0, 3.0))
+            .collect();
+        let mut gx = [Point::zeros(); 3];
+        crate::constraint::apply_operator(&c, &deformed, &mut gx);
+        let f = Matrix3::from_columns(&gx);
+        assert!((f - a).norm() < 1e-12, "{f} vs {a}");
+    }
+
+    #[test]
+    fn invalid_parameters_are_rejected() {
+        let rest = vec![Point::zeros(), Point::x(), Point::y(), Point::z()];
+        assert!(matches!(
+            TetStrain::new(&rest, [0, 1, 2, 3], -1.0, None),
+            Err(ConstraintError::InvalidStiffness { .. })
+        ));
+        assert!(TetStrain::new(&rest, [0, 1, 2, 3], f64::NAN, None).is_err());
+        assert!(TetStrain::new(&rest, [0, 1, 2, 3], 1.0, Some((1.2, 2.0))).is_err());
+        assert!(TetStrain::new(&rest, [0, 2, 1, 3], 1.0, None).is_err());
+    }
+}

@@ -1,0 +1,69 @@
+//! Backward (implicit) Euler.
+
+use crate::{Integrator, Point, StepCoefficients, StepTargets};
+
+/// Backward Euler: `c1 = c2 = 1`, `z = 0`, `y = x_n + h v_n + h^2 a`,
+/// `x_hat = x_n`, `gamma = 1/h`, and `v_{n+1} = (x_{n+1} - x_n)/h`.
+///
+/// First order; it damps a mode of frequency `omega` by about `h omega / 2`
+/// per unit time (numerical damping), and never increases the energy of a
+/// convex system solved to convergence.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct BackwardEuler;
+
+impl BackwardEuler {
+    /// A new backward Euler integrator.
+    pub fn new() -> Self {
+        Self
+    }
+}
+
+impl Integrator for BackwardEuler {
+    fn name(&self) -> &'static str {
+        "backward-euler"
+    }
+
+    fn coefficients(&self, h: f64) -> StepCoefficients {
+        StepCoefficients {
+            c1: 1.0,
+            c2: 1.0,
+            gamma: 1.0 / h,
+        }
+    }
+
+    fn prepare(
+        &self,
+        h: f64,
+        positions: &[Point],
+        velocities: &[Point],
+        acceleration: Point,
+        targets: &mut StepTargets,
+    ) {
+        let h2a = acceleration * (h * h);
+        for (((y, z), anchor), (x, v)) in targets
+            .inertial
+            .iter_mut()
+            .zip(targets.offset.iter_mut())
+            .zip(targets.damping_anchor.iter_mut())
+            .zip(positions.iter().zip(velocities))
+        {
+            *y = x + v * h + h2a;
+            *z = Point::zeros();
+            *anchor = *x;
+        }
+    }
+
+    fn finish(
+        &mut self,
+        h: f64,
+        previous_positions: &[Point],
+        _previous_velocities: &[Point],
+        positions: &[Point],
+        velocities: &mut [Point],
+    ) {
+        let inv_h = 1.0 / h;
+        for ((v, x), x0) in velocities.iter_mut().zip(positions).zip(previous_positions) {
+            *v = (x - x0) * inv_h;
+        }
+    }
+}

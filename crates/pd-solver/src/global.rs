@@ -1,0 +1,181 @@
+//! The global step: the constant operators restricted to the free vertices,
+//! the global matrix `A = alpha M + beta L_sys + delta L_d` (DESIGN.md 3.2),
+//! and its cached factorisations.
+
+use crate::cholesky::{LowerPattern, NumericFactor, SymbolicFactor};
+use crate::{SolverError, local::LocalStep};
+use pd_constraints::{CsrMatrix, assembly, assembly::LaplacianKind};
+
+/// Marks a fixed vertex in the free-vertex map.
+const FIXED: usize = usize::MAX;
+
+/// The coefficients that determine the global matrix
+/// `A = mass M + system L_sys + damping L_d`; a factorisation is cached per
+/// distinct value (compared bit for bit).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct MatrixCoefficients {
+    pub mass: f64,
+    pub system: f64,
+    pub damping: f64,
+}
+
+impl MatrixCoefficients {
+    fn bits(&self) -> [u64; 3] {
+        [
+            self.mass.to_bits(),
+            self.system.to_bits(),
+            self.damping.to_bits(),
+        ]
+    }
+}
+
+/// Operators over the free vertices and the factorisation machinery.
+#[derive(Debug)]
+pub(crate) struct GlobalSystem {
+    /// Global index of each free vertex.
+    pub free: Vec<usize>,
+    /// Rows of `L_sys` for the free vertices (all columns).
+    pub system_rows: CsrMatrix,
+    /// Rows of `L_d` for the free vertices (all columns); empty when no
+    /// model damps with it.
+    pub damping_rows: CsrMatrix,
+    /// Rows of the projection operator `B` for the free vertices.
+    pub projection_rows: CsrMatrix,
+    /// Per pattern slot: the mass on the diagonal, else 0.
+    mass_part: Vec<f64>,
+    /// Per pattern slot: the entry of `L_sys`.
+    system_part: Vec<f64>,
+    /// Per pattern slot: the entry of `L_d`.
+    damping_part: Vec<f64>,
+    symbolic: SymbolicFactor,
+    cache: Vec<([u64; 3], NumericFactor)>,
+    values: Vec<f64>,
+}
+
+impl GlobalSystem {
+    /// Assembles the operators and analyses the pattern (once per model).
+    pub fn new(local: &LocalStep, masses: &[f64], fixed: &[bool]) -> Result<Self, SolverError> {
+        let n = masses.len();
+        let mut free_index = vec![FIXED; n];
+        let mut free = Vec::with_capacity(n);
+        for v in 0..n {
+            if !fixed[v] {
+                if !(masses[v] > 0.0) {
+                    return Err(SolverError::InvalidModel {
+                        reason: format!(
+                            "vertex {v} is free but has mass {}: every free vertex needs a positive \
+                             mass (is it touched by no element?)",
+                            masses[v]
+                        ),
+                    });
+                }
+                free_index[v] = free.len();
+                free.push(v);
+            }
+        }
+        if free.is_empty() {
+            return Err(SolverError::InvalidModel {
+                reason: "every vertex is fixed: nothing to simulate".into(),
+            });
+        }
+        let system = assembly::laplacian(local.blocks(), n, LaplacianKind::System);
+        let damping = assembly::laplacian(local.blocks(), n, LaplacianKind::Damping);
+        let projection = assembly::projection_operator(local.blocks(), n);
+
+        // Lower triangle over free vertices: diagonal plus every L_sys entry
+        // (L_d's pattern is a subset, as its constraints are among L_sys's).
+        let nf = free.len();
+        let mut per_column: Vec<Vec<usize>> = (0..nf).map(|j| vec![j]).collect();
+        for t in system.triplets() {
+            let (fr, fc) = (free_index[t.row], free_index[t.column]);
+            if fr != FIXED && fc != FIXED && fr > fc {
+                per_column[fc].push(fr);
+            }
+        }
+        let mut col_ptr = Vec::with_capacity(nf + 1);
+        let mut row_idx = Vec::new();
+        col_ptr.push(0);
+        for rows in &mut per_column {
+            rows.sort_unstable();
+            rows.dedup();
+            row_idx.extend_from_slice(rows);
+            col_ptr.push(row_idx.len());
+        }
+        drop(per_column);
+        let pattern = LowerPattern {
+            n: nf,
+            col_ptr,
+            row_idx,
+        };
+        let slot = |row: usize, col: usize| -> usize {
+            let range = pattern.col_ptr[col]..pattern.col_ptr[col + 1];
+            let within = pattern.row_idx[range.clone()]
+                .binary_search(&row)
+                .expect("every entry of L_sys is in the pattern");
+            range.start + within
+        };
+        let len = pattern.row_idx.len();
+        let mut mass_part = vec![0.0; len];
+        let mut system_part = vec![0.0; len];
+        let mut damping_part = vec![0.0; len];
+        for (f, &v) in free.iter().enumerate() {
+            mass_part[slot(f, f)] = masses[v];
+        }
+        for (matrix, part) in [(&system, &mut system_part), (&damping, &mut damping_part)] {
+            for t in matrix.triplets() {
+                let (fr, fc) = (free_index[t.row], free_index[t.column]);
+                if fr != FIXED && fc != FIXED && fr >= fc {
+                    part[slot(fr, fc)] += t.value;
+                }
+            }
+        }
+        let symbolic = SymbolicFactor::analyse(pattern)?;
+        Ok(Self {
+            system_rows: system.select_rows(&free),
+            damping_rows: damping.select_rows(&free),
+            projection_rows: projection.select_rows(&free),
+            free,
+            mass_part,
+            system_part,
+            damping_part,
+            symbolic,
+            cache: Vec::new(),
+            values: vec![0.0; len],
+        })
+    }
+
+    /// Number of stored values of one Cholesky factor.
+    pub fn factor_len(&self) -> usize {
+        self.symbolic.factor_len()
+    }
+
+    /// Index in the cache of the factorisation for `coefficients`,
+    /// factorising (and returning `true`) only if it is not cached yet.
+    pub fn prepare_factor(
+        &mut self,
+        coefficients: MatrixCoefficients,
+    ) -> Result<(usize, bool), SolverError> {
+        let key = coefficients.bits();
+        if let Some(i) = self.cache.iter().position(|(k, _)| *k == key) {
+            return Ok((i, false));
+        }
+        for (((value, m), l), d) in self
+            .values
+            .iter_mut()
+            .zip(&self.mass_part)
+            .zip(&self.system_part)
+            .zip(&self.damping_part)
+        {
+            *value = coefficients.mass * m + coefficients.system * l + coefficients.damping * d;
+        }
+        let factor = self.symbolic.factorise(&self.values)?;
+        self.cache.push((key, factor));
+        Ok((self.cache.len() - 1, true))
+    }
+
+    /// Solves with cached factor `index`; `rhs` is free-vertices x 3.
+    pub fn solve(&mut self, index: usize, rhs: faer::MatMut<'_, f64>) {
+        let (_, factor) = &self.cache[index];
+        self.symbolic.solve_in_place(factor, rhs);
+    }
+}

@@ -1,0 +1,69 @@
+//! The local step: every constraint projected in parallel, each writing only
+//! its own rows of the stacked projection vector.
+
+use std::ops::Range;
+
+use pd_constraints::{ConstraintBlock, assembly};
+use pd_mesh::Point;
+use rayon::prelude::*;
+
+/// Constraints per parallel task: large enough that the per-task cost (one
+/// virtual call, one rayon job) is negligible, small enough to balance.
+const CHUNK: usize = 256;
+
+/// The constraint blocks and where their rows sit in the stacked projections.
+#[derive(Debug)]
+pub(crate) struct LocalStep {
+    blocks: Vec<Box<dyn ConstraintBlock>>,
+    offsets: Vec<usize>,
+    total_rows: usize,
+}
+
+impl LocalStep {
+    pub fn new(blocks: Vec<Box<dyn ConstraintBlock>>) -> Self {
+        let (offsets, total_rows) = assembly::projection_offsets(&blocks);
+        Self {
+            blocks,
+            offsets,
+            total_rows,
+        }
+    }
+
+    pub fn blocks(&self) -> &[Box<dyn ConstraintBlock>] {
+        &self.blocks
+    }
+
+    pub fn total_rows(&self) -> usize {
+        self.total_rows
+    }
+
+    /// Projects every constraint at `q` into `projections`.
+    pub fn project(&self, q: &[Point], projections: &mut [Point]) {
+        for (block, &offset) in self.blocks.iter().zip(&self.offsets) {
+            let rows = block.rows_per_constraint();
+            let mine = &mut projections[offset..offset + block.len() * rows];
+            mine.par_chunks_mut(CHUNK * rows)
+                .enumerate()
+                .for_each(|(chunk, out)| block.project_range(q, chunk * CHUNK, out));
+        }
+    }
+
+    /// Total constraint energy at `q` (J). Partial sums over fixed chunks are
+    /// added in order, so the result does not depend on the thread count.
+    pub fn energy(&self, q: &[Point]) -> f64 {
+        self.blocks
+            .iter()
+            .map(|block| {
+                let chunks: Vec<Range<usize>> = (0..block.len())
+                    .step_by(CHUNK)
+                    .map(|s| s..(s + CHUNK).min(block.len()))
+                    .collect();
+                let partial: Vec<f64> = chunks
+                    .into_par_iter()
+                    .map(|range| block.energy_range(q, range))
+                    .collect();
+                partial.iter().sum::<f64>()
+            })
+            .sum()
+    }
+}

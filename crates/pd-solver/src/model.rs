@@ -1,0 +1,270 @@
+//! The [`Model`]: bodies, masses, constraints and fixed vertices of a scene,
+//! in one global vertex numbering.
+
+use std::ops::Range;
+
+use pd_constraints::{Attachment, ConstraintBlock, ConstraintSet, Spring, TetStrain};
+use pd_mesh::{Mesh, Point};
+
+use crate::SolverError;
+
+/// Index of a body in a [`Model`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct BodyId(pub usize);
+
+/// One body: its mesh and where its vertices sit in the global numbering.
+#[derive(Debug, Clone)]
+pub struct Body {
+    /// The rest mesh, in the body's own vertex numbering.
+    pub mesh: Mesh,
+    /// Global index of the body's vertex 0.
+    pub offset: usize,
+}
+
+impl Body {
+    /// The body's vertices in the global numbering.
+    pub fn vertices(&self) -> Range<usize> {
+        self.offset..self.offset + self.mesh.num_vertices()
+    }
+}
+
+/// Everything that defines the mechanical system, independent of time
+/// stepping: rest positions, lumped masses, constraints (one contiguous
+/// vector per kind) and hard-fixed vertices. Only the kinds a scene uses
+/// hold any constraint, and only those are iterated over.
+///
+/// ```
+/// use pd_mesh::generators;
+/// use pd_solver::Model;
+///
+/// let beam = generators::box_tets([1.0, 0.2, 0.2], [5, 1, 1]).unwrap();
+/// let masses = beam.lumped_masses(1000.0).unwrap();
+/// let mut model = Model::new();
+/// let body = model.add_body(beam, masses).unwrap();
+/// model.add_tet_strain(body, 1e5, None).unwrap();
+/// model.fix_vertices(body, &[0, 6, 12, 18]).unwrap();
+/// assert_eq!(model.num_vertices(), 24);
+/// assert_eq!(model.num_constraints(), 30);
+/// ```
+#[derive(Debug, Clone, Default)]
+pub struct Model {
+    rest_positions: Vec<Point>,
+    masses: Vec<f64>,
+    fixed: Vec<bool>,
+    bodies: Vec<Body>,
+    tet_strain: Vec<TetStrain>,
+    springs: Vec<Spring>,
+    attachments: Vec<Attachment>,
+}
+
+impl Model {
+    /// An empty model.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds a body with one mass (kg) per vertex.
+    ///
+    /// # Errors
+    /// A mass count that differs from the vertex count, or a mass that is
+    /// negative or not finite.
+    pub fn add_body(&mut self, mesh: Mesh, masses: Vec<f64>) -> Result<BodyId, SolverError> {
+        let body = self.bodies.len();
+        if masses.len() != mesh.num_vertices() {
+            return Err(SolverError::InvalidModel {
+                reason: format!(
+                    "body {body}: {} masses for {} vertices",
+                    masses.len(),
+                    mesh.num_vertices()
+                ),
+            });
+        }
+        if let Some(vertex) = masses.iter().position(|m| !(m.is_finite() && *m >= 0.0)) {
+            return Err(SolverError::InvalidModel {
+                reason: format!(
+                    "body {body}: vertex {vertex} has mass {}; masses must be finite and >= 0",
+                    masses[vertex]
+                ),
+            });
+        }
+        let offset = self.rest_positions.len();
+        self.rest_positions.extend_from_slice(mesh.vertices());
+        self.masses.extend_from_slice(&masses);
+        self.fixed.resize(self.rest_positions.len(), false);
+        self.bodies.push(Body { mesh, offset });
+        Ok(BodyId(body))
+    }
+
+    /// Adds a corotational strain constraint for every tetrahedron of a body
+    /// (stiffness in Pa, optional stretch limits). Returns how many.
+    ///
+    /// # Errors
+    /// A body without tetrahedra, or invalid parameters.
+    pub fn add_tet_strain(
+        &mut self,
+        body: BodyId,
+        stiffness: f64,
+        limits: Option<(f64, f64)>,
+    ) -> Result<usize, SolverError> {
+        let b = self.body(body)?;
+        if b.mesh.tets().is_empty() {
+            return Err(SolverError::InvalidModel {
+                reason: format!("body {}: tet-strain needs a tetrahedral mesh", body.0),
+            });
+        }
+        let offset = b.offset;
+        let new: Result<Vec<_>, _> = b
+            .mesh
+            .tets()
+            .iter()
+            .map(|t| {
+                TetStrain::new(
+                    &self.rest_positions,
+                    t.map(|v| v + offset),
+                    stiffness,
+                    limits,
+                )
+            })
+            .collect();
+        let new = new.map_err(|source| SolverError::Constraint {
+            body: body.0,
+            source,
+        })?;
+        let count = new.len();
+        self.tet_strain.extend(new);
+        Ok(count)
+    }
+
+    /// Adds a spring along every edge of a body (stiffness in N/m, rest
+    /// length the rest distance). Returns how many.
+    ///
+    /// # Errors
+    /// A body without edges, or invalid parameters.
+    pub fn add_springs(&mut self, body: BodyId, stiffness: f64) -> Result<usize, SolverError> {
+        let b = self.body(body)?;
+        if b.mesh.edges().is_empty() {
+            return Err(SolverError::InvalidModel {
+                reason: format!("body {}: spring constraints need edges", body.0),
+            });
+        }
+        let offset = b.offset;
+        let new: Result<Vec<_>, _> = b
+            .mesh
+            .edges()
+            .iter()
+            .map(|e| Spring::new(&self.rest_positions, e.map(|v| v + offset), stiffness))
+            .collect();
+        let new = new.map_err(|source| SolverError::Constraint {
+            body: body.0,
+            source,
+        })?;
+        let count = new.len();
+        self.springs.extend(new);
+        Ok(count)
+    }
+
+    /// Softly attaches the given vertices of a body (its own numbering) to
+    /// their rest positions with `stiffness` in N/m.
+    ///
+    /// # Errors
+    /// A vertex out of range or invalid parameters.
+    pub fn add_attachments(
+        &mut self,
+        body: BodyId,
+        vertices: &[usize],
+        stiffness: f64,
+    ) -> Result<(), SolverError> {
+        let range = self.body_vertices(body, vertices)?;
+        for &v in vertices {
+            let global = range.start + v;
+            let attachment = Attachment::new(global, self.rest_positions[global], stiffness)
+                .map_err(|source| SolverError::Constraint {
+                    body: body.0,
+                    source,
+                })?;
+            self.attachments.push(attachment);
+        }
+        Ok(())
+    }
+
+    /// Removes the given vertices of a body (its own numbering) from the
+    /// unknowns: they stay at their positions, with zero velocity.
+    ///
+    /// # Errors
+    /// A vertex out of range.
+    pub fn fix_vertices(&mut self, body: BodyId, vertices: &[usize]) -> Result<(), SolverError> {
+        let range = self.body_vertices(body, vertices)?;
+        for &v in vertices {
+            self.fixed[range.start + v] = true;
+        }
+        Ok(())
+    }
+
+    /// Total number of vertices.
+    pub fn num_vertices(&self) -> usize {
+        self.rest_positions.len()
+    }
+
+    /// Total number of constraints of every kind.
+    pub fn num_constraints(&self) -> usize {
+        self.tet_strain.len() + self.springs.len() + self.attachments.len()
+    }
+
+    /// Rest positions (m), global numbering.
+    pub fn rest_positions(&self) -> &[Point] {
+        &self.rest_positions
+    }
+
+    /// Lumped masses (kg), global numbering.
+    pub fn masses(&self) -> &[f64] {
+        &self.masses
+    }
+
+    /// Whether each vertex is hard-fixed.
+    pub fn fixed(&self) -> &[bool] {
+        &self.fixed
+    }
+
+    /// The bodies, in the order they were added.
+    pub fn bodies(&self) -> &[Body] {
+        &self.bodies
+    }
+
+    /// The constraint sets that hold at least one constraint, one block per
+    /// kind.
+    pub fn constraint_blocks(&self) -> Vec<Box<dyn ConstraintBlock>> {
+        let mut blocks: Vec<Box<dyn ConstraintBlock>> = Vec::new();
+        if !self.tet_strain.is_empty() {
+            blocks.push(Box::new(ConstraintSet::new(self.tet_strain.clone())));
+        }
+        if !self.springs.is_empty() {
+            blocks.push(Box::new(ConstraintSet::new(self.springs.clone())));
+        }
+        if !self.attachments.is_empty() {
+            blocks.push(Box::new(ConstraintSet::new(self.attachments.clone())));
+        }
+        blocks
+    }
+
+    fn body(&self, body: BodyId) -> Result<&Body, SolverError> {
+        self.bodies
+            .get(body.0)
+            .ok_or_else(|| SolverError::InvalidModel {
+                reason: format!("there is no body {}", body.0),
+            })
+    }
+
+    fn body_vertices(&self, body: BodyId, vertices: &[usize]) -> Result<Range<usize>, SolverError> {
+        let range = self.body(body)?.vertices();
+        if let Some(&v) = vertices.iter().find(|&&v| v >= range.len()) {
+            return Err(SolverError::InvalidModel {
+                reason: format!(
+                    "body {}: vertex {v} is out of range: the body has {} vertices",
+                    body.0,
+                    range.len()
+                ),
+            });
+        }
+        Ok(range)
+    }
+}

@@ -1,0 +1,82 @@
+//! Time-stepping settings.
+
+use pd_mesh::Point;
+
+use crate::SolverError;
+
+/// How the simulation steps. Every field is checked by
+/// [`Settings::validate`] before a simulation is built.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Settings {
+    /// Time step h in s, > 0.
+    pub dt: f64,
+    /// Local-global iterations per step (the maximum when `tolerance > 0`), >= 1.
+    pub iterations: usize,
+    /// Relative stopping tolerance, >= 0; 0 always runs `iterations`. The
+    /// step stops once `|x_{k+1} - x_k|_M <= tolerance |x_{k+1} - x_n|_M`.
+    /// Because the objective's gradient after a local step is
+    /// `A (x_k - x_{k+1})`, this bounds the residual of the step's equations.
+    pub tolerance: f64,
+    /// Uniform gravitational acceleration in m/s^2.
+    pub gravity: Point,
+    /// Threads for the local step and the right-hand side; 0 uses rayon's
+    /// global pool. Results are bit-identical for every thread count.
+    pub threads: usize,
+    /// The run is declared divergent when the kinetic plus gravitational
+    /// energy exceeds its initial total by more than this many times the
+    /// system's energy scale (see `docs/solver.md`).
+    pub divergence_energy_factor: f64,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            dt: 0.01,
+            iterations: 10,
+            tolerance: 0.0,
+            gravity: Point::new(0.0, -9.81, 0.0),
+            threads: 0,
+            divergence_energy_factor: 1e3,
+        }
+    }
+}
+
+impl Settings {
+    /// Checks every field.
+    ///
+    /// # Errors
+    /// [`SolverError::InvalidSetting`] naming the first invalid field.
+    pub fn validate(&self) -> Result<(), SolverError> {
+        let bad = |field: &'static str, reason: String| {
+            Err(SolverError::InvalidSetting { field, reason })
+        };
+        if !(self.dt.is_finite() && self.dt > 0.0) {
+            return bad("dt", format!("must be finite and > 0 s, got {}", self.dt));
+        }
+        if self.iterations == 0 {
+            return bad("iterations", "must be at least 1".into());
+        }
+        if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
+            return bad(
+                "tolerance",
+                format!("must be finite and >= 0, got {}", self.tolerance),
+            );
+        }
+        if !self.gravity.iter().all(|g| g.is_finite()) {
+            return bad(
+                "gravity",
+                format!("must be finite, got {:?}", self.gravity.as_slice()),
+            );
+        }
+        if !(self.divergence_energy_factor.is_finite() && self.divergence_energy_factor > 0.0) {
+            return bad(
+                "divergence_energy_factor",
+                format!(
+                    "must be finite and > 0, got {}",
+                    self.divergence_energy_factor
+                ),
+            );
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,634 @@
+//! The [`Simulation`]: a model, an integrator, a damping model and settings,
+//! stepped in time.
+
+use std::ops::Range;
+use std::time::Instant;
+
+use faer::Mat;
+use pd_damping::{Damping, DampingContext};
+use pd_integrators::{Integrator, StepTargets};
+use pd_mesh::Point;
+use rayon::prelude::*;
+
+use crate::global::{GlobalSystem, MatrixCoefficients};
+use crate::local::LocalStep;
+use crate::{Model, Settings, SolverError};
+
+/// Positions (m) and velocities (m/s) of every vertex, global numbering.
+#[derive(Debug, Clone, PartialEq)]
+pub struct State {
+    /// Positions in m.
+    pub positions: Vec<Point>,
+    /// Velocities in m/s.
+    pub velocities: Vec<Point>,
+}
+
+/// What one step did and what it cost.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StepStats {
+    /// Local-global iterations run.
+    pub iterations: usize,
+    /// Whether the tolerance was met (always `false` with tolerance 0).
+    pub converged: bool,
+    /// The last relative change `|x_{k+1} - x_k|_M / |x_{k+1} - x_n|_M`
+    /// (computed only with a tolerance; else NaN).
+    pub relative_change: f64,
+    /// Time in the local step (projections), s.
+    pub local_seconds: f64,
+    /// Time in the global step (right-hand side and solve), s.
+    pub global_seconds: f64,
+    /// Time spent factorising, s (non-zero only when a factorisation was not
+    /// cached yet).
+    pub factor_seconds: f64,
+    /// Wall time of the whole step, s.
+    pub total_seconds: f64,
+}
+
+/// Energies of the current state, in J.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Energies {
+    /// `1/2 sum m v^2`.
+    pub kinetic: f64,
+    /// Constraint energy `E(x)`, attachments included.
+    pub elastic: f64,
+    /// Gravitational potential `-sum m g . x` (zero at the origin).
+    pub gravity: f64,
+}
+
+impl Energies {
+    /// Kinetic + elastic + gravitational.
+    pub fn total(&self) -> f64 {
+        self.kinetic + self.elastic + self.gravity
+    }
+}
+
+/// Scratch buffers sized once, so that a step allocates nothing.
+#[derive(Debug)]
+struct Scratch {
+    targets: StepTargets,
+    iterate: Vec<Point>,
+    q: Vec<Point>,
+    projections: Vec<Point>,
+    energy_offset: Vec<Point>,
+    damping_offset: Vec<Point>,
+    constant_rhs: Vec<Point>,
+    rhs_points: Vec<Point>,
+    rhs: Mat<f64>,
+    velocities: Vec<Point>,
+    forces: Vec<Point>,
+}
+
+/// A Projective Dynamics simulation.
+///
+/// Setup (operators, symbolic analysis, buffers) happens in
+/// [`Simulation::new`]; [`Simulation::step`] reuses it. Each step: the
+/// integrator prepares its targets, then `iterations` times the local step
+/// projects every constraint (in parallel) and the global step solves
+/// `A x = b` with a cached Cholesky factor of `A`; the integrator then
+/// updates the velocities and the damping model filters them.
+///
+/// ```
+/// use pd_damping::NoDamping;
+/// use pd_integrators::BackwardEuler;
+/// use pd_mesh::{generators, VertexSelection};
+/// use pd_solver::{Model, Settings, Simulation};
+///
+/// let beam = generators::box_tets([1.0, 0.2, 0.2], [5, 1, 1]).unwrap();
+/// let clamp = VertexSelection::Box { min: [-1.0; 3], max: [1e-9, 1.0, 1.0] }.resolve(&beam).unwrap();
+/// let masses = beam.lumped_masses(1000.0).unwrap();
+/// let mut model = Model::new();
+/// let body = model.add_body(beam, masses).unwrap();
+/// model.add_tet_strain(body, 1e6, None).unwrap();
+/// model.fix_vertices(body, &clamp).unwrap();
+///
+/// let settings = Settings { dt: 0.01, iterations: 10, ..Settings::default() };
+/// let mut sim = Simulation::new(model, Box::new(BackwardEuler), Box::new(NoDamping), settings).unwrap();
+/// sim.run(10).unwrap();
+/// // The free end sags under gravity.
+/// assert!(sim.state().positions.iter().any(|p| p.y < -1e-4));
+/// ```
+#[derive(Debug)]
+pub struct Simulation {
+    model: Model,
+    settings: Settings,
+    integrator: Box<dyn Integrator>,
+    damping: Box<dyn Damping>,
+    local: LocalStep,
+    global: GlobalSystem,
+    bodies: Vec<Range<usize>>,
+    state: State,
+    time: f64,
+    steps: usize,
+    pool: Option<rayon::ThreadPool>,
+    energy_reference: f64,
+    energy_scale: f64,
+    scratch: Scratch,
+}
+
+impl Simulation {
+    /// Builds the simulation: validates the settings, assembles the
+    /// operators, analyses the global matrix and factorises it for the first
+    /// step. The state starts at rest in the rest configuration.
+    ///
+    /// # Errors
+    /// Invalid settings, a model that cannot be simulated (a free vertex
+    /// without mass, every vertex fixed), or a failed factorisation.
+    pub fn new(
+        model: Model,
+        integrator: Box<dyn Integrator>,
+        damping: Box<dyn Damping>,
+        settings: Settings,
+    ) -> Result<Self, SolverError> {
+        settings.validate()?;
+        let d = damping.implicit_matrix();
+        for (field, value) in [
+            ("damping.mass", d.mass),
+            ("damping.stiffness", d.damping_laplacian),
+            ("damping.lagged_stiffness", d.lagged_stiffness),
+        ] {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(SolverError::InvalidSetting {
+                    field,
+                    reason: format!("must be finite and >= 0, got {value}"),
+                });
+            }
+        }
+        if d.is_lagged() {
+            return Err(SolverError::Unsupported {
+                what: "lagged (per-step) damping matrices".into(),
+            });
+        }
+        let pool = match settings.threads {
+            0 => None,
+            t => Some(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(t)
+                    .build()
+                    .map_err(|e| SolverError::InvalidSetting {
+                        field: "threads",
+                        reason: e.to_string(),
+                    })?,
+            ),
+        };
+        let local = LocalStep::new(model.constraint_blocks());
+        let global = GlobalSystem::new(&local, model.masses(), model.fixed())?;
+        let n = model.num_vertices();
+        let nf = global.free.len();
+        let scratch = Scratch {
+            targets: StepTargets::with_len(n),
+            iterate: vec![Point::zeros(); n],
+            q: vec![Point::zeros(); n],
+            projections: vec![Point::zeros(); local.total_rows()],
+            energy_offset: vec![Point::zeros(); n],
+            damping_offset: vec![Point::zeros(); n],
+            constant_rhs: vec![Point::zeros(); nf],
+            rhs_points: vec![Point::zeros(); nf],
+            rhs: Mat::zeros(nf, 3),
+            velocities: vec![Point::zeros(); n],
+            forces: vec![Point::zeros(); n],
+        };
+        let bodies = model.bodies().iter().map(|b| b.vertices()).collect();
+        let state = State {
+            positions: model.rest_positions().to_vec(),
+            velocities: vec![Point::zeros(); n],
+        };
+        let mut sim = Self {
+            model,
+            settings,
+            integrator,
+            damping,
+            local,
+            global,
+            bodies,
+            state,
+            time: 0.0,
+            steps: 0,
+            pool,
+            energy_reference: 0.0,
+            energy_scale: 0.0,
+            scratch,
+        };
+        sim.factor_for_next_step()?;
+        sim.reset_energy_reference();
+        Ok(sim)
+    }
+
+    /// Replaces the state (e.g. from an initial-state file). Fixed vertices
+    /// keep their given positions and get zero velocity. Resets the
+    /// integrator's history.
+    ///
+    /// # Errors
+    /// Wrong lengths or non-finite values, naming the vertex.
+    pub fn set_state(&mut self, state: State) -> Result<(), SolverError> {
+        let n = self.model.num_vertices();
+        for (name, values) in [
+            ("positions", &state.positions),
+            ("velocities", &state.velocities),
+        ] {
+            if values.len() != n {
+                return Err(SolverError::InvalidState {
+                    reason: format!("{} {name} for {n} vertices", values.len()),
+                });
+            }
+            if let Some(v) = values.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+                return Err(SolverError::InvalidState {
+                    reason: format!("{name} of vertex {v} are not finite"),
+                });
+            }
+        }
+        self.state = state;
+        for (v, fixed) in self.state.velocities.iter_mut().zip(self.model.fixed()) {
+            if *fixed {
+                *v = Point::zeros();
+            }
+        }
+        self.integrator.reset();
+        self.reset_energy_reference();
+        Ok(())
+    }
+
+    /// Sets every free vertex's velocity to `linear + angular x (x - c)`,
+    /// with `c` the centre of mass of its body (m/s and rad/s).
+    pub fn set_rigid_velocity(&mut self, body: usize, linear: Point, angular: Point) {
+        let Some(range) = self.bodies.get(body).cloned() else {
+            return;
+        };
+        let masses = &self.model.masses()[range.clone()];
+        let positions = &self.state.positions[range.clone()];
+        let total: f64 = masses.iter().sum();
+        let centre = if total > 0.0 {
+            positions
+                .iter()
+                .zip(masses)
+                .map(|(x, m)| x * *m)
+                .sum::<Point>()
+                / total
+        } else {
+            Point::zeros()
+        };
+        for v in range {
+            if !self.model.fixed()[v] {
+                self.state.velocities[v] =
+                    linear + angular.cross(&(self.state.positions[v] - centre));
+            }
+        }
+        self.reset_energy_reference();
+    }
+
+    /// Advances one time step.
+    ///
+    /// # Errors
+    /// [`SolverError::Diverged`] (non-finite positions or an energy blow-up),
+    /// naming the step, time and vertex; the state is left at the last good
+    /// step. A failed factorisation.
+    pub fn step(&mut self) -> Result<StepStats, SolverError> {
+        match self.pool.take() {
+            Some(pool) => {
+                let result = pool.install(|| self.step_inner());
+                self.pool = Some(pool);
+                result
+            }
+            None => self.step_inner(),
+        }
+    }
+
+    /// Advances `steps` time steps; stops at the first error.
+    ///
+    /// # Errors
+    /// As [`Simulation::step`].
+    pub fn run(&mut self, steps: usize) -> Result<Vec<StepStats>, SolverError> {
+        (0..steps).map(|_| self.step()).collect()
+    }
+
+    fn factor_for_next_step(&mut self) -> Result<(usize, bool), SolverError> {
+        let h = self.settings.dt;
+        let c = self.integrator.coefficients(h);
+        let d = self.damping.implicit_matrix();
+        let damping_factor = c.c1 * c.c2 * c.gamma;
+        self.global.prepare_factor(MatrixCoefficients {
+            mass: 1.0 / (h * h) + damping_factor * d.mass,
+            system: c.c1 * c.c2 * c.c2,
+            damping: damping_factor * d.damping_laplacian,
+        })
+    }
+
+    fn step_inner(&mut self) -> Result<StepStats, SolverError> {
+        let start = Instant::now();
+        let h = self.settings.dt;
+        let (factor, factorised) = self.factor_for_next_step()?;
+        let factor_seconds = if factorised {
+            start.elapsed().as_secs_f64()
+        } else {
+            0.0
+        };
+        let c = self.integrator.coefficients(h);
+        let d = self.damping.implicit_matrix();
+        let masses = self.model.masses();
+        let fixed = self.model.fixed();
+        let s = &mut self.scratch;
+        let x_n = &self.state.positions;
+        let v_n = &self.state.velocities;
+
+        self.integrator
+            .prepare(h, x_n, v_n, self.settings.gravity, &mut s.targets);
+        if self.damping.has_explicit_force() {
+            s.forces.iter_mut().for_each(|f| *f = Point::zeros());
+            let context = DampingContext {
+                h,
+                masses,
+                bodies: &self.bodies,
+                fixed,
+            };
+            self.damping
+                .add_explicit_force(&context, x_n, v_n, &mut s.forces);
+            // An external force f enters y as c1 c2 h^2 M^-1 f (DESIGN.md 3.1).
+            let scale = c.c1 * c.c2 * h * h;
+            for ((y, f), m) in s.targets.inertial.iter_mut().zip(&s.forces).zip(masses) {
+                if *m > 0.0 {
+                    *y += f * (scale / m);
+                }
+            }
+        }
+
+        // Constant part of the right-hand side over the free vertices
+        // (docs/solver.md): M y / h^2 - c1 c2 L (z + c2 x_fixed)
+        //   + c1 c2 gamma D (x_hat - x_fixed), x_fixed zero at free vertices.
+        let energy_factor = c.c1 * c.c2;
+        let damping_factor = energy_factor * c.gamma;
+        for v in 0..x_n.len() {
+            let fixed_part = if fixed[v] { x_n[v] } else { Point::zeros() };
+            s.energy_offset[v] = s.targets.offset[v] + fixed_part * c.c2;
+            s.damping_offset[v] = s.targets.damping_anchor[v] - fixed_part;
+        }
+        let inv_h2 = 1.0 / (h * h);
+        let global = &self.global;
+        let use_damping_laplacian = d.damping_laplacian != 0.0;
+        s.constant_rhs
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(f, out)| {
+                let v = global.free[f];
+                let mut b = s.targets.inertial[v] * (masses[v] * inv_h2)
+                    - global.system_rows.row_dot(f, &s.energy_offset) * energy_factor;
+                if d.mass != 0.0 {
+                    b += s.damping_offset[v] * (damping_factor * d.mass * masses[v]);
+                }
+                if use_damping_laplacian {
+                    b += global.damping_rows.row_dot(f, &s.damping_offset)
+                        * (damping_factor * d.damping_laplacian);
+                }
+                *out = b;
+            });
+
+        // Start from the inertial target; fixed vertices stay where they are.
+        for v in 0..x_n.len() {
+            s.iterate[v] = if fixed[v] {
+                x_n[v]
+            } else {
+                s.targets.inertial[v]
+            };
+        }
+
+        let mut stats = StepStats {
+            relative_change: f64::NAN,
+            factor_seconds,
+            ..StepStats::default()
+        };
+        for _ in 0..self.settings.iterations {
+            let t0 = Instant::now();
+            let (c2, iterate, offset) = (c.c2, &s.iterate, &s.targets.offset);
+            s.q.par_iter_mut()
+                .enumerate()
+                .for_each(|(v, q)| *q = iterate[v] * c2 + offset[v]);
+            self.local.project(&s.q, &mut s.projections);
+            let t1 = Instant::now();
+
+            let (projections, constant) = (&s.projections, &s.constant_rhs);
+            let projection_rows = &self.global.projection_rows;
+            s.rhs_points
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(f, out)| {
+                    *out = constant[f] + projection_rows.row_dot(f, projections) * energy_factor;
+                });
+            for (f, p) in s.rhs_points.iter().enumerate() {
+                for k in 0..3 {
+                    s.rhs[(f, k)] = p[k];
+                }
+            }
+            self.global.solve(factor, s.rhs.as_mut());
+
+            let mut change2 = 0.0;
+            let mut displacement2 = 0.0;
+            for (f, &v) in self.global.free.iter().enumerate() {
+                let new = Point::new(s.rhs[(f, 0)], s.rhs[(f, 1)], s.rhs[(f, 2)]);
+                if self.settings.tolerance > 0.0 {
+                    change2 += masses[v] * (new - s.iterate[v]).norm_squared();
+                    displacement2 += masses[v] * (new - x_n[v]).norm_squared();
+                }
+                s.iterate[v] = new;
+            }
+            stats.iterations += 1;
+            stats.local_seconds += (t1 - t0).as_secs_f64();
+            stats.global_seconds += t1.elapsed().as_secs_f64();
+            if self.settings.tolerance > 0.0 {
+                stats.relative_change = (change2 / displacement2).sqrt();
+                if change2 <= self.settings.tolerance.powi(2) * displacement2 {
+                    stats.converged = true;
+                    break;
+                }
+            }
+        }
+
+        let step = self.steps + 1;
+        let time = self.time + h;
+        if let Some(v) = s
+            .iterate
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
+            return Err(SolverError::Diverged {
+                step,
+                time,
+                reason: format!("position of vertex {v} is not finite"),
+            });
+        }
+        self.integrator
+            .finish(h, x_n, v_n, &s.iterate, &mut s.velocities);
+        for (v, fixed) in s.velocities.iter_mut().zip(fixed) {
+            if *fixed {
+                *v = Point::zeros();
+            }
+        }
+        let context = DampingContext {
+            h,
+            masses,
+            bodies: &self.bodies,
+            fixed,
+        };
+        self.damping
+            .filter_velocities(&context, &s.iterate, &mut s.velocities);
+        if let Some(v) = s
+            .velocities
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
+            return Err(SolverError::Diverged {
+                step,
+                time,
+                reason: format!("velocity of vertex {v} is not finite"),
+            });
+        }
+        let energy = kinetic_energy(masses, &s.velocities)
+            + gravity_energy(masses, &s.iterate, self.settings.gravity);
+        let limit =
+            self.energy_reference + self.settings.divergence_energy_factor * self.energy_scale;
+        if !(energy <= limit) {
+            return Err(SolverError::Diverged {
+                step,
+                time,
+                reason: format!(
+                    "kinetic + gravitational energy {energy:.6e} J exceeds the bound {limit:.6e} J \
+                     (initial energy {:.6e} J plus {} x the energy scale {:.6e} J)",
+                    self.energy_reference,
+                    self.settings.divergence_energy_factor,
+                    self.energy_scale
+                ),
+            });
+        }
+
+        std::mem::swap(&mut self.state.positions, &mut s.iterate);
+        std::mem::swap(&mut self.state.velocities, &mut s.velocities);
+        self.steps = step;
+        self.time = time;
+        stats.total_seconds = start.elapsed().as_secs_f64();
+        Ok(stats)
+    }
+
+    /// The initial energy and the scale for the divergence check
+    /// (docs/solver.md): the total energy now, and the sum of the kinetic and
+    /// elastic energy, the work gravity does over the body's size, and the
+    /// kinetic energy of moving the whole mass by its size in one second.
+    fn reset_energy_reference(&mut self) {
+        let energies = self.energies();
+        let masses = self.model.masses();
+        let total_mass: f64 = masses.iter().sum();
+        let (lo, hi) = bounding_box(&self.state.positions);
+        let size = (hi - lo).norm();
+        self.energy_reference = energies.total();
+        self.energy_scale = energies.kinetic
+            + energies.elastic
+            + total_mass * self.settings.gravity.norm() * size
+            + 0.5 * total_mass * size * size;
+        if !(self.energy_scale > 0.0) {
+            self.energy_scale = f64::MIN_POSITIVE;
+        }
+    }
+
+    /// The current state.
+    pub fn state(&self) -> &State {
+        &self.state
+    }
+
+    /// The model being simulated.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// The integrator's name.
+    pub fn integrator_name(&self) -> &'static str {
+        self.integrator.name()
+    }
+
+    /// The damping model's name.
+    pub fn damping_name(&self) -> &'static str {
+        self.damping.name()
+    }
+
+    /// Simulated time in s.
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Steps taken.
+    pub fn steps(&self) -> usize {
+        self.steps
+    }
+
+    /// Number of free (unknown) vertices.
+    pub fn num_free_vertices(&self) -> usize {
+        self.global.free.len()
+    }
+
+    /// Number of stored values in one Cholesky factor (8 bytes each).
+    pub fn factor_len(&self) -> usize {
+        self.global.factor_len()
+    }
+
+    /// Kinetic, elastic and gravitational energy of the current state (J).
+    /// The elastic part costs one projection of every constraint.
+    pub fn energies(&self) -> Energies {
+        let masses = self.model.masses();
+        let compute = || Energies {
+            kinetic: kinetic_energy(masses, &self.state.velocities),
+            elastic: self.local.energy(&self.state.positions),
+            gravity: gravity_energy(masses, &self.state.positions, self.settings.gravity),
+        };
+        match &self.pool {
+            Some(pool) => pool.install(compute),
+            None => compute(),
+        }
+    }
+
+    /// Total linear momentum `sum m v` (kg m/s).
+    pub fn linear_momentum(&self) -> Point {
+        self.model
+            .masses()
+            .iter()
+            .zip(&self.state.velocities)
+            .map(|(m, v)| v * *m)
+            .sum()
+    }
+
+    /// Total angular momentum about the origin `sum x x m v` (kg m^2/s).
+    pub fn angular_momentum(&self) -> Point {
+        self.model
+            .masses()
+            .iter()
+            .zip(&self.state.positions)
+            .zip(&self.state.velocities)
+            .map(|((m, x), v)| x.cross(&(v * *m)))
+            .sum()
+    }
+}
+
+fn kinetic_energy(masses: &[f64], velocities: &[Point]) -> f64 {
+    0.5 * masses
+        .iter()
+        .zip(velocities)
+        .map(|(m, v)| m * v.norm_squared())
+        .sum::<f64>()
+}
+
+fn gravity_energy(masses: &[f64], positions: &[Point], gravity: Point) -> f64 {
+    -masses
+        .iter()
+        .zip(positions)
+        .map(|(m, x)| m * gravity.dot(x))
+        .sum::<f64>()
+}
+
+fn bounding_box(points: &[Point]) -> (Point, Point) {
+    points.iter().fold(
+        (
+            Point::repeat(f64::INFINITY),
+            Point::repeat(f64::NEG_INFINITY),
+        ),
+        |(lo, hi), p| (lo.inf(p), hi.sup(p)),
+    )
+}
