@@ -44,6 +44,19 @@ pub struct StepStats {
     pub total_seconds: f64,
 }
 
+/// What building the simulation cost.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SetupStats {
+    /// Assembling the operators and analysing the pattern (ordering,
+    /// symbolic factorisation), s.
+    pub analysis_seconds: f64,
+    /// Numeric factorisations so far (the first at build, more when a
+    /// coefficient changes), s.
+    pub factor_seconds: f64,
+    /// Number of numeric factorisations so far.
+    pub factorisations: usize,
+}
+
 /// Energies of the current state, in J.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Energies {
@@ -122,6 +135,7 @@ pub struct Simulation {
     pool: Option<rayon::ThreadPool>,
     energy_reference: f64,
     energy_scale: f64,
+    setup: SetupStats,
     scratch: Scratch,
 }
 
@@ -170,8 +184,13 @@ impl Simulation {
                     })?,
             ),
         };
+        let analysis_start = Instant::now();
         let local = LocalStep::new(model.constraint_blocks());
         let global = GlobalSystem::new(&local, model.masses(), model.fixed())?;
+        let setup = SetupStats {
+            analysis_seconds: analysis_start.elapsed().as_secs_f64(),
+            ..SetupStats::default()
+        };
         let n = model.num_vertices();
         let nf = global.free.len();
         let scratch = Scratch {
@@ -206,6 +225,7 @@ impl Simulation {
             pool,
             energy_reference: 0.0,
             energy_scale: 0.0,
+            setup,
             scratch,
         };
         sim.factor_for_next_step()?;
@@ -247,9 +267,10 @@ impl Simulation {
         Ok(())
     }
 
-    /// Sets every free vertex's velocity to `linear + angular x (x - c)`,
-    /// with `c` the centre of mass of its body (m/s and rad/s).
-    pub fn set_rigid_velocity(&mut self, body: usize, linear: Point, angular: Point) {
+    /// Adds the rigid velocity field `linear + angular x (x - c)` to every
+    /// free vertex of a body, with `c` the body's centre of mass (m/s and
+    /// rad/s). Does nothing for a body index out of range.
+    pub fn add_rigid_velocity(&mut self, body: usize, linear: Point, angular: Point) {
         let Some(range) = self.bodies.get(body).cloned() else {
             return;
         };
@@ -300,16 +321,23 @@ impl Simulation {
         (0..steps).map(|_| self.step()).collect()
     }
 
+    /// The cached factor for the coming step, factorising if needed.
     fn factor_for_next_step(&mut self) -> Result<(usize, bool), SolverError> {
+        let start = Instant::now();
         let h = self.settings.dt;
         let c = self.integrator.coefficients(h);
         let d = self.damping.implicit_matrix();
         let damping_factor = c.c1 * c.c2 * c.gamma;
-        self.global.prepare_factor(MatrixCoefficients {
+        let prepared = self.global.prepare_factor(MatrixCoefficients {
             mass: 1.0 / (h * h) + damping_factor * d.mass,
             system: c.c1 * c.c2 * c.c2,
             damping: damping_factor * d.damping_laplacian,
-        })
+        })?;
+        if prepared.1 {
+            self.setup.factor_seconds += start.elapsed().as_secs_f64();
+            self.setup.factorisations += 1;
+        }
+        Ok(prepared)
     }
 
     fn step_inner(&mut self) -> Result<StepStats, SolverError> {
@@ -441,7 +469,8 @@ impl Simulation {
         }
 
         let step = self.steps + 1;
-        let time = self.time + h;
+        // From the step count, so that time does not drift by round-off.
+        let time = step as f64 * h;
         if let Some(v) = s
             .iterate
             .iter()
@@ -523,6 +552,11 @@ impl Simulation {
         if !(self.energy_scale > 0.0) {
             self.energy_scale = f64::MIN_POSITIVE;
         }
+    }
+
+    /// What setup and factorisation cost so far.
+    pub fn setup_stats(&self) -> SetupStats {
+        self.setup
     }
 
     /// The current state.

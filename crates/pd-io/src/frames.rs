@@ -1,0 +1,365 @@
+//! Writers for simulation frames: legacy ASCII VTK (for ParaView and VisIt)
+//! and Wavefront OBJ (for anything else).
+//!
+//! Every file this crate writes goes through [`write_atomically`]: the text
+//! is written to a hidden temporary file beside the target, flushed, and
+//! renamed over the target, so a run that is interrupted (Ctrl-C, a crash,
+//! a full disk) never leaves a half-written frame under the final name.
+//! Floats are written so that parsing them gives back the same `f64` bit for
+//! bit.
+
+use std::ffi::OsString;
+use std::fmt;
+use std::fs::File;
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use pd_mesh::Point;
+
+use crate::error::{Error, Result};
+
+/// The elements of a frame, as indices into its positions. Any of the three
+/// lists may be empty.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Cells<'a> {
+    /// Tetrahedra (VTK cell type 10).
+    pub tets: &'a [[usize; 4]],
+    /// Triangles (VTK cell type 5).
+    pub triangles: &'a [[usize; 3]],
+    /// Line segments, e.g. springs (VTK cell type 3).
+    pub lines: &'a [[usize; 2]],
+}
+
+/// VTK cell type of a linear tetrahedron (`VTK_TETRA`).
+const VTK_TETRA: u8 = 10;
+/// VTK cell type of a triangle (`VTK_TRIANGLE`).
+const VTK_TRIANGLE: u8 = 5;
+/// VTK cell type of a line segment (`VTK_LINE`).
+const VTK_LINE: u8 = 3;
+
+/// Writes one frame as a legacy ASCII VTK unstructured grid: the positions
+/// (in metres) as `POINTS`, the cells, and, when `velocities` is given, a
+/// `POINT_DATA` block with a `VECTORS velocity double` field (in m/s).
+///
+/// The file is replaced atomically (see the [module docs](self)).
+///
+/// # Errors
+/// [`Error::Content`] if a position or velocity is not finite, if a cell
+/// refers to a vertex beyond `positions`, or if `velocities` does not have
+/// one entry per position; [`Error::Io`] naming `path` if the file cannot be
+/// written.
+///
+/// ```
+/// use pd_io::frames::{write_vtk, Cells};
+/// use pd_mesh::Point;
+///
+/// let dir = std::env::temp_dir().join(format!("pd-io-doc-vtk-{}", std::process::id()));
+/// std::fs::create_dir_all(&dir).unwrap();
+/// let positions = [
+///     Point::new(0.0, 0.0, 0.0),
+///     Point::new(1.0, 0.0, 0.0),
+///     Point::new(0.0, 1.0, 0.0),
+///     Point::new(0.0, 0.0, 1.0),
+/// ];
+/// let cells = Cells { tets: &[[0, 1, 2, 3]], ..Cells::default() };
+/// write_vtk(&dir.join("frame_0000.vtk"), &positions, &cells, None).unwrap();
+/// let text = std::fs::read_to_string(dir.join("frame_0000.vtk")).unwrap();
+/// assert!(text.contains("CELL_TYPES 1\n10\n"));
+/// # std::fs::remove_dir_all(&dir).unwrap();
+/// ```
+pub fn write_vtk(
+    path: &Path,
+    positions: &[Point],
+    cells: &Cells<'_>,
+    velocities: Option<&[Point]>,
+) -> Result<()> {
+    check_points(path, "position", positions)?;
+    if let Some(velocities) = velocities {
+        check_points(path, "velocity", velocities)?;
+        if velocities.len() != positions.len() {
+            return Err(Error::Content {
+                path: path.to_path_buf(),
+                message: format!(
+                    "{} velocities given for {} positions; a frame needs one velocity per vertex",
+                    velocities.len(),
+                    positions.len()
+                ),
+            });
+        }
+    }
+    check_cells(path, "tetrahedron", cells.tets, positions.len())?;
+    check_cells(path, "triangle", cells.triangles, positions.len())?;
+    check_cells(path, "line", cells.lines, positions.len())?;
+
+    write_atomically(path, |w| {
+        writeln!(w, "# vtk DataFile Version 3.0")?;
+        writeln!(w, "pd frame")?;
+        writeln!(w, "ASCII")?;
+        writeln!(w, "DATASET UNSTRUCTURED_GRID")?;
+        writeln!(w, "POINTS {} double", positions.len())?;
+        write_vectors(w, positions)?;
+
+        let num_cells = cells.tets.len() + cells.triangles.len() + cells.lines.len();
+        // The size of the CELLS list counts every index plus each cell's
+        // leading vertex count.
+        let list_size = 5 * cells.tets.len() + 4 * cells.triangles.len() + 3 * cells.lines.len();
+        writeln!(w, "CELLS {num_cells} {list_size}")?;
+        write_vtk_cells(w, cells.tets)?;
+        write_vtk_cells(w, cells.triangles)?;
+        write_vtk_cells(w, cells.lines)?;
+        writeln!(w, "CELL_TYPES {num_cells}")?;
+        for (count, cell_type) in [
+            (cells.tets.len(), VTK_TETRA),
+            (cells.triangles.len(), VTK_TRIANGLE),
+            (cells.lines.len(), VTK_LINE),
+        ] {
+            for _ in 0..count {
+                writeln!(w, "{cell_type}")?;
+            }
+        }
+
+        if let Some(velocities) = velocities {
+            writeln!(w, "POINT_DATA {}", velocities.len())?;
+            writeln!(w, "VECTORS velocity double")?;
+            write_vectors(w, velocities)?;
+        }
+        Ok(())
+    })
+}
+
+/// Writes one frame as a Wavefront OBJ file: a comment header, `v x y z`
+/// per position (in metres), `f a b c` per triangle and `l a b` per line,
+/// with OBJ's 1-based indices. OBJ has no tetrahedra: pass the boundary
+/// surface of a volume mesh as `triangles`.
+///
+/// The file is replaced atomically (see the [module docs](self)).
+///
+/// # Errors
+/// [`Error::Content`] if a position is not finite or an element refers to a
+/// vertex beyond `positions`; [`Error::Io`] naming `path` if the file cannot
+/// be written.
+pub fn write_obj(
+    path: &Path,
+    positions: &[Point],
+    triangles: &[[usize; 3]],
+    lines: &[[usize; 2]],
+) -> Result<()> {
+    check_points(path, "position", positions)?;
+    check_cells(path, "triangle", triangles, positions.len())?;
+    check_cells(path, "line", lines, positions.len())?;
+
+    write_atomically(path, |w| {
+        writeln!(
+            w,
+            "# pd frame: {} vertices, {} triangles, {} lines",
+            positions.len(),
+            triangles.len(),
+            lines.len()
+        )?;
+        for p in positions {
+            writeln!(w, "v {} {} {}", Float(p.x), Float(p.y), Float(p.z))?;
+        }
+        for [a, b, c] in triangles {
+            writeln!(w, "f {} {} {}", a + 1, b + 1, c + 1)?;
+        }
+        for [a, b] in lines {
+            writeln!(w, "l {} {}", a + 1, b + 1)?;
+        }
+        Ok(())
+    })
+}
+
+/// Writes a file atomically: `write` fills a buffered temporary file
+/// `.NAME.tmp` in the target's directory, which is then flushed and renamed
+/// to `path`. If `write` or any step fails, the temporary file is removed
+/// and an existing file at `path` is left untouched.
+///
+/// The rename makes the write atomic with respect to crashes and
+/// interruptions of this process; the data is not `fsync`ed, because doing
+/// so for every frame costs far more than it protects against (a power cut
+/// mid-run loses the run anyway). Two writers must not target the same path
+/// at the same time, as they would share the temporary name.
+///
+/// # Errors
+/// [`Error::Io`] naming `path` (not the temporary file), for any failure.
+pub(crate) fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
+) -> Result<()> {
+    let temporary = temporary_path(path)?;
+    let result = File::create(&temporary).and_then(|file| {
+        let mut writer = BufWriter::new(file);
+        write(&mut writer)?;
+        writer
+            .into_inner()
+            .map_err(io::IntoInnerError::into_error)?;
+        std::fs::rename(&temporary, path)
+    });
+    result.map_err(|source| {
+        // Best effort: the temporary may not exist if creating it failed,
+        // and the error that matters is the one we return.
+        let _ = std::fs::remove_file(&temporary);
+        Error::io(path, source)
+    })
+}
+
+/// `dir/.NAME.tmp` for `dir/NAME`: hidden, in the same directory (so the
+/// final rename never crosses file systems).
+fn temporary_path(path: &Path) -> Result<PathBuf> {
+    let Some(name) = path.file_name() else {
+        return Err(Error::io(
+            path,
+            io::Error::new(io::ErrorKind::InvalidInput, "not a file name"),
+        ));
+    };
+    let mut temporary_name = OsString::from(".");
+    temporary_name.push(name);
+    temporary_name.push(".tmp");
+    Ok(path.with_file_name(temporary_name))
+}
+
+/// Displays an `f64` so that parsing the text gives back the same bits, in
+/// a form every reader of our formats accepts: plain decimals for ordinary
+/// magnitudes (`0.25`, `-3`), scientific notation (`1.5e-9`, `2e300`) for
+/// very small or large ones. Rust's `{}` alone would round-trip too, but
+/// spells `1e300` with 300 digits.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Float(pub(crate) f64);
+
+impl fmt::Display for Float {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let magnitude = self.0.abs();
+        if magnitude == 0.0 || (1e-5..1e16).contains(&magnitude) || !magnitude.is_finite() {
+            write!(f, "{}", self.0)
+        } else {
+            write!(f, "{:e}", self.0)
+        }
+    }
+}
+
+fn write_vectors(w: &mut impl Write, vectors: &[Point]) -> io::Result<()> {
+    for v in vectors {
+        writeln!(w, "{} {} {}", Float(v.x), Float(v.y), Float(v.z))?;
+    }
+    Ok(())
+}
+
+fn write_vtk_cells<const K: usize>(w: &mut impl Write, cells: &[[usize; K]]) -> io::Result<()> {
+    for cell in cells {
+        write!(w, "{K}")?;
+        for index in cell {
+            write!(w, " {index}")?;
+        }
+        writeln!(w)?;
+    }
+    Ok(())
+}
+
+/// Rejects non-finite vectors: readers of VTK and OBJ do not agree on how to
+/// spell NaN or infinity, so such a file would not load.
+fn check_points(path: &Path, what: &str, points: &[Point]) -> Result<()> {
+    match points.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+        Some(vertex) => Err(Error::Content {
+            path: path.to_path_buf(),
+            message: format!("{what} of vertex {vertex} is not finite"),
+        }),
+        None => Ok(()),
+    }
+}
+
+fn check_cells<const K: usize>(
+    path: &Path,
+    kind: &str,
+    cells: &[[usize; K]],
+    num_vertices: usize,
+) -> Result<()> {
+    for (element, cell) in cells.iter().enumerate() {
+        if let Some(index) = cell.iter().find(|&&i| i >= num_vertices) {
+            return Err(Error::Content {
+                path: path.to_path_buf(),
+                message: format!(
+                    "{kind} {element} refers to vertex {index}, but the frame has {num_vertices} vertices"
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch_dir(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("pd-io-frames-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    #[test]
+    fn float_text_round_trips_and_avoids_long_spellings() {
+        let values = [
+            0.0,
+            -0.0,
+            1.0,
+            0.1,
+            -2.5,
+            1.0 / 3.0,
+            1e-5,
+            9.999e-6,
+            1e16,
+            1e300,
+            -1e-300,
+            f64::MIN_POSITIVE,
+            5e-324,
+            f64::MAX,
+            123456789.123456789,
+        ];
+        for x in values {
+            let text = Float(x).to_string();
+            let back: f64 = text.parse().unwrap();
+            assert_eq!(back.to_bits(), x.to_bits(), "{x} written as {text}");
+            assert!(text.len() <= 24, "{x} written as {text}");
+        }
+        assert_eq!(Float(0.25).to_string(), "0.25");
+        assert_eq!(Float(-3.0).to_string(), "-3");
+        assert_eq!(Float(2e300).to_string(), "2e300");
+    }
+
+    #[test]
+    fn failed_write_keeps_the_old_file_and_leaves_no_temporary() {
+        let dir = scratch_dir("failed-write");
+        let path = dir.join("frame.obj");
+        std::fs::write(&path, "old contents\n").unwrap();
+        let err = write_atomically(&path, |w| {
+            w.write_all(b"half a fra")?;
+            Err(io::Error::other("interrupted"))
+        })
+        .unwrap_err();
+        assert!(
+            matches!(&err, Error::Io { path: p, .. } if *p == path),
+            "{err}"
+        );
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "old contents\n");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn successful_write_replaces_the_old_file() {
+        let dir = scratch_dir("replace");
+        let path = dir.join("state.json");
+        std::fs::write(&path, "old").unwrap();
+        write_atomically(&path, |w| w.write_all(b"new")).unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_path_without_file_name_is_an_io_error() {
+        let err = write_atomically(Path::new("/"), |_| Ok(())).unwrap_err();
+        assert!(matches!(err, Error::Io { .. }), "{err}");
+    }
+}

@@ -1,0 +1,312 @@
+//! The run recorder: what a run writes into its output folder.
+//!
+//! - `metrics.csv`: one row per step (row 0 is the initial state) with
+//!   `step,time,kinetic,elastic,gravity,total,px,py,pz,jx,jy,jz,iterations,step_ms,local_ms,global_ms`
+//!   (energies in J, linear momentum in kg m/s, angular momentum about the
+//!   origin in kg m^2/s, times in ms);
+//! - `probes.csv`: `step,time` and `x_I,y_I,z_I,vx_I,vy_I,vz_I` per probed
+//!   vertex `I`, every step;
+//! - `frames/frame_NNNNN.vtk` / `.obj` every `output.every` steps (frame 0 is
+//!   the initial state);
+//! - `summary.json`: sizes, timings (medians), and how the run ended.
+//!
+//! Rows are flushed every step, so a run that stops early (divergence, a
+//! signal) keeps every row written before it.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use pd_solver::{Simulation, StepStats};
+
+use crate::frames::{Cells, write_obj, write_vtk};
+use crate::scene::{FrameFormat, OutputSpec, Scene};
+use crate::{Error, Result};
+
+/// Merged output topology of every body, in the global vertex numbering.
+#[derive(Debug, Clone, Default)]
+struct Topology {
+    tets: Vec<[usize; 4]>,
+    /// Boundary triangles of tet bodies and the triangles of surface bodies.
+    surface: Vec<[usize; 3]>,
+    /// Triangles of bodies that are surfaces (cloth), for VTK cells.
+    surface_cells: Vec<[usize; 3]>,
+    /// Edges of bodies that have neither tets nor triangles (chains).
+    lines: Vec<[usize; 2]>,
+}
+
+impl Topology {
+    fn of(sim: &Simulation) -> Self {
+        let mut t = Topology::default();
+        for body in sim.model().bodies() {
+            let o = body.offset;
+            let mesh = &body.mesh;
+            t.tets.extend(mesh.tets().iter().map(|e| e.map(|v| v + o)));
+            t.surface
+                .extend(mesh.surface_triangles().iter().map(|e| e.map(|v| v + o)));
+            if mesh.tets().is_empty() {
+                t.surface_cells
+                    .extend(mesh.triangles().iter().map(|e| e.map(|v| v + o)));
+                if mesh.triangles().is_empty() {
+                    t.lines
+                        .extend(mesh.edges().iter().map(|e| e.map(|v| v + o)));
+                }
+            }
+        }
+        t
+    }
+}
+
+/// The end of a run, for `summary.json`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Outcome {
+    /// Every step ran.
+    Completed,
+    /// The run stopped with this error message.
+    Failed(String),
+}
+
+/// Writes a run's outputs step by step.
+#[derive(Debug)]
+pub struct Recorder {
+    dir: PathBuf,
+    output: OutputSpec,
+    topology: Topology,
+    metrics: BufWriter<File>,
+    metrics_path: PathBuf,
+    probes: Option<(BufWriter<File>, PathBuf)>,
+    step_ms: Vec<f64>,
+    local_ms: Vec<f64>,
+    global_ms: Vec<f64>,
+    frames: usize,
+}
+
+impl Recorder {
+    /// Creates the output folder and files and records the initial state
+    /// (metrics row 0, probes row 0, frame 0).
+    ///
+    /// # Errors
+    /// The folder or a file cannot be created or written.
+    pub fn create(dir: &Path, scene: &Scene, sim: &Simulation) -> Result<Self> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        if scene.output.every > 0 {
+            let frames = dir.join("frames");
+            std::fs::create_dir_all(&frames).map_err(|e| Error::io(&frames, e))?;
+        }
+        let metrics_path = dir.join("metrics.csv");
+        let mut metrics = create(&metrics_path)?;
+        writeln!(
+            metrics,
+            "step,time,kinetic,elastic,gravity,total,px,py,pz,jx,jy,jz,iterations,step_ms,local_ms,global_ms"
+        )
+        .map_err(|e| Error::io(&metrics_path, e))?;
+        let probes = if scene.output.probes.is_empty() {
+            None
+        } else {
+            let path = dir.join("probes.csv");
+            let mut file = create(&path)?;
+            let mut header = String::from("step,time");
+            for p in &scene.output.probes {
+                header.push_str(&format!(",x_{p},y_{p},z_{p},vx_{p},vy_{p},vz_{p}"));
+            }
+            writeln!(file, "{header}").map_err(|e| Error::io(&path, e))?;
+            Some((file, path))
+        };
+        let mut recorder = Self {
+            dir: dir.to_path_buf(),
+            output: scene.output.clone(),
+            topology: Topology::of(sim),
+            metrics,
+            metrics_path,
+            probes,
+            step_ms: Vec::new(),
+            local_ms: Vec::new(),
+            global_ms: Vec::new(),
+            frames: 0,
+        };
+        recorder.write_rows(sim, None)?;
+        if recorder.output.every > 0 {
+            recorder.write_frame(sim)?;
+        }
+        Ok(recorder)
+    }
+
+    /// Records the step just taken.
+    ///
+    /// # Errors
+    /// A file cannot be written.
+    pub fn record(&mut self, sim: &Simulation, stats: &StepStats) -> Result<()> {
+        self.step_ms.push(stats.total_seconds * 1e3);
+        self.local_ms.push(stats.local_seconds * 1e3);
+        self.global_ms.push(stats.global_seconds * 1e3);
+        self.write_rows(sim, Some(stats))?;
+        if self.output.every > 0 && sim.steps() % self.output.every == 0 {
+            self.write_frame(sim)?;
+        }
+        Ok(())
+    }
+
+    /// Median wall time of a step so far, ms (NaN before the first step).
+    pub fn median_step_ms(&self) -> f64 {
+        median(&self.step_ms)
+    }
+
+    /// Number of frames written.
+    pub fn frames(&self) -> usize {
+        self.frames
+    }
+
+    /// The output folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Writes `summary.json` and flushes everything.
+    ///
+    /// # Errors
+    /// A file cannot be written.
+    pub fn finish(mut self, scene: &Scene, sim: &Simulation, outcome: &Outcome) -> Result<PathBuf> {
+        self.metrics
+            .flush()
+            .map_err(|e| Error::io(&self.metrics_path, e))?;
+        if let Some((file, path)) = &mut self.probes {
+            file.flush().map_err(|e| Error::io(&*path, e))?;
+        }
+        let setup = sim.setup_stats();
+        let (status, error) = match outcome {
+            Outcome::Completed => ("completed", None),
+            Outcome::Failed(message) => ("failed", Some(message.clone())),
+        };
+        let summary = serde_json::json!({
+            "scene": scene.source.display().to_string(),
+            "status": status,
+            "error": error,
+            "steps": sim.steps(),
+            "steps_requested": scene.steps,
+            "time": sim.time(),
+            "dt": sim.settings().dt,
+            "iterations": sim.settings().iterations,
+            "integrator": sim.integrator_name(),
+            "damping": sim.damping_name(),
+            "bodies": sim.model().bodies().len(),
+            "vertices": sim.model().num_vertices(),
+            "free_vertices": sim.num_free_vertices(),
+            "elements": sim.model().bodies().iter().map(|b| b.mesh.num_elements()).sum::<usize>(),
+            "constraints": sim.model().num_constraints(),
+            "factor_values": sim.factor_len(),
+            "analysis_ms": setup.analysis_seconds * 1e3,
+            "factor_ms": setup.factor_seconds * 1e3,
+            "factorisations": setup.factorisations,
+            "median_step_ms": json_number(median(&self.step_ms)),
+            "median_local_ms": json_number(median(&self.local_ms)),
+            "median_global_ms": json_number(median(&self.global_ms)),
+            "frames": self.frames,
+        });
+        let path = self.dir.join("summary.json");
+        let text = serde_json::to_string_pretty(&summary).expect("a JSON value always serialises");
+        crate::frames::write_atomically(&path, |w| writeln!(w, "{text}"))?;
+        Ok(path)
+    }
+
+    fn write_rows(&mut self, sim: &Simulation, stats: Option<&StepStats>) -> Result<()> {
+        let e = sim.energies();
+        let p = sim.linear_momentum();
+        let j = sim.angular_momentum();
+        let (iterations, step, local, global) = stats.map_or((0, 0.0, 0.0, 0.0), |s| {
+            (
+                s.iterations,
+                s.total_seconds * 1e3,
+                s.local_seconds * 1e3,
+                s.global_seconds * 1e3,
+            )
+        });
+        writeln!(
+            self.metrics,
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{:.4},{:.4},{:.4}",
+            sim.steps(),
+            sim.time(),
+            e.kinetic,
+            e.elastic,
+            e.gravity,
+            e.total(),
+            p.x,
+            p.y,
+            p.z,
+            j.x,
+            j.y,
+            j.z,
+            iterations,
+            step,
+            local,
+            global
+        )
+        .and_then(|()| self.metrics.flush())
+        .map_err(|err| Error::io(&self.metrics_path, err))?;
+        if let Some((file, path)) = &mut self.probes {
+            let state = sim.state();
+            let mut row = format!("{},{}", sim.steps(), sim.time());
+            for &v in &self.output.probes {
+                let (x, u) = (state.positions[v], state.velocities[v]);
+                row.push_str(&format!(",{},{},{},{},{},{}", x.x, x.y, x.z, u.x, u.y, u.z));
+            }
+            writeln!(file, "{row}")
+                .and_then(|()| file.flush())
+                .map_err(|err| Error::io(&*path, err))?;
+        }
+        Ok(())
+    }
+
+    fn write_frame(&mut self, sim: &Simulation) -> Result<()> {
+        let state = sim.state();
+        let t = &self.topology;
+        for format in &self.output.formats {
+            match format {
+                FrameFormat::Vtk => {
+                    let cells = Cells {
+                        tets: &t.tets,
+                        triangles: &t.surface_cells,
+                        lines: &t.lines,
+                    };
+                    let path = self.frame_path("vtk");
+                    write_vtk(&path, &state.positions, &cells, Some(&state.velocities))?;
+                }
+                FrameFormat::Obj => {
+                    let path = self.frame_path("obj");
+                    write_obj(&path, &state.positions, &t.surface, &t.lines)?;
+                }
+            }
+        }
+        self.frames += 1;
+        Ok(())
+    }
+
+    fn frame_path(&self, extension: &str) -> PathBuf {
+        self.dir
+            .join("frames")
+            .join(format!("frame_{:05}.{extension}", self.frames))
+    }
+}
+
+fn create(path: &Path) -> Result<BufWriter<File>> {
+    File::create(path)
+        .map(BufWriter::new)
+        .map_err(|e| Error::io(path, e))
+}
+
+fn median(values: &[f64]) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let mid = sorted.len() / 2;
+    if sorted.len() % 2 == 1 {
+        sorted[mid]
+    } else {
+        0.5 * (sorted[mid - 1] + sorted[mid])
+    }
+}
+
+fn json_number(value: f64) -> serde_json::Value {
+    serde_json::Number::from_f64(value).map_or(serde_json::Value::Null, serde_json::Value::Number)
+}

@@ -1,0 +1,495 @@
+//! Reader and writer for TetGen's `.node` / `.ele` tetrahedral meshes.
+//!
+//! The format, as TetGen 1.5 writes it and as this module reads it:
+//!
+//! ```text
+//! # bar.node                  # '#' starts a comment anywhere on a line
+//! <#points> <dimension = 3> <#attributes> <#boundary markers = 0 | 1>
+//! <index> <x> <y> <z> [attributes...] [boundary marker]
+//! ...
+//! # bar.ele
+//! <#tetrahedra> <nodes per tetrahedron = 4> <#region attributes = 0 | 1>
+//! <index> <n0> <n1> <n2> <n3> [region attribute]
+//! ...
+//! ```
+//!
+//! Blank lines are skipped and fields are separated by any whitespace.
+//! Indices start at 0 or at 1: the first node index of the `.node` file
+//! decides, node indices must then be consecutive, and the `.ele` file's
+//! node references use the same base. Attributes, boundary markers and
+//! region attributes are checked to be numbers and otherwise ignored.
+//! Only linear (4-node) tetrahedra are supported; TetGen's orientation
+//! convention (positive volume, see [`pd_mesh::Mesh`]) is the one the mesh
+//! requires, so tetrahedra are taken as they are.
+
+use std::ffi::OsString;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use pd_mesh::{Mesh, Point};
+
+use crate::error::{Error, Result};
+use crate::frames::{Float, write_atomically};
+
+/// Reads a tetrahedral mesh from a TetGen `.node` file and its `.ele` file.
+///
+/// # Errors
+/// - [`Error::Io`] if a file cannot be read;
+/// - [`Error::Parse`], naming the file and the 1-based line, for a missing,
+///   short or unsupported header (dimension other than 3, other than 4 nodes
+///   per tetrahedron), a field that is not a number, a line with the wrong
+///   number of fields, a non-finite coordinate, node indices that do not
+///   start at 0 or 1 or are not consecutive, a tetrahedron referring to a
+///   node that does not exist, or fewer or more data lines than the header
+///   declares;
+/// - [`Error::Mesh`], naming the `.ele` file, if the tetrahedra do not form
+///   a valid [`Mesh`] (flat or inverted tetrahedra, a repeated vertex). Its
+///   element index counts tetrahedra from 0 in file order, whatever the
+///   file's own numbering.
+pub fn read_tetgen(node: &Path, ele: &Path) -> Result<Mesh> {
+    let nodes = read_nodes(node)?;
+    let tets = read_elements(ele, node, &nodes)?;
+    Mesh::from_tets(nodes.points, tets).map_err(|source| Error::Mesh {
+        path: ele.to_path_buf(),
+        source,
+    })
+}
+
+/// Reads `BASE.node` and `BASE.ele` with [`read_tetgen`]. A `base` that
+/// already ends in `.node` or `.ele` names the pair too, so
+/// `meshes/bar`, `meshes/bar.node` and `meshes/bar.ele` all read the same
+/// mesh; TetGen's own output names such as `bar.1` work as they are.
+///
+/// # Errors
+/// As [`read_tetgen`].
+///
+/// ```
+/// use pd_io::tetgen::{read_tetgen_base, write_tetgen};
+/// use pd_mesh::generators;
+///
+/// let dir = std::env::temp_dir().join(format!("pd-io-doc-tetgen-{}", std::process::id()));
+/// std::fs::create_dir_all(&dir).unwrap();
+/// let beam = generators::box_tets([1.0, 0.2, 0.2], [5, 1, 1]).unwrap();
+/// write_tetgen(&dir.join("beam"), &beam).unwrap();
+/// let read_back = read_tetgen_base(&dir.join("beam.node")).unwrap();
+/// assert_eq!(read_back, beam);
+/// # std::fs::remove_dir_all(&dir).unwrap();
+/// ```
+pub fn read_tetgen_base(base: &Path) -> Result<Mesh> {
+    let (node, ele) = tetgen_paths(base);
+    read_tetgen(&node, &ele)
+}
+
+/// Writes a tetrahedral mesh as `BASE.node` and `BASE.ele` (an extension
+/// `.node` or `.ele` on `base` is replaced, as in [`read_tetgen_base`]), with
+/// 0-based indices, no attributes or markers, and coordinates that read back
+/// to the same bits. Each file is replaced atomically.
+///
+/// # Errors
+/// [`Error::Content`] if the mesh has no tetrahedra (TetGen files hold
+/// volume meshes); [`Error::Io`] naming the file that cannot be written.
+pub fn write_tetgen(base: &Path, mesh: &Mesh) -> Result<()> {
+    let (node, ele) = tetgen_paths(base);
+    if mesh.tets().is_empty() {
+        return Err(Error::Content {
+            path: ele,
+            message: "the mesh has no tetrahedra; TetGen files hold tetrahedral meshes".into(),
+        });
+    }
+    write_atomically(&node, |w| {
+        writeln!(w, "# Node count, dimension, attributes, boundary markers")?;
+        writeln!(w, "{} 3 0 0", mesh.num_vertices())?;
+        for (index, p) in mesh.vertices().iter().enumerate() {
+            writeln!(w, "{index} {} {} {}", Float(p.x), Float(p.y), Float(p.z))?;
+        }
+        Ok(())
+    })?;
+    write_atomically(&ele, |w| {
+        writeln!(
+            w,
+            "# Tetrahedron count, nodes per tetrahedron, region attributes"
+        )?;
+        writeln!(w, "{} 4 0", mesh.tets().len())?;
+        for (index, [a, b, c, d]) in mesh.tets().iter().enumerate() {
+            writeln!(w, "{index} {a} {b} {c} {d}")?;
+        }
+        Ok(())
+    })
+}
+
+/// `(BASE.node, BASE.ele)` for a base with or without one of the two
+/// extensions. Appends rather than using `Path::with_extension`, which would
+/// turn TetGen's `bar.1` into `bar.node`.
+fn tetgen_paths(base: &Path) -> (PathBuf, PathBuf) {
+    let stem = match base.extension().and_then(|e| e.to_str()) {
+        Some("node" | "ele") => base.with_extension(""),
+        _ => base.to_path_buf(),
+    };
+    let with_suffix = |suffix: &str| {
+        let mut name = OsString::from(stem.as_os_str());
+        name.push(suffix);
+        PathBuf::from(name)
+    };
+    (with_suffix(".node"), with_suffix(".ele"))
+}
+
+/// The nodes of a `.node` file.
+struct Nodes {
+    points: Vec<Point>,
+    /// The index of the first node, 0 or 1.
+    first_index: usize,
+}
+
+fn read_nodes(path: &Path) -> Result<Nodes> {
+    let text = read_text(path)?;
+    let mut lines = DataLines::new(path, &text);
+
+    let header = lines.header("<#points> <dimension> <#attributes> <#boundary markers>", 4)?;
+    let num_points = header.unsigned(0, "number of points")?;
+    let dimension = header.unsigned(1, "dimension")?;
+    let num_attributes = header.unsigned(2, "number of attributes")?;
+    let num_markers = header.unsigned(3, "number of boundary markers")?;
+    if dimension != 3 {
+        return Err(header.error(format!(
+            "dimension {dimension} is not supported: only 3D meshes (dimension 3) are"
+        )));
+    }
+    if num_markers > 1 {
+        return Err(header.error(format!(
+            "the number of boundary markers must be 0 or 1, found {num_markers}"
+        )));
+    }
+    if num_points == 0 {
+        return Err(header.error("the header declares no points".into()));
+    }
+
+    // Saturating: a nonsense attribute count must fail on the first line,
+    // not overflow.
+    let num_fields = 4usize
+        .saturating_add(num_attributes)
+        .saturating_add(num_markers);
+    let mut points = Vec::with_capacity(num_points.min(1 << 20));
+    let mut first_index = 0;
+    for position in 0..num_points {
+        let line = lines.data_line(header.line, position, num_points, "node")?;
+        line.expect_fields(num_fields, &node_line_layout(num_attributes, num_markers))?;
+        let index = line.unsigned(0, "node index")?;
+        if position == 0 {
+            if index > 1 {
+                return Err(line.error(format!("node indices must start at 0 or 1, found {index}")));
+            }
+            first_index = index;
+        } else if index != first_index + position {
+            return Err(line.error(format!(
+                "node index {index} out of sequence: expected {} (indices must be consecutive)",
+                first_index + position
+            )));
+        }
+        let mut coordinates = [0.0; 3];
+        for (axis, (name, coordinate)) in ["x", "y", "z"].iter().zip(&mut coordinates).enumerate() {
+            let value = line.number(1 + axis, &format!("{name} coordinate"))?;
+            if !value.is_finite() {
+                return Err(line.error(format!(
+                    "{name} coordinate of node {index} is not finite: `{}`",
+                    line.fields[1 + axis]
+                )));
+            }
+            *coordinate = value;
+        }
+        for attribute in 0..num_attributes {
+            line.number(4 + attribute, "attribute")?;
+        }
+        if num_markers == 1 {
+            line.signed(4 + num_attributes, "boundary marker")?;
+        }
+        points.push(Point::from(coordinates));
+    }
+    lines.expect_end(header.line, num_points, "nodes")?;
+    Ok(Nodes {
+        points,
+        first_index,
+    })
+}
+
+fn node_line_layout(num_attributes: usize, num_markers: usize) -> String {
+    let mut layout = String::from("index, x, y, z");
+    if num_attributes > 0 {
+        layout += &format!(", {num_attributes} attribute(s)");
+    }
+    if num_markers > 0 {
+        layout += ", boundary marker";
+    }
+    layout
+}
+
+fn read_elements(path: &Path, node_path: &Path, nodes: &Nodes) -> Result<Vec<[usize; 4]>> {
+    let text = read_text(path)?;
+    let mut lines = DataLines::new(path, &text);
+
+    let header = lines.header(
+        "<#tetrahedra> <nodes per tetrahedron> <#region attributes>",
+        3,
+    )?;
+    let num_tets = header.unsigned(0, "number of tetrahedra")?;
+    let nodes_per_tet = header.unsigned(1, "number of nodes per tetrahedron")?;
+    let num_regions = header.unsigned(2, "number of region attributes")?;
+    match nodes_per_tet {
+        4 => {}
+        10 => {
+            return Err(header.error(
+                "10-node (quadratic) tetrahedra are not supported: only 4-node linear \
+                 tetrahedra are (run TetGen without -o2)"
+                    .into(),
+            ));
+        }
+        n => {
+            return Err(header.error(format!(
+                "a tetrahedron must have 4 nodes, the header says {n}"
+            )));
+        }
+    }
+    if num_regions > 1 {
+        return Err(header.error(format!(
+            "the number of region attributes must be 0 or 1, found {num_regions}"
+        )));
+    }
+    if num_tets == 0 {
+        return Err(header.error("the header declares no tetrahedra".into()));
+    }
+
+    let num_points = nodes.points.len();
+    let first_node = nodes.first_index;
+    let layout = if num_regions == 1 {
+        "index, 4 nodes, region attribute"
+    } else {
+        "index, 4 nodes"
+    };
+    let mut tets = Vec::with_capacity(num_tets.min(1 << 20));
+    let mut first_index = 0;
+    for position in 0..num_tets {
+        let line = lines.data_line(header.line, position, num_tets, "tetrahedron")?;
+        line.expect_fields(5 + num_regions, layout)?;
+        let index = line.unsigned(0, "tetrahedron index")?;
+        if position == 0 {
+            if index > 1 {
+                return Err(line.error(format!(
+                    "tetrahedron indices must start at 0 or 1, found {index}"
+                )));
+            }
+            first_index = index;
+        } else if index != first_index + position {
+            return Err(line.error(format!(
+                "tetrahedron index {index} out of sequence: expected {} (indices must be \
+                 consecutive)",
+                first_index + position
+            )));
+        }
+        let mut tet = [0; 4];
+        for (corner, vertex) in tet.iter_mut().enumerate() {
+            let node = line.unsigned(1 + corner, "node index")?;
+            *vertex = node
+                .checked_sub(first_node)
+                .filter(|&v| v < num_points)
+                .ok_or_else(|| {
+                    line.error(format!(
+                        "tetrahedron {index} refers to node {node}, but {} has {num_points} \
+                         nodes numbered {first_node} to {}",
+                        node_path.display(),
+                        first_node + num_points - 1
+                    ))
+                })?;
+        }
+        if num_regions == 1 {
+            line.number(5, "region attribute")?;
+        }
+        tets.push(tet);
+    }
+    lines.expect_end(header.line, num_tets, "tetrahedra")?;
+    Ok(tets)
+}
+
+/// Reads a whole file as UTF-8, reporting invalid bytes at their line.
+fn read_text(path: &Path) -> Result<String> {
+    let bytes = std::fs::read(path).map_err(|source| Error::io(path, source))?;
+    String::from_utf8(bytes).map_err(|err| {
+        let valid = &err.as_bytes()[..err.utf8_error().valid_up_to()];
+        Error::Parse {
+            path: path.to_path_buf(),
+            line: 1 + valid.iter().filter(|&&b| b == b'\n').count(),
+            message: "the file is not valid UTF-8 text".into(),
+        }
+    })
+}
+
+/// The non-blank lines of a file, comments stripped, split into fields.
+struct DataLines<'a> {
+    path: &'a Path,
+    lines: std::iter::Enumerate<std::str::Lines<'a>>,
+    /// Number of the last line of the file (1 for an empty file), where a
+    /// truncated file is reported.
+    last_line: usize,
+}
+
+/// One non-blank line: its 1-based number and its fields.
+struct Line<'a> {
+    path: &'a Path,
+    line: usize,
+    fields: Vec<&'a str>,
+}
+
+impl<'a> DataLines<'a> {
+    fn new(path: &'a Path, text: &'a str) -> Self {
+        Self {
+            path,
+            lines: text.lines().enumerate(),
+            last_line: text.lines().count().max(1),
+        }
+    }
+
+    fn next_line(&mut self) -> Option<Line<'a>> {
+        for (number, text) in self.lines.by_ref() {
+            let data = text.split_once('#').map_or(text, |(data, _comment)| data);
+            let fields: Vec<&str> = data.split_whitespace().collect();
+            if !fields.is_empty() {
+                return Some(Line {
+                    path: self.path,
+                    line: number + 1,
+                    fields,
+                });
+            }
+        }
+        None
+    }
+
+    fn error_at_end(&self, message: String) -> Error {
+        Error::Parse {
+            path: self.path.to_path_buf(),
+            line: self.last_line,
+            message,
+        }
+    }
+
+    /// The header line, which must have exactly `num_fields` fields.
+    fn header(&mut self, layout: &str, num_fields: usize) -> Result<Line<'a>> {
+        let header = self.next_line().ok_or_else(|| {
+            self.error_at_end(format!("the header is missing: expected `{layout}`"))
+        })?;
+        if header.fields.len() != num_fields {
+            return Err(header.error(format!(
+                "the header must have {num_fields} fields `{layout}`, found {}",
+                header.fields.len()
+            )));
+        }
+        Ok(header)
+    }
+
+    /// Data line number `position` (0-based) of `count` declared on line
+    /// `header_line`.
+    fn data_line(
+        &mut self,
+        header_line: usize,
+        position: usize,
+        count: usize,
+        what: &str,
+    ) -> Result<Line<'a>> {
+        self.next_line().ok_or_else(|| {
+            self.error_at_end(format!(
+                "the file is truncated: the header on line {header_line} declares {count} \
+                 {what} lines, found {position}"
+            ))
+        })
+    }
+
+    /// Fails if any data is left after the `count` declared lines.
+    fn expect_end(&mut self, header_line: usize, count: usize, what: &str) -> Result<()> {
+        match self.next_line() {
+            Some(extra) => Err(extra.error(format!(
+                "unexpected data after the {count} {what} declared by the header on line \
+                 {header_line}"
+            ))),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Line<'_> {
+    fn error(&self, message: String) -> Error {
+        Error::Parse {
+            path: self.path.to_path_buf(),
+            line: self.line,
+            message,
+        }
+    }
+
+    fn expect_fields(&self, count: usize, layout: &str) -> Result<()> {
+        if self.fields.len() == count {
+            Ok(())
+        } else {
+            Err(self.error(format!(
+                "expected {count} fields ({layout}), found {}",
+                self.fields.len()
+            )))
+        }
+    }
+
+    /// Field `index` as a count or an index. Integers must be written as
+    /// integers (`3`, not `3.0`), as TetGen writes them.
+    fn unsigned(&self, index: usize, what: &str) -> Result<usize> {
+        let value = self.parse(index, what, "a non-negative integer");
+        let text = self.fields.get(index).copied().unwrap_or_default();
+        if value.is_err() && !text.is_empty() && text.bytes().all(|b| b.is_ascii_digit()) {
+            return Err(self.error(format!("the {what} `{text}` is too large")));
+        }
+        value
+    }
+
+    /// Field `index` as a signed integer (boundary markers may be negative).
+    fn signed(&self, index: usize, what: &str) -> Result<i64> {
+        self.parse(index, what, "an integer")
+    }
+
+    /// Field `index` as a number; `inf` and `nan` parse, so callers that
+    /// need finite values check them.
+    fn number(&self, index: usize, what: &str) -> Result<f64> {
+        self.parse(index, what, "a number")
+    }
+
+    fn parse<T: FromStr>(&self, index: usize, what: &str, expected: &str) -> Result<T> {
+        let text = self.fields.get(index).copied().unwrap_or_default();
+        text.parse()
+            .map_err(|_| self.error(format!("the {what} must be {expected}, found `{text}`")))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base_names_keep_tetgen_iteration_numbers() {
+        let (node, ele) = tetgen_paths(Path::new("meshes/bar.1"));
+        assert_eq!(node, Path::new("meshes/bar.1.node"));
+        assert_eq!(ele, Path::new("meshes/bar.1.ele"));
+        for base in ["meshes/bar", "meshes/bar.node", "meshes/bar.ele"] {
+            let (node, ele) = tetgen_paths(Path::new(base));
+            assert_eq!(node, Path::new("meshes/bar.node"), "{base}");
+            assert_eq!(ele, Path::new("meshes/bar.ele"), "{base}");
+        }
+    }
+
+    #[test]
+    fn comments_and_blank_lines_are_skipped_and_lines_numbered_from_one() {
+        let text = "# header comment\n\n  3 4 0 # trailing\n\t\n1 2 3 4 5#x\n#\n";
+        let mut lines = DataLines::new(Path::new("t.ele"), text);
+        let first = lines.next_line().unwrap();
+        assert_eq!((first.line, first.fields), (3, vec!["3", "4", "0"]));
+        let second = lines.next_line().unwrap();
+        assert_eq!(
+            (second.line, second.fields),
+            (5, vec!["1", "2", "3", "4", "5"])
+        );
+        assert!(lines.next_line().is_none());
+        assert_eq!(lines.last_line, 6);
+    }
+}
