@@ -1,9 +1,9 @@
 //! Writers for simulation frames: legacy ASCII VTK (for ParaView and VisIt)
 //! and Wavefront OBJ (for anything else).
 //!
-//! Every file this crate writes goes through [`write_atomically`]: the text
-//! is written to a hidden temporary file beside the target, flushed, and
-//! renamed over the target, so a run that is interrupted (Ctrl-C, a crash,
+//! Every file this crate writes is replaced atomically: the text goes to a
+//! hidden temporary file beside the target, which is flushed and renamed
+//! over the target, so a run that is interrupted (Ctrl-C, a crash,
 //! a full disk) never leaves a half-written frame under the final name.
 //! Floats are written so that parsing them gives back the same `f64` bit for
 //! bit.
@@ -314,7 +314,7 @@ mod tests {
             f64::MIN_POSITIVE,
             5e-324,
             f64::MAX,
-            123456789.123456789,
+            123_456_789.123_456_79,
         ];
         for x in values {
             let text = Float(x).to_string();

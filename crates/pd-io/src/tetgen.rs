@@ -169,30 +169,21 @@ fn read_nodes(path: &Path) -> Result<Nodes> {
     let num_fields = 4usize
         .saturating_add(num_attributes)
         .saturating_add(num_markers);
+    let layout = node_line_layout(num_attributes, num_markers);
+    // Capped: the header's count is not trusted until the lines are there.
     let mut points = Vec::with_capacity(num_points.min(1 << 20));
     let mut first_index = 0;
     for position in 0..num_points {
         let line = lines.data_line(header.line, position, num_points, "node")?;
-        line.expect_fields(num_fields, &node_line_layout(num_attributes, num_markers))?;
-        let index = line.unsigned(0, "node index")?;
-        if position == 0 {
-            if index > 1 {
-                return Err(line.error(format!("node indices must start at 0 or 1, found {index}")));
-            }
-            first_index = index;
-        } else if index != first_index + position {
-            return Err(line.error(format!(
-                "node index {index} out of sequence: expected {} (indices must be consecutive)",
-                first_index + position
-            )));
-        }
+        line.expect_fields(num_fields, &layout)?;
+        let index = line.sequence_index(position, &mut first_index, "node")?;
         let mut coordinates = [0.0; 3];
         for (axis, (name, coordinate)) in ["x", "y", "z"].iter().zip(&mut coordinates).enumerate() {
             let value = line.number(1 + axis, &format!("{name} coordinate"))?;
             if !value.is_finite() {
                 return Err(line.error(format!(
                     "{name} coordinate of node {index} is not finite: `{}`",
-                    line.fields[1 + axis]
+                    line.text(1 + axis)
                 )));
             }
             *coordinate = value;
@@ -270,21 +261,7 @@ fn read_elements(path: &Path, node_path: &Path, nodes: &Nodes) -> Result<Vec<[us
     for position in 0..num_tets {
         let line = lines.data_line(header.line, position, num_tets, "tetrahedron")?;
         line.expect_fields(5 + num_regions, layout)?;
-        let index = line.unsigned(0, "tetrahedron index")?;
-        if position == 0 {
-            if index > 1 {
-                return Err(line.error(format!(
-                    "tetrahedron indices must start at 0 or 1, found {index}"
-                )));
-            }
-            first_index = index;
-        } else if index != first_index + position {
-            return Err(line.error(format!(
-                "tetrahedron index {index} out of sequence: expected {} (indices must be \
-                 consecutive)",
-                first_index + position
-            )));
-        }
+        let index = line.sequence_index(position, &mut first_index, "tetrahedron")?;
         let mut tet = [0; 4];
         for (corner, vertex) in tet.iter_mut().enumerate() {
             let node = line.unsigned(1 + corner, "node index")?;
@@ -433,11 +410,38 @@ impl Line<'_> {
         }
     }
 
+    /// The index in the first field of data line `position` (0-based) of a
+    /// `what` section: the first line's index, 0 or 1, is stored in
+    /// `first_index`, and the others must follow it consecutively.
+    fn sequence_index(
+        &self,
+        position: usize,
+        first_index: &mut usize,
+        what: &str,
+    ) -> Result<usize> {
+        let index = self.unsigned(0, &format!("{what} index"))?;
+        if position == 0 {
+            if index > 1 {
+                return Err(self.error(format!(
+                    "{what} indices must start at 0 or 1, found {index}"
+                )));
+            }
+            *first_index = index;
+        } else if index != *first_index + position {
+            return Err(self.error(format!(
+                "{what} index {index} out of sequence: expected {} (indices must be \
+                 consecutive)",
+                *first_index + position
+            )));
+        }
+        Ok(index)
+    }
+
     /// Field `index` as a count or an index. Integers must be written as
     /// integers (`3`, not `3.0`), as TetGen writes them.
     fn unsigned(&self, index: usize, what: &str) -> Result<usize> {
         let value = self.parse(index, what, "a non-negative integer");
-        let text = self.fields.get(index).copied().unwrap_or_default();
+        let text = self.text(index);
         if value.is_err() && !text.is_empty() && text.bytes().all(|b| b.is_ascii_digit()) {
             return Err(self.error(format!("the {what} `{text}` is too large")));
         }
@@ -455,8 +459,13 @@ impl Line<'_> {
         self.parse(index, what, "a number")
     }
 
+    /// The text of field `index`, empty if there is no such field.
+    fn text(&self, index: usize) -> &str {
+        self.fields.get(index).copied().unwrap_or_default()
+    }
+
     fn parse<T: FromStr>(&self, index: usize, what: &str, expected: &str) -> Result<T> {
-        let text = self.fields.get(index).copied().unwrap_or_default();
+        let text = self.text(index);
         text.parse()
             .map_err(|_| self.error(format!("the {what} must be {expected}, found `{text}`")))
     }

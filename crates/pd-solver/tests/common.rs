@@ -1,0 +1,41 @@
+//! Helpers shared by the solver's integration tests.
+#![allow(dead_code)]
+
+use pd_constraints::assembly::{self, LaplacianKind};
+use pd_mesh::{Mesh, Point};
+use pd_solver::Model;
+
+/// Unit round-off of f64.
+pub const U: f64 = f64::EPSILON / 2.0;
+
+/// A box tet mesh with its rest positions perturbed by up to `jitter` of a
+/// cell (deterministic in `seed`), so that tests do not depend on a regular
+/// grid. Jitter below 0.2 cells keeps every tet positively oriented.
+pub fn jittered_box(cells: [usize; 3], size: [f64; 3], jitter: f64, seed: u64) -> Mesh {
+    let mesh = pd_mesh::generators::box_tets(size, cells).unwrap();
+    let cell = Point::new(
+        size[0] / cells[0] as f64,
+        size[1] / cells[1] as f64,
+        size[2] / cells[2] as f64,
+    );
+    let mut state = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    let mut next = move || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    };
+    let vertices: Vec<Point> = mesh
+        .vertices()
+        .iter()
+        .map(|p| p + Point::new(next() * cell.x, next() * cell.y, next() * cell.z) * jitter)
+        .collect();
+    Mesh::from_tets(vertices, mesh.tets().to_vec()).unwrap()
+}
+
+/// Largest absolute row sum of the system Laplacian (N/m): a bound on its
+/// largest eigenvalue (Gershgorin), used to scale round-off tolerances.
+pub fn laplacian_norm(model: &Model) -> f64 {
+    let l = assembly::laplacian(&model.constraint_blocks(), model.num_vertices(), LaplacianKind::System);
+    (0..l.nrows())
+        .map(|r| l.row(r).map(|(_, v)| v.abs()).sum::<f64>())
+        .fold(0.0, f64::max)
+}
