@@ -42,9 +42,7 @@ impl TetStrain {
     ) -> Result<Self, ConstraintError> {
         check_stiffness(stiffness)?;
         if let Some((min, max)) = limits {
-            if !(min.is_finite() && max.is_finite() && 0.0 <= min && min <= 1.0 && max >= 1.0) {
-                return Err(ConstraintError::InvalidStrainLimits { min, max });
-            }
+            Self::check_limits(min, max)?;
         }
         let [x0, x1, x2, x3] = tet.map(|v| rest[v]);
         let rest_edges = Matrix3::from_columns(&[x1 - x0, x2 - x0, x3 - x0]);
@@ -68,6 +66,18 @@ impl TetStrain {
             operator,
             limits,
         })
+    }
+
+    /// Checks stretch limits: `0 <= min <= 1 <= max`, both finite.
+    ///
+    /// # Errors
+    /// [`ConstraintError::InvalidStrainLimits`] otherwise.
+    pub fn check_limits(min: f64, max: f64) -> Result<(), ConstraintError> {
+        if (0.0..=1.0).contains(&min) && max.is_finite() && max >= 1.0 {
+            Ok(())
+        } else {
+            Err(ConstraintError::InvalidStrainLimits { min, max })
+        }
     }
 }
 

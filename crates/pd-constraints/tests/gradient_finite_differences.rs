@@ -19,7 +19,11 @@ fn check_gradient(block: &dyn ConstraintBlock, q: &[Point]) -> Result<(), TestCa
     let mut analytic = vec![Point::zeros(); q.len()];
     block.add_gradient(q, &mut analytic);
     let energy = |q: &[Point]| block.energy_range(q, 0..block.len());
-    let scale = analytic.iter().map(|g| g.amax()).fold(0.0, f64::max).max(1e-3);
+    let scale = analytic
+        .iter()
+        .map(|g| g.amax())
+        .fold(0.0, f64::max)
+        .max(1e-3);
     let mut moved = q.to_vec();
     for v in 0..q.len() {
         for k in 0..3 {
@@ -93,10 +97,18 @@ fn translation_invariant_kinds_have_zero_row_sums() {
     // L 1 = 0 for strain and springs: they exert no net force (DESIGN.md 3.4).
     let rest = rest_tet();
     let blocks: Vec<Box<dyn ConstraintBlock>> = vec![
-        Box::new(ConstraintSet::new(vec![TetStrain::new(&rest, [0, 1, 2, 3], 7.0, None).unwrap()])),
-        Box::new(ConstraintSet::new(vec![Spring::new(&rest, [0, 2], 3.0).unwrap()])),
+        Box::new(ConstraintSet::new(vec![
+            TetStrain::new(&rest, [0, 1, 2, 3], 7.0, None).unwrap(),
+        ])),
+        Box::new(ConstraintSet::new(vec![
+            Spring::new(&rest, [0, 2], 3.0).unwrap(),
+        ])),
     ];
-    let l = pd_constraints::assembly::laplacian(&blocks, 4, pd_constraints::assembly::LaplacianKind::System);
+    let l = pd_constraints::assembly::laplacian(
+        &blocks,
+        4,
+        pd_constraints::assembly::LaplacianKind::System,
+    );
     for r in 0..4 {
         let sum: f64 = l.row(r).map(|(_, v)| v).sum();
         let scale: f64 = l.row(r).map(|(_, v)| v.abs()).sum();
@@ -104,8 +116,13 @@ fn translation_invariant_kinds_have_zero_row_sums() {
         assert!(sum.abs() <= 1e-14 * scale, "row {r}: sum {sum}");
     }
     // An attachment is not translation invariant and stays out of L_d.
-    let with_attachment: Vec<Box<dyn ConstraintBlock>> =
-        vec![Box::new(ConstraintSet::new(vec![Attachment::new(1, Point::x(), 5.0).unwrap()]))];
-    let l_d = pd_constraints::assembly::laplacian(&with_attachment, 4, pd_constraints::assembly::LaplacianKind::Damping);
+    let with_attachment: Vec<Box<dyn ConstraintBlock>> = vec![Box::new(ConstraintSet::new(vec![
+        Attachment::new(1, Point::x(), 5.0).unwrap(),
+    ]))];
+    let l_d = pd_constraints::assembly::laplacian(
+        &with_attachment,
+        4,
+        pd_constraints::assembly::LaplacianKind::Damping,
+    );
     assert_eq!(l_d.nnz(), 0);
 }

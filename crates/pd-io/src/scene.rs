@@ -801,12 +801,8 @@ impl Validator<'_> {
                 let limits = match raw.limits {
                     None => None,
                     Some([min, max]) => {
-                        if !(min.is_finite() && max.is_finite() && (0.0..=1.0).contains(&min) && max >= 1.0) {
-                            return Err(self.error(
-                                sub("limits"),
-                                format!("must satisfy 0 <= min <= 1 <= max, got [{min}, {max}]"),
-                            ));
-                        }
+                        pd_constraints::TetStrain::check_limits(min, max)
+                            .map_err(|e| self.error(sub("limits"), e.to_string()))?;
                         Some((min, max))
                     }
                 };

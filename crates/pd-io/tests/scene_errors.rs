@@ -118,10 +118,8 @@ fn field_error_of(err: Error, source: &Path, field: &str, mentions: &[&str]) -> 
 /// A fresh, empty folder under the system's temporary folder, unique to
 /// this process and `test`.
 fn scratch_dir(test: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "pd-io-scene-errors-{}-{test}",
-        std::process::id()
-    ));
+    let dir =
+        std::env::temp_dir().join(format!("pd-io-scene-errors-{}-{test}", std::process::id()));
     if dir.exists() {
         std::fs::remove_dir_all(&dir).unwrap();
     }
@@ -236,7 +234,14 @@ fn json_scene_with_an_unknown_key_names_its_line() {
 }
 "#;
     let source = Path::new("scenes/bad.json");
-    assert!(Scene::parse(&json.replacen("\"colour\": \"red\",", "", 1), Syntax::Json, source).is_ok());
+    assert!(
+        Scene::parse(
+            &json.replacen("\"colour\": \"red\",", "", 1),
+            Syntax::Json,
+            source
+        )
+        .is_ok()
+    );
     let err = Scene::parse(json, Syntax::Json, source).unwrap_err();
     let shown = err.to_string();
     let line = line_of(json, "colour");
@@ -248,7 +253,10 @@ fn json_scene_with_an_unknown_key_names_its_line() {
         } => {
             assert_eq!(path, source, "{shown}");
             assert_eq!(found, line, "{shown}");
-            assert!(shown.starts_with(&format!("scenes/bad.json:{line}: ")), "{shown}");
+            assert!(
+                shown.starts_with(&format!("scenes/bad.json:{line}: ")),
+                "{shown}"
+            );
             assert!(
                 message.contains("body[0]") && message.contains("unknown field `colour`"),
                 "{shown}"
@@ -262,7 +270,11 @@ fn json_scene_with_an_unknown_key_names_its_line() {
 
 #[test]
 fn zero_time_step() {
-    expect_field_error(parse(&edit("dt = 0.01", "dt = 0.0")), "simulation.dt", &["> 0"]);
+    expect_field_error(
+        parse(&edit("dt = 0.01", "dt = 0.0")),
+        "simulation.dt",
+        &["> 0"],
+    );
 }
 
 #[test]
@@ -322,7 +334,10 @@ fn neither_density_nor_vertex_mass() {
 #[test]
 fn both_density_and_vertex_mass() {
     expect_field_error(
-        parse(&edit("density = 1000.0\n", "density = 1000.0\nvertex_mass = 0.1\n")),
+        parse(&edit(
+            "density = 1000.0\n",
+            "density = 1000.0\nvertex_mass = 0.1\n",
+        )),
         "body[0].vertex_mass",
         &["not both"],
     );
@@ -390,7 +405,12 @@ fn fixed_vertex_out_of_range_fails_at_build() {
     ))
     .unwrap();
     let err = scene.build().unwrap_err();
-    field_error_of(err, Path::new(SOURCE), "body[0].fixed", &["20", "out of range"]);
+    field_error_of(
+        err,
+        Path::new(SOURCE),
+        "body[0].fixed",
+        &["20", "out of range"],
+    );
 }
 
 #[test]
@@ -438,7 +458,10 @@ fn infinite_density() {
 #[test]
 fn nan_gravity_component() {
     expect_field_error(
-        parse(&edit("gravity = [0.0, -9.81, 0.0]", "gravity = [0.0, nan, 0.0]")),
+        parse(&edit(
+            "gravity = [0.0, -9.81, 0.0]",
+            "gravity = [0.0, nan, 0.0]",
+        )),
         "simulation.gravity[1]",
         &["finite"],
     );
@@ -446,10 +469,11 @@ fn nan_gravity_component() {
 
 // --- Mesh files: errors name the mesh file, and the line or element. ---
 
-/// A unit tetrahedron (nodes 0-3) plus node 4 at (1, 1, 0), in the plane
-/// of nodes 0, 1 and 2, so that tetrahedron 0-1-2-4 is flat.
+/// Two positively oriented tetrahedra, 0-1-2-3 and 0-1-4-3, where node 4 at
+/// (1, 1, 0) lies in the plane of nodes 0, 1 and 2: tests make the second
+/// tetrahedron 0-1-2-4, which is flat.
 const NODE: &str = "# two tets\n5 3 0 0\n0 0 0 0\n1 1 0 0\n2 0 1 0\n3 0 0 1\n4 1 1 0\n";
-const ELE: &str = "2 4 0\n0 0 1 2 3\n1 0 1 2 3\n";
+const ELE: &str = "2 4 0\n0 0 1 2 3\n1 0 1 4 3\n";
 
 /// Writes `mesh.node`, `mesh.ele` and a scene naming `file = "mesh.node"`
 /// (relative) into a fresh folder; returns the scene's path.
@@ -498,7 +522,7 @@ fn missing_mesh_file_is_an_io_error_at_build() {
 
 #[test]
 fn tetgen_mesh_with_a_flat_tet_names_the_tet() {
-    let ele = ELE.replace("1 0 1 2 3", "1 0 1 2 4");
+    let ele = ELE.replace("1 0 1 4 3", "1 0 1 2 4");
     let scene = tetgen_scene("flat_tet", NODE, &ele);
     let err = Scene::load(&scene).unwrap().build().unwrap_err();
     let shown = err.to_string();
@@ -513,7 +537,10 @@ fn tetgen_mesh_with_a_flat_tet_names_the_tet() {
         }
         other => panic!("expected a mesh error, got {other:?}"),
     }
-    assert!(shown.starts_with(&ele_path.display().to_string()), "{shown}");
+    assert!(
+        shown.starts_with(&ele_path.display().to_string()),
+        "{shown}"
+    );
     assert!(shown.contains("tetrahedron 1 "), "{shown}");
     std::fs::remove_dir_all(scene.parent().unwrap()).unwrap();
 }
@@ -549,15 +576,39 @@ fn tetgen_mesh_with_a_nan_coordinate() {
     let node = NODE.replace("2 0 1 0", "2 0 nan 0");
     let scene = tetgen_scene("nan_coordinate", &node, ELE);
     let line = line_of(&node, "nan");
-    expect_mesh_parse_error(&scene, "mesh.node", line, &["y coordinate", "node 2", "finite"]);
+    expect_mesh_parse_error(
+        &scene,
+        "mesh.node",
+        line,
+        &["y coordinate", "node 2", "finite"],
+    );
     std::fs::remove_dir_all(scene.parent().unwrap()).unwrap();
 }
 
 #[test]
 fn tetgen_mesh_with_an_out_of_range_index() {
-    let ele = ELE.replace("1 0 1 2 3", "1 0 1 2 7");
+    let ele = ELE.replace("1 0 1 4 3", "1 0 1 4 7");
     let scene = tetgen_scene("index_out_of_range", NODE, &ele);
-    let line = line_of(&ele, "1 0 1 2 7");
+    let line = line_of(&ele, "1 0 1 4 7");
     expect_mesh_parse_error(&scene, "mesh.ele", line, &["tetrahedron 1", "node 7"]);
     std::fs::remove_dir_all(scene.parent().unwrap()).unwrap();
+}
+
+#[test]
+#[ignore = "bug: parse_json never calls serde_json::Deserializer::end, so text after the \
+            scene's closing brace is silently ignored"]
+fn json_scene_with_trailing_characters_is_rejected() {
+    let json = "{\n  \"simulation\": { \"dt\": 0.01, \"steps\": 10 },\n  \"body\": [ { \"mesh\": \
+                { \"generator\": \"chain\", \"points\": 4, \"length\": 1.0 }, \"vertex_mass\": \
+                0.1 } ]\n}\n";
+    let source = Path::new("scenes/bad.json");
+    assert!(Scene::parse(json, Syntax::Json, source).is_ok());
+    // A second object pasted after the first, e.g. by a bad merge.
+    let text = format!("{json}{{ \"simulation\": {{ \"dt\": -1.0 }} }}\n");
+    let err = Scene::parse(&text, Syntax::Json, source).expect_err("trailing text is accepted");
+    let shown = err.to_string();
+    assert!(
+        matches!(err, Error::Parse { line: 5, .. }),
+        "expected a parse error at line 5, got {shown}"
+    );
 }

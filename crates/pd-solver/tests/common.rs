@@ -18,9 +18,13 @@ pub fn jittered_box(cells: [usize; 3], size: [f64; 3], jitter: f64, seed: u64) -
         size[1] / cells[1] as f64,
         size[2] / cells[2] as f64,
     );
-    let mut state = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    let mut state = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
     let mut next = move || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         ((state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
     };
     let vertices: Vec<Point> = mesh
@@ -34,7 +38,11 @@ pub fn jittered_box(cells: [usize; 3], size: [f64; 3], jitter: f64, seed: u64) -
 /// Largest absolute row sum of the system Laplacian (N/m): a bound on its
 /// largest eigenvalue (Gershgorin), used to scale round-off tolerances.
 pub fn laplacian_norm(model: &Model) -> f64 {
-    let l = assembly::laplacian(&model.constraint_blocks(), model.num_vertices(), LaplacianKind::System);
+    let l = assembly::laplacian(
+        &model.constraint_blocks(),
+        model.num_vertices(),
+        LaplacianKind::System,
+    );
     (0..l.nrows())
         .map(|r| l.row(r).map(|(_, v)| v.abs()).sum::<f64>())
         .fold(0.0, f64::max)

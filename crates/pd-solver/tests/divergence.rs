@@ -65,48 +65,118 @@ fn chain_model() -> Model {
 
 #[test]
 fn energy_blow_up_stops_the_run_at_the_step_it_happens() {
-    let mut sim = Simulation::new(chain_model(), Box::new(EnergyPump), Box::new(NoDamping), Settings::default()).unwrap();
+    let mut sim = Simulation::new(
+        chain_model(),
+        Box::new(EnergyPump),
+        Box::new(NoDamping),
+        Settings::default(),
+    )
+    .unwrap();
     let mut last_good = None;
     let error = loop {
         match sim.step() {
             Ok(_) => last_good = Some(sim.state().clone()),
             Err(e) => break e,
         }
-        assert!(sim.steps() < 200, "a fourfold energy growth per step must be caught");
+        assert!(
+            sim.steps() < 200,
+            "a fourfold energy growth per step must be caught"
+        );
     };
     let SolverError::Diverged { step, reason, .. } = &error else {
         panic!("expected Diverged, got {error}");
     };
     assert!(reason.contains("energy"), "{reason}");
     assert_eq!(*step, sim.steps() + 1, "the error names the failing step");
-    assert_eq!(Some(sim.state()), last_good.as_ref(), "the state stays at the last good step");
-    assert!(error.to_string().contains(&format!("step {step}")), "{error}");
+    assert_eq!(
+        Some(sim.state()),
+        last_good.as_ref(),
+        "the state stays at the last good step"
+    );
+    assert!(
+        error.to_string().contains(&format!("step {step}")),
+        "{error}"
+    );
 }
 
 #[test]
 fn non_finite_position_is_reported_with_its_vertex() {
-    let mut sim =
-        Simulation::new(chain_model(), Box::new(NanAtStepThree::default()), Box::new(NoDamping), Settings::default())
-            .unwrap();
+    let mut sim = Simulation::new(
+        chain_model(),
+        Box::new(NanAtStepThree::default()),
+        Box::new(NoDamping),
+        Settings::default(),
+    )
+    .unwrap();
     sim.run(2).unwrap();
     let error = sim.step().unwrap_err();
     let message = error.to_string();
-    assert!(message.contains("step 3") && message.contains("not finite"), "{message}");
-    assert!(sim.state().positions.iter().all(|p| p.iter().all(|c| c.is_finite())));
+    assert!(
+        message.contains("step 3") && message.contains("not finite"),
+        "{message}"
+    );
+    assert!(
+        sim.state()
+            .positions
+            .iter()
+            .all(|p| p.iter().all(|c| c.is_finite()))
+    );
     assert_eq!(sim.steps(), 2);
 }
 
 #[test]
 fn invalid_settings_are_rejected_by_name() {
     for (settings, field) in [
-        (Settings { dt: 0.0, ..Settings::default() }, "dt"),
-        (Settings { dt: -0.01, ..Settings::default() }, "dt"),
-        (Settings { dt: f64::NAN, ..Settings::default() }, "dt"),
-        (Settings { iterations: 0, ..Settings::default() }, "iterations"),
-        (Settings { tolerance: -1.0, ..Settings::default() }, "tolerance"),
-        (Settings { gravity: Point::new(0.0, f64::INFINITY, 0.0), ..Settings::default() }, "gravity"),
+        (
+            Settings {
+                dt: 0.0,
+                ..Settings::default()
+            },
+            "dt",
+        ),
+        (
+            Settings {
+                dt: -0.01,
+                ..Settings::default()
+            },
+            "dt",
+        ),
+        (
+            Settings {
+                dt: f64::NAN,
+                ..Settings::default()
+            },
+            "dt",
+        ),
+        (
+            Settings {
+                iterations: 0,
+                ..Settings::default()
+            },
+            "iterations",
+        ),
+        (
+            Settings {
+                tolerance: -1.0,
+                ..Settings::default()
+            },
+            "tolerance",
+        ),
+        (
+            Settings {
+                gravity: Point::new(0.0, f64::INFINITY, 0.0),
+                ..Settings::default()
+            },
+            "gravity",
+        ),
     ] {
-        let error = Simulation::new(chain_model(), Box::new(BackwardEuler), Box::new(NoDamping), settings).unwrap_err();
+        let error = Simulation::new(
+            chain_model(),
+            Box::new(BackwardEuler),
+            Box::new(NoDamping),
+            settings,
+        )
+        .unwrap_err();
         assert!(
             matches!(&error, SolverError::InvalidSetting { field: f, .. } if *f == field),
             "{error}"
@@ -118,13 +188,34 @@ fn invalid_settings_are_rejected_by_name() {
 fn model_errors_name_the_problem() {
     let chain = generators::chain(3, 1.0).unwrap();
     let mut model = Model::new();
-    assert!(model.add_body(chain.clone(), vec![1.0; 2]).is_err(), "mass count mismatch");
-    assert!(model.add_body(chain.clone(), vec![1.0, -1.0, 1.0]).is_err(), "negative mass");
+    assert!(
+        model.add_body(chain.clone(), vec![1.0; 2]).is_err(),
+        "mass count mismatch"
+    );
+    assert!(
+        model.add_body(chain.clone(), vec![1.0, -1.0, 1.0]).is_err(),
+        "negative mass"
+    );
     let body = model.add_body(chain, vec![1.0, 0.0, 1.0]).unwrap();
     assert!(model.add_springs(body, -5.0).is_err(), "negative stiffness");
-    assert!(model.add_tet_strain(body, 5.0, None).is_err(), "no tets in a chain");
-    assert!(model.fix_vertices(body, &[3]).is_err(), "vertex out of range");
+    assert!(
+        model.add_tet_strain(body, 5.0, None).is_err(),
+        "no tets in a chain"
+    );
+    assert!(
+        model.fix_vertices(body, &[3]).is_err(),
+        "vertex out of range"
+    );
     model.add_springs(body, 5.0).unwrap();
-    let error = Simulation::new(model, Box::new(BackwardEuler), Box::new(NoDamping), Settings::default()).unwrap_err();
-    assert!(error.to_string().contains("vertex 1"), "a massless free vertex is named: {error}");
+    let error = Simulation::new(
+        model,
+        Box::new(BackwardEuler),
+        Box::new(NoDamping),
+        Settings::default(),
+    )
+    .unwrap_err();
+    assert!(
+        error.to_string().contains("vertex 1"),
+        "a massless free vertex is named: {error}"
+    );
 }

@@ -31,20 +31,44 @@ fn settings(dt: f64, iterations: usize) -> Settings {
 /// becomes `u h (m/h^2 + |L|) |x|` of momentum per vertex (`|L|` the
 /// Laplacian's Gershgorin bound). Summed over `n` vertices and `steps` steps,
 /// with a factor 16 for the constant of the solve's error bound.
-fn check(model: Model, dt: f64, iterations: usize, velocities: Vec<Point>, steps: usize) -> Result<(), TestCaseError> {
+fn check(
+    model: Model,
+    dt: f64,
+    iterations: usize,
+    velocities: Vec<Point>,
+    steps: usize,
+) -> Result<(), TestCaseError> {
     let n = model.num_vertices();
     let max_mass = model.masses().iter().copied().fold(0.0, f64::max);
     let stiffness = laplacian_norm(&model);
-    let mut sim = Simulation::new(model, Box::new(BackwardEuler), Box::new(NoDamping), settings(dt, iterations)).unwrap();
+    let mut sim = Simulation::new(
+        model,
+        Box::new(BackwardEuler),
+        Box::new(NoDamping),
+        settings(dt, iterations),
+    )
+    .unwrap();
     let positions = sim.state().positions.clone();
-    sim.set_state(State { positions, velocities }).unwrap();
+    sim.set_state(State {
+        positions,
+        velocities,
+    })
+    .unwrap();
     let p0 = sim.linear_momentum();
     for step in 1..=steps {
         sim.step().unwrap();
-        let extent = sim.state().positions.iter().map(|x| x.amax()).fold(0.0, f64::max);
+        let extent = sim
+            .state()
+            .positions
+            .iter()
+            .map(|x| x.amax())
+            .fold(0.0, f64::max);
         let tolerance = 16.0 * U * (n * step) as f64 * (max_mass / dt + dt * stiffness) * extent;
         let error = (sim.linear_momentum() - p0).amax();
-        prop_assert!(error <= tolerance, "step {step}: momentum error {error:e} > {tolerance:e}");
+        prop_assert!(
+            error <= tolerance,
+            "step {step}: momentum error {error:e} > {tolerance:e}"
+        );
     }
     Ok(())
 }
@@ -104,7 +128,13 @@ fn attachments_break_momentum_conservation() {
     let body = model.add_body(chain, vec![1.0; 3]).unwrap();
     model.add_springs(body, 10.0).unwrap();
     model.add_attachments(body, &[0], 100.0).unwrap();
-    let mut sim = Simulation::new(model, Box::new(BackwardEuler), Box::new(NoDamping), settings(0.01, 5)).unwrap();
+    let mut sim = Simulation::new(
+        model,
+        Box::new(BackwardEuler),
+        Box::new(NoDamping),
+        settings(0.01, 5),
+    )
+    .unwrap();
     sim.add_rigid_velocity(0, Point::new(1.0, 0.0, 0.0), Point::zeros());
     let p0 = sim.linear_momentum();
     sim.run(10).unwrap();

@@ -14,7 +14,12 @@ fn run(threads: usize, tolerance: f64) -> (Vec<Point>, Vec<Point>, Vec<usize>, f
     // 4 x 3 x 3 cells x 6 = 216 tets plus 1000+ springs: several chunks per
     // block, so both threads get work.
     let mesh = jittered_box([8, 3, 3], [1.0, 0.3, 0.3], 0.1, 3);
-    let clamp = VertexSelection::Box { min: [-1.0; 3], max: [0.01, 1.0, 1.0] }.resolve(&mesh).unwrap();
+    let clamp = VertexSelection::Box {
+        min: [-1.0; 3],
+        max: [0.01, 1.0, 1.0],
+    }
+    .resolve(&mesh)
+    .unwrap();
     let masses = mesh.lumped_masses(1000.0).unwrap();
     let mut model = Model::new();
     let body = model.add_body(mesh, masses).unwrap();
@@ -29,10 +34,21 @@ fn run(threads: usize, tolerance: f64) -> (Vec<Point>, Vec<Point>, Vec<usize>, f
         gravity: Point::new(0.0, -9.81, 0.0),
         ..Settings::default()
     };
-    let mut sim = Simulation::new(model, Box::new(BackwardEuler), Box::new(NoDamping), settings).unwrap();
+    let mut sim = Simulation::new(
+        model,
+        Box::new(BackwardEuler),
+        Box::new(NoDamping),
+        settings,
+    )
+    .unwrap();
     let iterations = sim.run(30).unwrap().iter().map(|s| s.iterations).collect();
     let elastic = sim.energies().elastic;
-    (sim.state().positions.clone(), sim.state().velocities.clone(), iterations, elastic)
+    (
+        sim.state().positions.clone(),
+        sim.state().velocities.clone(),
+        iterations,
+        elastic,
+    )
 }
 
 #[test]
@@ -40,9 +56,21 @@ fn one_and_two_threads_agree_bit_for_bit() {
     for tolerance in [0.0, 1e-4] {
         let one = run(1, tolerance);
         let two = run(2, tolerance);
-        let bits = |v: &[Point]| v.iter().flat_map(|p| p.iter().map(|c| c.to_bits())).collect::<Vec<_>>();
-        assert_eq!(bits(&one.0), bits(&two.0), "positions differ (tolerance {tolerance})");
-        assert_eq!(bits(&one.1), bits(&two.1), "velocities differ (tolerance {tolerance})");
+        let bits = |v: &[Point]| {
+            v.iter()
+                .flat_map(|p| p.iter().map(|c| c.to_bits()))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(
+            bits(&one.0),
+            bits(&two.0),
+            "positions differ (tolerance {tolerance})"
+        );
+        assert_eq!(
+            bits(&one.1),
+            bits(&two.1),
+            "velocities differ (tolerance {tolerance})"
+        );
         assert_eq!(one.2, two.2, "iteration counts differ");
         assert_eq!(one.3.to_bits(), two.3.to_bits(), "elastic energy differs");
     }

@@ -22,7 +22,13 @@ fn run_translation(model: Model, velocity: Point, steps: usize) {
     let min_mass = model.masses().iter().copied().fold(f64::INFINITY, f64::min);
     // Condition number bound of A = M/h^2 + L: 1 + h^2 |L| / m_min.
     let condition = 1.0 + settings.dt * settings.dt * laplacian_norm(&model) / min_mass;
-    let mut sim = Simulation::new(model, Box::new(BackwardEuler), Box::new(NoDamping), settings).unwrap();
+    let mut sim = Simulation::new(
+        model,
+        Box::new(BackwardEuler),
+        Box::new(NoDamping),
+        settings,
+    )
+    .unwrap();
     sim.add_rigid_velocity(0, velocity, Point::zeros());
     sim.run(steps).unwrap();
     let t = sim.time();
@@ -32,10 +38,16 @@ fn run_translation(model: Model, velocity: Point, steps: usize) {
         // 4 n u cond(A) |x| (Higham, Accuracy and Stability, Thm 10.4), with
         // |x| <= 1 + |v| t here; it accumulates linearly over the steps.
         let tolerance = 4.0 * n * U * condition * steps as f64 * (1.0 + velocity.norm() * t);
-        assert!((x - expected).amax() <= tolerance, "vertex {v}: {x} vs {expected}");
+        assert!(
+            (x - expected).amax() <= tolerance,
+            "vertex {v}: {x} vs {expected}"
+        );
         let u = sim.state().velocities[v];
         // The velocity is a difference of two such positions divided by h.
-        assert!((u - velocity).amax() <= 2.0 * tolerance / 0.01, "vertex {v}: velocity {u}");
+        assert!(
+            (u - velocity).amax() <= 2.0 * tolerance / 0.01,
+            "vertex {v}: velocity {u}"
+        );
     }
 }
 
