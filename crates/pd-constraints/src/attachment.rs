@@ -60,4 +60,13 @@ impl Constraint for Attachment {
     fn project(&self, _gx: &[Point], out: &mut [Point]) {
         out[0] = self.target;
     }
+
+    fn gx_hessian(&self, _gx: &[Point], _project_psd: bool, out: &mut [f64]) {
+        // E = w/2 |x - t|^2: Hessian w I, already positive definite.
+        for a in 0..3 {
+            for b in 0..3 {
+                out[3 * a + b] = if a == b { self.weight } else { 0.0 };
+            }
+        }
+    }
 }

@@ -32,6 +32,13 @@ pub trait Constraint: Clone + std::fmt::Debug + Send + Sync + 'static {
     /// Projects `gx` (the `ROWS` rows of `G x`) onto the constraint set,
     /// writing `ROWS` rows into `out`.
     fn project(&self, gx: &[Point], out: &mut [Point]);
+
+    /// Hessian of `w/2 |gx - P(gx)|^2` with respect to `gx`: a
+    /// `3 ROWS x 3 ROWS` row-major matrix, index `3 r + a` for row `r`, axis
+    /// `a`, written into `out`. With `project_psd` its negative eigenvalues
+    /// are clamped to zero (`docs/constraints.md`). The weight `w` is
+    /// included.
+    fn gx_hessian(&self, gx: &[Point], project_psd: bool, out: &mut [f64]);
 }
 
 /// Computes the `ROWS` rows of `G q` for one constraint into `gx`.

@@ -32,6 +32,7 @@ mod constraint;
 mod set;
 mod sparse;
 mod spring;
+mod tet_hessian;
 pub mod tet_strain;
 
 pub use attachment::Attachment;

@@ -64,6 +64,16 @@ pub trait ConstraintBlock: std::fmt::Debug + Send + Sync {
     /// Adds the energy gradient `w_i G_i^T (G_i q - P_i(G_i q))` of every
     /// constraint to `gradient` (one entry per vertex, in N).
     fn add_gradient(&self, q: &[Point], gradient: &mut [Point]);
+    /// The stencil of constraint `i`.
+    fn stencil(&self, i: usize) -> &[usize];
+    /// Values in one constraint's stencil Hessian: `(3 STENCIL)^2`.
+    fn hessian_len(&self) -> usize;
+    /// Energy Hessians with respect to the stencil positions, at `q`, of
+    /// constraints `first..first + out.len() / hessian_len()`: each a
+    /// `3 STENCIL x 3 STENCIL` row-major matrix, index `3 k + a` for stencil
+    /// vertex `k`, axis `a`. With `project_psd`, each is positive
+    /// semi-definite (N/m).
+    fn hessian_range(&self, q: &[Point], first: usize, project_psd: bool, out: &mut [f64]);
 }
 
 impl<C: Constraint> ConstraintBlock for ConstraintSet<C> {
@@ -158,6 +168,51 @@ impl<C: Constraint> ConstraintBlock for ConstraintSet<C> {
                     .map(|r| (gx[r] - p[r]) * c.operator(r, a))
                     .sum();
                 gradient[v] += g * c.weight();
+            }
+        }
+    }
+
+    fn stencil(&self, i: usize) -> &[usize] {
+        self.constraints[i].vertices()
+    }
+
+    fn hessian_len(&self) -> usize {
+        9 * C::STENCIL * C::STENCIL
+    }
+
+    fn hessian_range(&self, q: &[Point], first: usize, project_psd: bool, out: &mut [f64]) {
+        let len = self.hessian_len();
+        let count = out.len() / len;
+        let size = 3 * C::STENCIL;
+        let mut gx = [Point::zeros(); MAX_ROWS];
+        let mut h_gx = [0.0; 9 * MAX_ROWS * MAX_ROWS];
+        let rows3 = 3 * C::ROWS;
+        for (c, h) in self.constraints[first..first + count]
+            .iter()
+            .zip(out.chunks_exact_mut(len))
+        {
+            apply_operator(c, q, &mut gx[..C::ROWS]);
+            c.gx_hessian(&gx[..C::ROWS], project_psd, &mut h_gx[..rows3 * rows3]);
+            // Chain rule: d(gx)_{r,a} / d(x_k)_{a'} = G[r][k] delta_{a a'}, so
+            // H[(k,a),(l,b)] = sum_{r,s} G[r][k] G[s][l] H_gx[(r,a),(s,b)].
+            // A congruence of a PSD matrix stays PSD.
+            for k in 0..C::STENCIL {
+                for a in 0..3 {
+                    for l in 0..C::STENCIL {
+                        for b in 0..3 {
+                            let mut sum = 0.0;
+                            for r in 0..C::ROWS {
+                                let gk = c.operator(r, k);
+                                for s in 0..C::ROWS {
+                                    sum += gk
+                                        * c.operator(s, l)
+                                        * h_gx[(3 * r + a) * rows3 + 3 * s + b];
+                                }
+                            }
+                            h[(3 * k + a) * size + 3 * l + b] = sum;
+                        }
+                    }
+                }
             }
         }
     }

@@ -81,4 +81,28 @@ impl Constraint for Spring {
         let direction = gx[0].try_normalize(0.0).unwrap_or(self.rest_direction);
         out[0] = direction * self.rest_length;
     }
+
+    fn gx_hessian(&self, gx: &[Point], project_psd: bool, out: &mut [f64]) {
+        // E(d) = w/2 (|d| - L0)^2: Hessian w [d^ d^T + (1 - L0/|d|)(I - d^ d^T)].
+        // The transverse eigenvalue is negative for a compressed spring.
+        let length = gx[0].norm();
+        let direction = gx[0].try_normalize(0.0).unwrap_or(self.rest_direction);
+        let mut transverse = if length > 0.0 {
+            1.0 - self.rest_length / length
+        } else if self.rest_length == 0.0 {
+            1.0
+        } else {
+            f64::NEG_INFINITY
+        };
+        if project_psd {
+            transverse = transverse.max(0.0);
+        }
+        for a in 0..3 {
+            for b in 0..3 {
+                let along = direction[a] * direction[b];
+                let identity = if a == b { 1.0 } else { 0.0 };
+                out[3 * a + b] = self.weight * (along + transverse * (identity - along));
+            }
+        }
+    }
 }

@@ -68,6 +68,11 @@ impl TetStrain {
         })
     }
 
+    /// The stretch limits, if any.
+    pub fn limits(&self) -> Option<(f64, f64)> {
+        self.limits
+    }
+
     /// Checks stretch limits: `0 <= min <= 1 <= max`, both finite.
     ///
     /// # Errors
@@ -108,6 +113,10 @@ impl Constraint for TetStrain {
         for (row, p) in out.iter_mut().enumerate() {
             *p = target.column(row).into_owned();
         }
+    }
+
+    fn gx_hessian(&self, gx: &[Point], project_psd: bool, out: &mut [f64]) {
+        crate::tet_hessian::strain_hessian(self, gx, project_psd, out);
     }
 }
 

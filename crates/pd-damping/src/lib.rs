@@ -23,9 +23,20 @@
 //! assert!(none.implicit_matrix().is_zero());
 //! ```
 
+mod error;
+mod ether_drag;
+mod laplacian;
 mod none;
+mod pbd;
+mod rayleigh_lagged;
+pub mod rigid;
 
+pub use error::DampingError;
+pub use ether_drag::EtherDrag;
+pub use laplacian::LaplacianDamping;
 pub use none::NoDamping;
+pub use pbd::PbdDamping;
+pub use rayleigh_lagged::RayleighLagged;
 
 use std::ops::Range;
 
@@ -67,8 +78,10 @@ pub struct DampingContext<'a> {
     pub h: f64,
     /// Lumped vertex masses in kg.
     pub masses: &'a [f64],
-    /// Vertex ranges of the connected bodies.
+    /// Vertex ranges of the bodies, in scene order.
     pub bodies: &'a [Range<usize>],
+    /// Vertex lists of the connected components (fixed vertices excluded).
+    pub components: &'a [Vec<usize>],
     /// Whether each vertex is hard-fixed (its velocity must stay 0).
     pub fixed: &'a [bool],
 }
@@ -92,6 +105,13 @@ pub trait Damping: std::fmt::Debug + Send + Sync {
         _velocities: &[Point],
         _forces: &mut [Point],
     ) {
+    }
+
+    /// Whether the solver should restore, per body, the angular momentum that
+    /// the implicit damping force removed (the rotation-preserving Laplacian
+    /// variant, `docs/damping.md`).
+    fn preserves_rotation(&self) -> bool {
+        false
     }
 
     /// Whether [`Damping::add_explicit_force`] does anything, so the solver

@@ -28,8 +28,12 @@
 //! ```
 
 mod backward_euler;
+mod bdf2;
+mod implicit_midpoint;
 
 pub use backward_euler::BackwardEuler;
+pub use bdf2::Bdf2;
+pub use implicit_midpoint::ImplicitMidpoint;
 
 use nalgebra::Vector3;
 

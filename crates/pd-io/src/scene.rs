@@ -6,8 +6,8 @@
 use std::path::{Path, PathBuf};
 
 use crate::{Error, Result, state, tetgen};
-use pd_damping::{Damping, NoDamping};
-use pd_integrators::{BackwardEuler, Integrator};
+use pd_damping::{Damping, EtherDrag, LaplacianDamping, NoDamping, PbdDamping, RayleighLagged};
+use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
 use pd_mesh::{Mesh, Point, VertexSelection, generators};
 use pd_solver::{Model, Settings, Simulation, State};
 
@@ -45,6 +45,12 @@ mod raw {
     #[serde(deny_unknown_fields)]
     pub struct Damping {
         pub model: String,
+        pub factor: Option<f64>,
+        pub rate: Option<f64>,
+        pub implicit: Option<bool>,
+        pub mass: Option<f64>,
+        pub stiffness: Option<f64>,
+        pub preserve_rotation: Option<bool>,
     }
 
     #[derive(Debug, Deserialize)]
@@ -115,42 +121,123 @@ mod raw {
 pub enum IntegratorKind {
     /// `backward-euler`.
     BackwardEuler,
+    /// `implicit-midpoint`.
+    ImplicitMidpoint,
+    /// `bdf2`.
+    Bdf2,
 }
 
 impl IntegratorKind {
-    const NAMES: &'static [&'static str] = &["backward-euler"];
+    /// Every integrator, in the order scenes list them.
+    pub const ALL: [IntegratorKind; 3] = [Self::BackwardEuler, Self::ImplicitMidpoint, Self::Bdf2];
 
-    fn parse(name: &str) -> Option<Self> {
-        match name {
-            "backward-euler" => Some(Self::BackwardEuler),
-            _ => None,
+    /// The name scenes use.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::BackwardEuler => "backward-euler",
+            Self::ImplicitMidpoint => "implicit-midpoint",
+            Self::Bdf2 => "bdf2",
         }
+    }
+
+    /// The integrator a scene name stands for.
+    pub fn parse(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.name() == name)
     }
 
     /// A fresh integrator of this kind.
     pub fn create(self) -> Box<dyn Integrator> {
         match self {
             Self::BackwardEuler => Box::new(BackwardEuler),
+            Self::ImplicitMidpoint => Box::new(ImplicitMidpoint),
+            Self::Bdf2 => Box::new(Bdf2::new()),
         }
     }
 }
 
-/// Damping models a scene can name, with their parameters.
+/// Damping models a scene can name, with their parameters (SI units).
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum DampingSpec {
     /// `none`.
     None,
+    /// `ether-drag` with `factor = k` per step (explicit).
+    EtherFactor {
+        /// k in [0, 1].
+        factor: f64,
+    },
+    /// `ether-drag` with `rate = c` in 1/s: explicit `v <- exp(-c h) v`, or
+    /// with `implicit = true`, `D = c M` inside the solve.
+    EtherRate {
+        /// c in 1/s.
+        rate: f64,
+        /// Inside the solve rather than after it.
+        implicit: bool,
+    },
+    /// `pbd` with `factor = k` in [0, 1].
+    Pbd {
+        /// k.
+        factor: f64,
+    },
+    /// `rayleigh-lagged`: `D_n = mass M + stiffness K(x_n)`.
+    RayleighLagged {
+        /// a1 in 1/s.
+        mass: f64,
+        /// a2 in s.
+        stiffness: f64,
+    },
+    /// `laplacian`: `D = mass M + stiffness L_d`.
+    Laplacian {
+        /// a2 in s.
+        stiffness: f64,
+        /// a1 in 1/s.
+        mass: f64,
+        /// Give back the angular momentum the damping removed.
+        preserve_rotation: bool,
+    },
 }
 
 impl DampingSpec {
-    const NAMES: &'static [&'static str] = &["none"];
+    const NAMES: &'static [&'static str] =
+        &["none", "ether-drag", "pbd", "rayleigh-lagged", "laplacian"];
 
-    /// A damping model of this kind.
-    pub fn create(&self) -> Box<dyn Damping> {
+    /// The name scenes use.
+    pub fn name(&self) -> &'static str {
         match self {
-            Self::None => Box::new(NoDamping),
+            Self::None => "none",
+            Self::EtherFactor { .. } | Self::EtherRate { .. } => "ether-drag",
+            Self::Pbd { .. } => "pbd",
+            Self::RayleighLagged { .. } => "rayleigh-lagged",
+            Self::Laplacian { .. } => "laplacian",
         }
+    }
+
+    /// The damping model.
+    ///
+    /// # Errors
+    /// A parameter outside its domain, named.
+    pub fn create(&self) -> std::result::Result<Box<dyn Damping>, pd_damping::DampingError> {
+        Ok(match *self {
+            Self::None => Box::new(NoDamping),
+            Self::EtherFactor { factor } => Box::new(EtherDrag::factor(factor)?),
+            Self::EtherRate {
+                rate,
+                implicit: false,
+            } => Box::new(EtherDrag::rate(rate)?),
+            Self::EtherRate {
+                rate,
+                implicit: true,
+            } => Box::new(EtherDrag::implicit(rate)?),
+            Self::Pbd { factor } => Box::new(PbdDamping::new(factor)?),
+            Self::RayleighLagged { mass, stiffness } => {
+                Box::new(RayleighLagged::new(mass, stiffness)?)
+            }
+            Self::Laplacian {
+                stiffness,
+                mass,
+                preserve_rotation,
+            } => Box::new(LaplacianDamping::new(stiffness, mass, preserve_rotation)?),
+        })
     }
 }
 
@@ -397,10 +484,14 @@ impl Scene {
             ));
         }
         let offsets: Vec<_> = model.bodies().iter().map(|b| b.vertices()).collect();
+        let damping = self
+            .damping
+            .create()
+            .map_err(|e| self.field_error("damping".into(), e))?;
         let mut simulation = Simulation::new(
             model,
             self.integrator.create(),
-            self.damping.create(),
+            damping,
             self.settings.clone(),
         )
         .map_err(|e| self.field_error("scene".into(), e))?;
@@ -487,21 +578,33 @@ fn parse_toml(text: &str, source: &Path) -> Result<raw::Scene> {
 
 fn parse_json(text: &str, source: &Path) -> Result<raw::Scene> {
     let mut deserializer = serde_json::Deserializer::from_str(text);
-    serde_path_to_error::deserialize(&mut deserializer).map_err(|e| {
-        let field = e.path().to_string();
-        let inner = e.into_inner();
+    let to_error = |field: Option<String>, inner: serde_json::Error| {
         let message = inner.to_string();
         // serde_json appends " at line L column C"; the line goes in its own field.
         let message = message
             .rsplit_once(" at line ")
             .map_or(message.as_str(), |(m, _)| m)
             .to_string();
+        let message = match field {
+            Some(field) => format!("{}: {message}", display_field(&field)),
+            None => message,
+        };
         Error::Parse {
             path: source.to_path_buf(),
             line: inner.line().max(1),
-            message: format!("{}: {message}", display_field(&field)),
+            message,
         }
-    })
+    };
+    let scene = serde_path_to_error::deserialize(&mut deserializer).map_err(|e| {
+        let field = e.path().to_string();
+        // `?` is serde_path_to_error's "no path known" (a syntax error):
+        // there is no field to name, only the line.
+        let field = (field != "?").then_some(field);
+        to_error(field, e.into_inner())
+    })?;
+    // Anything after the scene object is an error, not silently ignored.
+    deserializer.end().map_err(|e| to_error(None, e))?;
+    Ok(scene)
 }
 
 /// serde_path_to_error prints the root as `.`; scenes call it `scene`.
@@ -589,24 +692,13 @@ impl Validator<'_> {
                 "simulation.integrator",
                 format!(
                     "unknown integrator \"{integrator_name}\"; expected one of: {}",
-                    IntegratorKind::NAMES.join(", ")
+                    IntegratorKind::ALL.map(IntegratorKind::name).join(", ")
                 ),
             )
         })?;
         let damping = match raw.damping {
             None => DampingSpec::None,
-            Some(d) => match d.model.as_str() {
-                "none" => DampingSpec::None,
-                other => {
-                    return Err(self.error(
-                        "damping.model",
-                        format!(
-                            "unknown damping model \"{other}\"; expected one of: {}",
-                            DampingSpec::NAMES.join(", ")
-                        ),
-                    ));
-                }
-            },
+            Some(d) => self.damping(d)?,
         };
         if raw.bodies.is_empty() {
             return Err(self.error("body", "a scene needs at least one [[body]]"));
@@ -651,6 +743,102 @@ impl Validator<'_> {
             bodies,
             output,
         })
+    }
+
+    fn damping(&self, raw: raw::Damping) -> Result<DampingSpec> {
+        let given = [
+            ("factor", raw.factor.is_some()),
+            ("rate", raw.rate.is_some()),
+            ("implicit", raw.implicit.is_some()),
+            ("mass", raw.mass.is_some()),
+            ("stiffness", raw.stiffness.is_some()),
+            ("preserve_rotation", raw.preserve_rotation.is_some()),
+        ];
+        let only = |allowed: &[&str]| -> Result<()> {
+            match given
+                .iter()
+                .find(|(name, present)| *present && !allowed.contains(name))
+            {
+                Some((name, _)) => Err(self.error(
+                    format!("damping.{name}"),
+                    format!("is not a parameter of model \"{}\"", raw.model),
+                )),
+                None => Ok(()),
+            }
+        };
+        let required = |name: &str, value: Option<f64>| -> Result<f64> {
+            value.ok_or_else(|| {
+                self.error(
+                    format!("damping.{name}"),
+                    format!("model \"{}\" needs it", raw.model),
+                )
+            })
+        };
+        let spec = match raw.model.as_str() {
+            "none" => {
+                only(&[])?;
+                DampingSpec::None
+            }
+            "ether-drag" => {
+                only(&["factor", "rate", "implicit"])?;
+                match (raw.factor, raw.rate) {
+                    (Some(factor), None) => {
+                        if raw.implicit == Some(true) {
+                            return Err(self.error(
+                                "damping.implicit",
+                                "implicit ether drag takes a rate (1/s), not a per-step factor",
+                            ));
+                        }
+                        DampingSpec::EtherFactor { factor }
+                    }
+                    (None, Some(rate)) => DampingSpec::EtherRate {
+                        rate,
+                        implicit: raw.implicit.unwrap_or(false),
+                    },
+                    _ => {
+                        return Err(self.error(
+                            "damping.factor",
+                            "ether-drag needs exactly one of factor (per step) or rate (1/s)",
+                        ));
+                    }
+                }
+            }
+            "pbd" => {
+                only(&["factor"])?;
+                DampingSpec::Pbd {
+                    factor: required("factor", raw.factor)?,
+                }
+            }
+            "rayleigh-lagged" => {
+                only(&["mass", "stiffness"])?;
+                DampingSpec::RayleighLagged {
+                    mass: raw.mass.unwrap_or(0.0),
+                    stiffness: required("stiffness", raw.stiffness)?,
+                }
+            }
+            "laplacian" => {
+                only(&["mass", "stiffness", "preserve_rotation"])?;
+                DampingSpec::Laplacian {
+                    stiffness: required("stiffness", raw.stiffness)?,
+                    mass: raw.mass.unwrap_or(0.0),
+                    preserve_rotation: raw.preserve_rotation.unwrap_or(false),
+                }
+            }
+            other => {
+                return Err(self.error(
+                    "damping.model",
+                    format!(
+                        "unknown damping model \"{other}\"; expected one of: {}",
+                        DampingSpec::NAMES.join(", ")
+                    ),
+                ));
+            }
+        };
+        // The model's own constructor is the one place its parameters are
+        // checked; its error names the parameter.
+        spec.create()
+            .map_err(|e| self.error("damping", e.to_string()))?;
+        Ok(spec)
     }
 
     fn body(&self, b: usize, raw: raw::Body) -> Result<BodySpec> {
@@ -729,7 +917,12 @@ impl Validator<'_> {
                 )?;
                 let path = self.path(&file);
                 match path.extension().and_then(|e| e.to_str()) {
+                    // TetGen names its outputs `bar.1.node`; the base `bar.1`
+                    // ends in the iteration number.
                     Some("node" | "ele") | None => Ok(MeshSource::TetGen(path)),
+                    Some(e) if e.bytes().all(|b| b.is_ascii_digit()) => {
+                        Ok(MeshSource::TetGen(path))
+                    }
                     Some(other) => Err(self.error(
                         sub("file"),
                         format!(

@@ -220,6 +220,18 @@ fn malformed_toml_unclosed_bracket() {
 }
 
 #[test]
+fn malformed_json_names_its_line() {
+    // The comma after the simulation object is missing.
+    let json = "{\n  \"simulation\": { \"dt\": 0.01, \"steps\": 10 }\n  \"body\": []\n}\n";
+    let source = Path::new("scenes/bad.json");
+    let err = Scene::parse(json, Syntax::Json, source).unwrap_err();
+    let shown = err.to_string();
+    assert!(matches!(err, Error::Parse { line: 3, .. }), "{shown}");
+    assert!(shown.starts_with("scenes/bad.json:3: "), "{shown}");
+    assert!(shown.contains("expected `,` or `}`"), "{shown}");
+}
+
+#[test]
 fn json_scene_with_an_unknown_key_names_its_line() {
     let json = r#"{
   "simulation": { "dt": 0.01, "steps": 10 },
@@ -594,9 +606,9 @@ fn tetgen_mesh_with_an_out_of_range_index() {
     std::fs::remove_dir_all(scene.parent().unwrap()).unwrap();
 }
 
+// --- Known bugs, ignored until fixed. ---
+
 #[test]
-#[ignore = "bug: parse_json never calls serde_json::Deserializer::end, so text after the \
-            scene's closing brace is silently ignored"]
 fn json_scene_with_trailing_characters_is_rejected() {
     let json = "{\n  \"simulation\": { \"dt\": 0.01, \"steps\": 10 },\n  \"body\": [ { \"mesh\": \
                 { \"generator\": \"chain\", \"points\": 4, \"length\": 1.0 }, \"vertex_mass\": \
@@ -611,4 +623,13 @@ fn json_scene_with_trailing_characters_is_rejected() {
         matches!(err, Error::Parse { line: 5, .. }),
         "expected a parse error at line 5, got {shown}"
     );
+}
+
+#[test]
+fn malformed_json_shows_no_placeholder_field() {
+    let json = "{\n  \"simulation\": { \"dt\": 0.01, \"steps\": 10 }\n  \"body\": []\n}\n";
+    let shown = Scene::parse(json, Syntax::Json, Path::new("scenes/bad.json"))
+        .unwrap_err()
+        .to_string();
+    assert!(!shown.contains(" ?: "), "{shown}");
 }

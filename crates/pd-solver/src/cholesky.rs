@@ -24,6 +24,30 @@ pub(crate) struct LowerPattern {
 }
 
 impl LowerPattern {
+    /// The full symmetric matrix with these lower-triangle `values`.
+    pub fn to_symmetric(&self, values: &[f64]) -> pd_constraints::CsrMatrix {
+        let mut triplets = Vec::with_capacity(2 * values.len());
+        for col in 0..self.n {
+            for slot in self.col_ptr[col]..self.col_ptr[col + 1] {
+                let row = self.row_idx[slot];
+                triplets.push(pd_constraints::Triplet::new(row, col, values[slot]));
+                if row != col {
+                    triplets.push(pd_constraints::Triplet::new(col, row, values[slot]));
+                }
+            }
+        }
+        pd_constraints::CsrMatrix::from_triplets(self.n, self.n, &triplets)
+    }
+
+    /// Position of entry `(row, col)`, `row >= col`, in the value array.
+    pub fn slot(&self, row: usize, col: usize) -> Option<usize> {
+        let range = self.col_ptr[col]..self.col_ptr[col + 1];
+        self.row_idx[range.clone()]
+            .binary_search(&row)
+            .ok()
+            .map(|within| range.start + within)
+    }
+
     fn symbolic(&self) -> SymbolicSparseColMatRef<'_, usize> {
         SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx)
     }
@@ -75,6 +99,11 @@ impl SymbolicFactor {
             symbolic,
             scratch,
         })
+    }
+
+    /// The analysed pattern.
+    pub fn pattern(&self) -> &LowerPattern {
+        &self.pattern
     }
 
     /// Number of stored values of the factor `L` (memory: 8 bytes each).

@@ -7,7 +7,7 @@ use crate::{SolverError, local::LocalStep};
 use pd_constraints::{CsrMatrix, assembly, assembly::LaplacianKind};
 
 /// Marks a fixed vertex in the free-vertex map.
-const FIXED: usize = usize::MAX;
+pub(crate) const FIXED: usize = usize::MAX;
 
 /// The coefficients that determine the global matrix
 /// `A = mass M + system L_sys + damping L_d`; a factorisation is cached per
@@ -34,6 +34,10 @@ impl MatrixCoefficients {
 pub(crate) struct GlobalSystem {
     /// Global index of each free vertex.
     pub free: Vec<usize>,
+    /// Free index of each vertex, or [`FIXED`].
+    pub free_index: Vec<usize>,
+    /// The lower-triangle pattern over the free vertices.
+    pub pattern: LowerPattern,
     /// Rows of `L_sys` for the free vertices (all columns).
     pub system_rows: CsrMatrix,
     /// Rows of `L_d` for the free vertices (all columns); empty when no
@@ -42,11 +46,11 @@ pub(crate) struct GlobalSystem {
     /// Rows of the projection operator `B` for the free vertices.
     pub projection_rows: CsrMatrix,
     /// Per pattern slot: the mass on the diagonal, else 0.
-    mass_part: Vec<f64>,
+    pub mass_part: Vec<f64>,
     /// Per pattern slot: the entry of `L_sys`.
-    system_part: Vec<f64>,
+    pub system_part: Vec<f64>,
     /// Per pattern slot: the entry of `L_d`.
-    damping_part: Vec<f64>,
+    pub damping_part: Vec<f64>,
     symbolic: SymbolicFactor,
     cache: Vec<([u64; 3], NumericFactor)>,
     values: Vec<f64>,
@@ -108,11 +112,9 @@ impl GlobalSystem {
             row_idx,
         };
         let slot = |row: usize, col: usize| -> usize {
-            let range = pattern.col_ptr[col]..pattern.col_ptr[col + 1];
-            let within = pattern.row_idx[range.clone()]
-                .binary_search(&row)
-                .expect("every entry of L_sys is in the pattern");
-            range.start + within
+            pattern
+                .slot(row, col)
+                .expect("every entry of L_sys is in the pattern")
         };
         let len = pattern.row_idx.len();
         let mut mass_part = vec![0.0; len];
@@ -129,12 +131,14 @@ impl GlobalSystem {
                 }
             }
         }
-        let symbolic = SymbolicFactor::analyse(pattern)?;
+        let symbolic = SymbolicFactor::analyse(pattern.clone())?;
         Ok(Self {
+            pattern,
             system_rows: system.select_rows(&free),
             damping_rows: damping.select_rows(&free),
             projection_rows: projection.select_rows(&free),
             free,
+            free_index,
             mass_part,
             system_part,
             damping_part,
@@ -159,23 +163,37 @@ impl GlobalSystem {
         if let Some(i) = self.cache.iter().position(|(k, _)| *k == key) {
             return Ok((i, false));
         }
-        for (((value, m), l), d) in self
-            .values
-            .iter_mut()
-            .zip(&self.mass_part)
-            .zip(&self.system_part)
-            .zip(&self.damping_part)
-        {
-            *value = coefficients.mass * m + coefficients.system * l + coefficients.damping * d;
-        }
+        combine(
+            &mut self.values,
+            coefficients,
+            [&self.mass_part, &self.system_part, &self.damping_part],
+        );
         let factor = self.symbolic.factorise(&self.values)?;
         self.cache.push((key, factor));
         Ok((self.cache.len() - 1, true))
+    }
+
+    /// The global matrix for `coefficients` (free vertices, full symmetric).
+    pub fn matrix(&self, coefficients: MatrixCoefficients) -> CsrMatrix {
+        let mut values = vec![0.0; self.pattern.row_idx.len()];
+        combine(
+            &mut values,
+            coefficients,
+            [&self.mass_part, &self.system_part, &self.damping_part],
+        );
+        self.pattern.to_symmetric(&values)
     }
 
     /// Solves with cached factor `index`; `rhs` is free-vertices x 3.
     pub fn solve(&mut self, index: usize, rhs: faer::MatMut<'_, f64>) {
         let (_, factor) = &self.cache[index];
         self.symbolic.solve_in_place(factor, rhs);
+    }
+}
+
+/// `values = mass * parts[0] + system * parts[1] + damping * parts[2]`.
+pub(crate) fn combine(values: &mut [f64], coefficients: MatrixCoefficients, parts: [&[f64]; 3]) {
+    for (((value, m), l), d) in values.iter_mut().zip(parts[0]).zip(parts[1]).zip(parts[2]) {
+        *value = coefficients.mass * m + coefficients.system * l + coefficients.damping * d;
     }
 }

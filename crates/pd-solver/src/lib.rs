@@ -34,6 +34,7 @@
 
 mod cholesky;
 mod global;
+mod lagged;
 mod local;
 mod model;
 mod settings;

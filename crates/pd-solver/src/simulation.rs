@@ -5,12 +5,15 @@ use std::ops::Range;
 use std::time::Instant;
 
 use faer::Mat;
+use pd_constraints::CsrMatrix;
+use pd_damping::rigid::RigidFit;
 use pd_damping::{Damping, DampingContext};
 use pd_integrators::{Integrator, StepTargets};
 use pd_mesh::Point;
 use rayon::prelude::*;
 
 use crate::global::{GlobalSystem, MatrixCoefficients};
+use crate::lagged::LaggedSystem;
 use crate::local::LocalStep;
 use crate::{Model, Settings, SolverError};
 
@@ -89,6 +92,8 @@ struct Scratch {
     rhs: Mat<f64>,
     velocities: Vec<Point>,
     forces: Vec<Point>,
+    /// Spin of each rotating body at the start of the step.
+    spins: Vec<Point>,
 }
 
 /// A Projective Dynamics simulation.
@@ -128,7 +133,12 @@ pub struct Simulation {
     damping: Box<dyn Damping>,
     local: LocalStep,
     global: GlobalSystem,
+    lagged: Option<LaggedSystem>,
     bodies: Vec<Range<usize>>,
+    /// Free vertices of each connected component.
+    components: Vec<Vec<usize>>,
+    /// The components without any fixed vertex (free rigid bodies).
+    rotating_bodies: Vec<Vec<usize>>,
     state: State,
     time: f64,
     steps: usize,
@@ -167,11 +177,6 @@ impl Simulation {
                 });
             }
         }
-        if d.is_lagged() {
-            return Err(SolverError::Unsupported {
-                what: "lagged (per-step) damping matrices".into(),
-            });
-        }
         let pool = match settings.threads {
             0 => None,
             t => Some(
@@ -187,6 +192,12 @@ impl Simulation {
         let analysis_start = Instant::now();
         let local = LocalStep::new(model.constraint_blocks());
         let global = GlobalSystem::new(&local, model.masses(), model.fixed())?;
+        let lagged = if d.is_lagged() {
+            Some(LaggedSystem::new(&global, local.blocks())?)
+        } else {
+            None
+        };
+        let (components, rotating_bodies) = connected_components(&model);
         let setup = SetupStats {
             analysis_seconds: analysis_start.elapsed().as_secs_f64(),
             ..SetupStats::default()
@@ -205,6 +216,7 @@ impl Simulation {
             rhs: Mat::zeros(nf, 3),
             velocities: vec![Point::zeros(); n],
             forces: vec![Point::zeros(); n],
+            spins: vec![Point::zeros(); rotating_bodies.len()],
         };
         let bodies = model.bodies().iter().map(|b| b.vertices()).collect();
         let state = State {
@@ -218,7 +230,10 @@ impl Simulation {
             damping,
             local,
             global,
+            lagged,
             bodies,
+            components,
+            rotating_bodies,
             state,
             time: 0.0,
             steps: 0,
@@ -228,7 +243,9 @@ impl Simulation {
             setup,
             scratch,
         };
-        sim.factor_for_next_step()?;
+        if sim.lagged.is_none() {
+            sim.factor_for_next_step()?;
+        }
         sim.reset_energy_reference();
         Ok(sim)
     }
@@ -289,7 +306,7 @@ impl Simulation {
         };
         for v in range {
             if !self.model.fixed()[v] {
-                self.state.velocities[v] =
+                self.state.velocities[v] +=
                     linear + angular.cross(&(self.state.positions[v] - centre));
             }
         }
@@ -321,30 +338,58 @@ impl Simulation {
         (0..steps).map(|_| self.step()).collect()
     }
 
-    /// The cached factor for the coming step, factorising if needed.
-    fn factor_for_next_step(&mut self) -> Result<(usize, bool), SolverError> {
-        let start = Instant::now();
+    /// Matrix coefficients of the coming step: `A = mass M + system L_sys +
+    /// damping L_d` (DESIGN.md 3.2), and the factor of the lagged `K(x_n)`.
+    fn matrix_coefficients(&self) -> (MatrixCoefficients, f64) {
         let h = self.settings.dt;
         let c = self.integrator.coefficients(h);
         let d = self.damping.implicit_matrix();
         let damping_factor = c.c1 * c.c2 * c.gamma;
-        let prepared = self.global.prepare_factor(MatrixCoefficients {
-            mass: 1.0 / (h * h) + damping_factor * d.mass,
-            system: c.c1 * c.c2 * c.c2,
-            damping: damping_factor * d.damping_laplacian,
-        })?;
-        if prepared.1 {
+        (
+            MatrixCoefficients {
+                mass: 1.0 / (h * h) + damping_factor * d.mass,
+                system: c.c1 * c.c2 * c.c2,
+                damping: damping_factor * d.damping_laplacian,
+            },
+            damping_factor * d.lagged_stiffness,
+        )
+    }
+
+    /// Makes the global matrix of the coming step ready: the cached factor of
+    /// a constant matrix (factorising only on a cache miss), or a fresh
+    /// numeric factorisation of the lagged system. Returns the cache index
+    /// for the constant case.
+    fn factor_for_next_step(&mut self) -> Result<Option<usize>, SolverError> {
+        let start = Instant::now();
+        let (coefficients, stiffness) = self.matrix_coefficients();
+        let (index, factorised) = match &mut self.lagged {
+            Some(lagged) => {
+                lagged.refactorise(
+                    self.local.blocks(),
+                    &self.state.positions,
+                    coefficients,
+                    stiffness,
+                )?;
+                (None, true)
+            }
+            None => {
+                let (index, factorised) = self.global.prepare_factor(coefficients)?;
+                (Some(index), factorised)
+            }
+        };
+        if factorised {
             self.setup.factor_seconds += start.elapsed().as_secs_f64();
             self.setup.factorisations += 1;
         }
-        Ok(prepared)
+        Ok(index)
     }
 
     fn step_inner(&mut self) -> Result<StepStats, SolverError> {
         let start = Instant::now();
         let h = self.settings.dt;
-        let (factor, factorised) = self.factor_for_next_step()?;
-        let factor_seconds = if factorised {
+        let factorisations = self.setup.factorisations;
+        let factor = self.factor_for_next_step()?;
+        let factor_seconds = if self.setup.factorisations > factorisations {
             start.elapsed().as_secs_f64()
         } else {
             0.0
@@ -356,17 +401,23 @@ impl Simulation {
         let s = &mut self.scratch;
         let x_n = &self.state.positions;
         let v_n = &self.state.velocities;
+        let context = DampingContext {
+            h,
+            masses,
+            bodies: &self.bodies,
+            components: &self.components,
+            fixed,
+        };
 
+        if self.damping.preserves_rotation() {
+            for (spin, body) in s.spins.iter_mut().zip(&self.rotating_bodies) {
+                *spin = RigidFit::of(body, masses, x_n, v_n).angular_momentum;
+            }
+        }
         self.integrator
             .prepare(h, x_n, v_n, self.settings.gravity, &mut s.targets);
         if self.damping.has_explicit_force() {
             s.forces.iter_mut().for_each(|f| *f = Point::zeros());
-            let context = DampingContext {
-                h,
-                masses,
-                bodies: &self.bodies,
-                fixed,
-            };
             self.damping
                 .add_explicit_force(&context, x_n, v_n, &mut s.forces);
             // An external force f enters y as c1 c2 h^2 M^-1 f (DESIGN.md 3.1).
@@ -407,6 +458,20 @@ impl Simulation {
                 }
                 *out = b;
             });
+        if let Some(lagged) = &self.lagged {
+            // + c1 c2 gamma a3 K(x_n) (x_hat - x_fixed), on every vertex, then
+            // gathered to the free ones.
+            s.forces.iter_mut().for_each(|f| *f = Point::zeros());
+            lagged.add_stiffness_product(
+                self.local.blocks(),
+                &s.damping_offset,
+                damping_factor * d.lagged_stiffness,
+                &mut s.forces,
+            );
+            for (out, &v) in s.constant_rhs.iter_mut().zip(&global.free) {
+                *out += s.forces[v];
+            }
+        }
 
         // Start from the inertial target; fixed vertices stay where they are.
         for v in 0..x_n.len() {
@@ -439,17 +504,43 @@ impl Simulation {
                 .for_each(|(f, out)| {
                     *out = constant[f] + projection_rows.row_dot(f, projections) * energy_factor;
                 });
-            for (f, p) in s.rhs_points.iter().enumerate() {
-                for k in 0..3 {
-                    s.rhs[(f, k)] = p[k];
+            // The n x 3 system of constant models, or the interleaved 3n x 1
+            // system of lagged ones.
+            let interleaved = self.lagged.is_some();
+            let solution: &Mat<f64> = match (&mut self.lagged, factor) {
+                (Some(lagged), _) => {
+                    for (f, p) in s.rhs_points.iter().enumerate() {
+                        for k in 0..3 {
+                            lagged.rhs[(3 * f + k, 0)] = p[k];
+                        }
+                    }
+                    lagged.solve();
+                    &lagged.rhs
                 }
-            }
-            self.global.solve(factor, s.rhs.as_mut());
+                (None, Some(index)) => {
+                    for (f, p) in s.rhs_points.iter().enumerate() {
+                        for k in 0..3 {
+                            s.rhs[(f, k)] = p[k];
+                        }
+                    }
+                    self.global.solve(index, s.rhs.as_mut());
+                    &s.rhs
+                }
+                (None, None) => unreachable!("a constant model always has a cached factor"),
+            };
 
             let mut change2 = 0.0;
             let mut displacement2 = 0.0;
             for (f, &v) in self.global.free.iter().enumerate() {
-                let new = Point::new(s.rhs[(f, 0)], s.rhs[(f, 1)], s.rhs[(f, 2)]);
+                let new = if interleaved {
+                    Point::new(
+                        solution[(3 * f, 0)],
+                        solution[(3 * f + 1, 0)],
+                        solution[(3 * f + 2, 0)],
+                    )
+                } else {
+                    Point::new(solution[(f, 0)], solution[(f, 1)], solution[(f, 2)])
+                };
                 if self.settings.tolerance > 0.0 {
                     change2 += masses[v] * (new - s.iterate[v]).norm_squared();
                     displacement2 += masses[v] * (new - x_n[v]).norm_squared();
@@ -489,14 +580,22 @@ impl Simulation {
                 *v = Point::zeros();
             }
         }
-        let context = DampingContext {
-            h,
-            masses,
-            bodies: &self.bodies,
-            fixed,
-        };
+        if self.damping.preserves_rotation() {
+            restore_spin(
+                &self.rotating_bodies,
+                &s.spins,
+                masses,
+                &s.iterate,
+                &mut s.velocities,
+            );
+        }
         self.damping
             .filter_velocities(&context, &s.iterate, &mut s.velocities);
+        for (v, fixed) in s.velocities.iter_mut().zip(fixed) {
+            if *fixed {
+                *v = Point::zeros();
+            }
+        }
         if let Some(v) = s
             .velocities
             .iter()
@@ -512,7 +611,9 @@ impl Simulation {
             + gravity_energy(masses, &s.iterate, self.settings.gravity);
         let limit =
             self.energy_reference + self.settings.divergence_energy_factor * self.energy_scale;
-        if !(energy <= limit) {
+        // A non-finite energy is divergence even when the bound itself
+        // overflowed (an enormous gravity makes the scale infinite).
+        if !(energy.is_finite() && energy <= limit) {
             return Err(SolverError::Diverged {
                 step,
                 time,
@@ -551,6 +652,30 @@ impl Simulation {
             + 0.5 * total_mass * size * size;
         if !(self.energy_scale > 0.0) {
             self.energy_scale = f64::MIN_POSITIVE;
+        }
+    }
+
+    /// The global matrix `A` of the coming step over the free unknowns, full
+    /// and symmetric: n_free x n_free for constant damping models (one
+    /// matrix for x, y and z), 3 n_free x 3 n_free (x, y, z interleaved per
+    /// vertex) for lagged ones, whose `K(x_n)` it computes at the current
+    /// state. For inspection and tests; stepping never builds it.
+    ///
+    /// # Errors
+    /// A failed factorisation of a lagged system.
+    pub fn global_matrix(&mut self) -> Result<CsrMatrix, SolverError> {
+        let (coefficients, stiffness) = self.matrix_coefficients();
+        match &mut self.lagged {
+            Some(lagged) => {
+                lagged.refactorise(
+                    self.local.blocks(),
+                    &self.state.positions,
+                    coefficients,
+                    stiffness,
+                )?;
+                Ok(lagged.matrix())
+            }
+            None => Ok(self.global.matrix(coefficients)),
         }
     }
 
@@ -638,6 +763,80 @@ impl Simulation {
             .zip(&self.state.velocities)
             .map(|((m, x), v)| x.cross(&(v * *m)))
             .sum()
+    }
+}
+
+/// Connected components of every body's mesh graph (edges, which include
+/// those of tetrahedra and triangles): their free vertices, and separately
+/// the components without any fixed vertex.
+fn connected_components(model: &Model) -> (Vec<Vec<usize>>, Vec<Vec<usize>>) {
+    let n = model.num_vertices();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(parent: &mut [usize], mut v: usize) -> usize {
+        while parent[v] != v {
+            parent[v] = parent[parent[v]];
+            v = parent[v];
+        }
+        v
+    }
+    for body in model.bodies() {
+        for e in body.mesh.edges() {
+            let (a, b) = (
+                root(&mut parent, e[0] + body.offset),
+                root(&mut parent, e[1] + body.offset),
+            );
+            if a != b {
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+    }
+    let mut index_of_root = vec![usize::MAX; n];
+    let mut all: Vec<(Vec<usize>, bool)> = Vec::new();
+    for v in 0..n {
+        let r = root(&mut parent, v);
+        if index_of_root[r] == usize::MAX {
+            index_of_root[r] = all.len();
+            all.push((Vec::new(), false));
+        }
+        let (vertices, has_fixed) = &mut all[index_of_root[r]];
+        if model.fixed()[v] {
+            *has_fixed = true;
+        } else {
+            vertices.push(v);
+        }
+    }
+    let rotating = all
+        .iter()
+        .filter(|(vertices, has_fixed)| !has_fixed && !vertices.is_empty())
+        .map(|(vertices, _)| vertices.clone())
+        .collect();
+    let components = all
+        .into_iter()
+        .map(|(vertices, _)| vertices)
+        .filter(|vertices| !vertices.is_empty())
+        .collect();
+    (components, rotating)
+}
+
+/// The rotation-preserving Laplacian variant (docs/damping.md): gives each
+/// free body back the spin (angular momentum about its centre of mass) it
+/// had at the start of the step, as a rigid rotation about its centre of
+/// mass, which changes no linear momentum. For a free body the spin is
+/// conserved physically (uniform gravity exerts no torque about the centre
+/// of mass), so this removes exactly the damping's (and the solver's) loss.
+fn restore_spin(
+    rotating_bodies: &[Vec<usize>],
+    spins: &[Point],
+    masses: &[f64],
+    positions: &[Point],
+    velocities: &mut [Point],
+) {
+    for (body, spin) in rotating_bodies.iter().zip(spins) {
+        let fit = RigidFit::of(body, masses, positions, velocities);
+        let restore = fit.solve_inertia(&(spin - fit.angular_momentum));
+        for &i in body {
+            velocities[i] += restore.cross(&(positions[i] - fit.centre));
+        }
     }
 }
 

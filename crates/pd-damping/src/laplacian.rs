@@ -1,0 +1,68 @@
+//! Laplacian damping, the paper's model: `D = a2 L_d + a1 M`, constant, so it
+//! is factored once with the rest of the global step.
+
+use crate::error::non_negative;
+use crate::{Damping, DampingError, DampingMatrix};
+
+/// Laplacian damping `D = stiffness L_d + mass M` ("Laplacian-Rayleigh" when
+/// `mass > 0`), `L_d` the damping Laplacian of the translation-invariant
+/// constraints.
+///
+/// `L_d` damps rigid rotation too (`v^T L_d v > 0` for `v = omega x r`). With
+/// `preserve_rotation` the solver restores, per body, the angular momentum
+/// the damping removed ([`Damping::preserves_rotation`]); this model only
+/// reports the choice.
+///
+/// ```
+/// use pd_damping::{Damping, DampingMatrix, LaplacianDamping};
+/// let damping = LaplacianDamping::new(0.01, 0.0, true)?;
+/// assert_eq!(damping.name(), "laplacian");
+/// assert!(damping.preserves_rotation());
+/// assert_eq!(
+///     damping.implicit_matrix(),
+///     DampingMatrix { mass: 0.0, damping_laplacian: 0.01, lagged_stiffness: 0.0 }
+/// );
+/// # Ok::<(), pd_damping::DampingError>(())
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LaplacianDamping {
+    stiffness: f64,
+    mass: f64,
+    preserve_rotation: bool,
+}
+
+impl LaplacianDamping {
+    /// Laplacian damping with coefficient `stiffness` (`a2`, in s) on the
+    /// damping Laplacian and `mass` (`a1`, in 1/s) on the mass matrix;
+    /// `preserve_rotation` asks the solver to give back the angular momentum
+    /// the damping removes.
+    ///
+    /// # Errors
+    /// [`DampingError::InvalidParameter`] naming `stiffness` or `mass` unless
+    /// it is finite and `>= 0`.
+    pub fn new(stiffness: f64, mass: f64, preserve_rotation: bool) -> Result<Self, DampingError> {
+        Ok(Self {
+            stiffness: non_negative("stiffness", stiffness)?,
+            mass: non_negative("mass", mass)?,
+            preserve_rotation,
+        })
+    }
+}
+
+impl Damping for LaplacianDamping {
+    fn name(&self) -> &'static str {
+        "laplacian"
+    }
+
+    fn implicit_matrix(&self) -> DampingMatrix {
+        DampingMatrix {
+            mass: self.mass,
+            damping_laplacian: self.stiffness,
+            lagged_stiffness: 0.0,
+        }
+    }
+
+    fn preserves_rotation(&self) -> bool {
+        self.preserve_rotation
+    }
+}

@@ -1,0 +1,55 @@
+//! Lagged Rayleigh damping `D_n = a1 M + a2 K(x_n)`: the classical baseline,
+//! with the elastic Hessian taken at the start of each step.
+
+use crate::error::non_negative;
+use crate::{Damping, DampingError, DampingMatrix};
+
+/// Lagged Rayleigh damping `D_n = mass M + stiffness K(x_n)`, `K(x_n)` the
+/// elastic Hessian at the start of the step, projected to PSD per element.
+/// The solver assembles `K(x_n)` and refactors the 3n x 3n system every step
+/// ([`DampingMatrix::is_lagged`]).
+///
+/// ```
+/// use pd_damping::{Damping, DampingMatrix, RayleighLagged};
+/// let damping = RayleighLagged::new(0.1, 0.01)?;
+/// assert_eq!(damping.name(), "rayleigh-lagged");
+/// assert_eq!(
+///     damping.implicit_matrix(),
+///     DampingMatrix { mass: 0.1, damping_laplacian: 0.0, lagged_stiffness: 0.01 }
+/// );
+/// # Ok::<(), pd_damping::DampingError>(())
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RayleighLagged {
+    mass: f64,
+    stiffness: f64,
+}
+
+impl RayleighLagged {
+    /// Lagged Rayleigh damping with coefficient `mass` (`a1`, in 1/s) on the
+    /// mass matrix and `stiffness` (`a2`, in s) on the lagged Hessian.
+    ///
+    /// # Errors
+    /// [`DampingError::InvalidParameter`] naming `mass` or `stiffness` unless
+    /// it is finite and `>= 0`.
+    pub fn new(mass: f64, stiffness: f64) -> Result<Self, DampingError> {
+        Ok(Self {
+            mass: non_negative("mass", mass)?,
+            stiffness: non_negative("stiffness", stiffness)?,
+        })
+    }
+}
+
+impl Damping for RayleighLagged {
+    fn name(&self) -> &'static str {
+        "rayleigh-lagged"
+    }
+
+    fn implicit_matrix(&self) -> DampingMatrix {
+        DampingMatrix {
+            mass: self.mass,
+            damping_laplacian: 0.0,
+            lagged_stiffness: self.stiffness,
+        }
+    }
+}

@@ -1,0 +1,512 @@
+//! How each damping model changes the total linear momentum `P = sum m v`,
+//! with no gravity, no fixed vertices and only translation-invariant
+//! constraints, for backward Euler, implicit midpoint and BDF-2 and any
+//! iteration count.
+//!
+//! Summing the rows of the global step (docs/solver.md)
+//!
+//! `A x = M y/h^2 + c1 c2 (B p - L z) + c1 c2 gamma D x_hat`,
+//! `A = M/h^2 + c1 c2^2 L + c1 c2 gamma D`
+//!
+//! over the vertices, the column sums of `L`, `L_d`, `B` and of the lagged
+//! Hessian `K(x_n)` vanish (`G_i 1 = 0`), whatever the projections. With
+//! `D = a1 M + a2 L_d` (or `a2 K(x_n)`) only the mass terms survive: with
+//! `X = sum m x`,
+//!
+//! `(1/h^2 + c1 c2 gamma a1) X = Y/h^2 + c1 c2 gamma a1 X_hat`,
+//!
+//! and each integrator's velocity update turns that into a recurrence:
+//! - BE (`c1 c2 gamma = 1/h`, `y = x_n + h v_n`): `P' = P / (1 + a1 h)`;
+//! - IM (`1/(2h)`, `v' = 2 (x - x_n)/h - v`): `P' = P (1 - a1 h/2) / (1 + a1 h/2)`;
+//! - BDF-2 (`2/(3h)`, `y = x_hat + h (8 v - 2 v_old)/9`,
+//!   `v' = 3 (x - x_hat)/(2h)`): `P' = (4 P - P_old) / (3 + 2 a1 h)`, after a
+//!   first backward Euler step.
+//!
+//! With `a1 = 0` BE and IM keep `P`, and so does BDF-2 (its first step is BE,
+//! then `P' = (4 P - P)/3 = P` by induction). Explicit filters act after the
+//! update: ether drag multiplies every velocity by `s = 1 - k` or
+//! `exp(-c h)`, so `P' = s R(P, P_old)` with `R` the undamped recurrence
+//! (which for BDF-2 is `(4 P - P_old)/3`, not `P`, once a filter has made
+//! `P != P_old`); PBD damping keeps each component's momentum.
+
+mod common;
+
+use common::{U, jittered_box, laplacian_norm};
+use pd_damping::{Damping, EtherDrag, LaplacianDamping, NoDamping, PbdDamping, RayleighLagged};
+use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
+use pd_mesh::{Point, generators};
+use pd_solver::{Model, Settings, Simulation, State};
+use proptest::prelude::*;
+
+/// Steps per run: enough for BDF-2 to run several steps on its own history.
+const STEPS: usize = 8;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Scheme {
+    BackwardEuler,
+    ImplicitMidpoint,
+    Bdf2,
+}
+
+const SCHEMES: [Scheme; 3] = [
+    Scheme::BackwardEuler,
+    Scheme::ImplicitMidpoint,
+    Scheme::Bdf2,
+];
+
+impl Scheme {
+    fn integrator(self) -> Box<dyn Integrator> {
+        match self {
+            Self::BackwardEuler => Box::new(BackwardEuler),
+            Self::ImplicitMidpoint => Box::new(ImplicitMidpoint),
+            Self::Bdf2 => Box::new(Bdf2::new()),
+        }
+    }
+
+    /// The momentum after a step of `h` with mass-proportional damping `a1`
+    /// (1/s), from the momentum before it and, for BDF-2 once it has a
+    /// history, the one before that (module docs).
+    fn momentum_after(self, a1h: f64, current: Point, previous: Option<Point>) -> Point {
+        match (self, previous) {
+            (Self::ImplicitMidpoint, _) => current * ((1.0 - 0.5 * a1h) / (1.0 + 0.5 * a1h)),
+            (Self::Bdf2, Some(previous)) => (current * 4.0 - previous) / (3.0 + 2.0 * a1h),
+            (Self::BackwardEuler | Self::Bdf2, _) => current / (1.0 + a1h),
+        }
+    }
+}
+
+/// How a damping model must change the momentum per step.
+#[derive(Debug, Clone, Copy)]
+struct MomentumLaw {
+    /// `a1` in 1/s, the mass-proportional part of the implicit matrix.
+    mass_rate: f64,
+    /// The factor an explicit filter multiplies every velocity by.
+    filter_scale: f64,
+}
+
+impl MomentumLaw {
+    const KEPT: Self = Self {
+        mass_rate: 0.0,
+        filter_scale: 1.0,
+    };
+}
+
+/// A random free scene: one jittered tet box (6 x 8 tets, 27 vertices), or a
+/// spring chain next to a strain-limited tet cube (two components, a
+/// singular inertia among them).
+#[derive(Debug, Clone)]
+struct Scene {
+    seed: u64,
+    chain_points: Option<usize>,
+    stiffness: f64,
+    masses: Vec<f64>,
+    velocities: Vec<Point>,
+}
+
+impl Scene {
+    fn model(&self) -> Model {
+        let mut model = Model::new();
+        match self.chain_points {
+            None => {
+                let mesh = jittered_box([2, 2, 2], [1.0, 0.7, 0.4], 0.15, self.seed);
+                let body = model.add_body(mesh, self.masses.clone()).unwrap();
+                model.add_tet_strain(body, self.stiffness, None).unwrap();
+            }
+            Some(points) => {
+                let chain = generators::chain(points, 1.0).unwrap();
+                let chain_body = model
+                    .add_body(chain, self.masses[..points].to_vec())
+                    .unwrap();
+                model.add_springs(chain_body, self.stiffness).unwrap();
+                let cube = jittered_box([1, 1, 1], [0.3, 0.3, 0.3], 0.1, self.seed)
+                    .translated(Point::new(2.0, 0.0, 0.0));
+                let cube_masses = self.masses[points..points + cube.num_vertices()].to_vec();
+                let cube_body = model.add_body(cube, cube_masses).unwrap();
+                model
+                    .add_tet_strain(cube_body, self.stiffness, Some((0.9, 1.1)))
+                    .unwrap();
+            }
+        }
+        model
+    }
+}
+
+fn points(n: usize, bound: f64) -> impl Strategy<Value = Vec<Point>> {
+    proptest::collection::vec((-bound..bound, -bound..bound, -bound..bound), n)
+        .prop_map(|v| v.into_iter().map(|(x, y, z)| Point::new(x, y, z)).collect())
+}
+
+fn scene() -> impl Strategy<Value = Scene> {
+    (
+        0u64..1000,
+        proptest::option::of(2usize..8),
+        1e1..1e5f64,
+        proptest::collection::vec(0.01..10.0f64, 27),
+        points(27, 2.0),
+    )
+        .prop_map(
+            |(seed, chain_points, stiffness, masses, velocities)| Scene {
+                seed,
+                chain_points,
+                stiffness,
+                masses,
+                velocities,
+            },
+        )
+}
+
+fn sum_of_momenta(masses: &[f64], velocities: &[Point]) -> f64 {
+    masses
+        .iter()
+        .zip(velocities)
+        .map(|(m, v)| m * v.amax())
+        .sum()
+}
+
+fn extent(positions: &[Point]) -> f64 {
+    positions.iter().map(|x| x.amax()).fold(0.0, f64::max)
+}
+
+/// Runs [`STEPS`] steps of `scene` with `scheme` and checks the momentum
+/// after each step against `law` applied, with `predicted_by`'s recurrence,
+/// to the measured momenta before it.
+///
+/// Round-off bound, per step (the check starts afresh from the measured
+/// momenta, so nothing accumulates): the computed `x` solves the global
+/// system up to a residual of about `u (|A| |x|)_i` per row, from the
+/// Cholesky backward error and from the column sums of the assembled `L`,
+/// `L_d`, `K(x_n)` and `B`, which vanish only to round-off. With
+/// `c1 c2^2 <= 1` and `c1 c2 gamma <= 1/h`, `|A|` is at most
+/// `m_max (1/h^2 + a1/h) + |L| (1 + a2/h)` (`|L|` the Gershgorin bound of
+/// `L_sys`; `L_d` is part of it, and the PSD-projected `K(x_n)` is bounded by
+/// it because each element's projected Hessian is at most its weight,
+/// `tet_hessian.rs`). Summed over `n` rows and divided by the mass
+/// coefficient `>= 1/h^2`, it moves `sum m x` by `h^2 n u |A| |x|`, which the
+/// velocity update turns into a momentum error at most 4/h times that (IM's
+/// `2/h`, BDF-2's `(3 + 4 + 1)/(2h)` on the cancellation `x - x_n`). The
+/// momenta themselves are sums of `n` terms, each rounded by
+/// `n u sum m |v|`. A factor 16 covers the constants of the error bounds, as
+/// in `linear_momentum.rs`.
+fn check_momentum(
+    scene: &Scene,
+    scheme: Scheme,
+    predicted_by: Scheme,
+    damping: Box<dyn Damping>,
+    law: MomentumLaw,
+    dt: f64,
+    iterations: usize,
+) -> Result<(), TestCaseError> {
+    let model = scene.model();
+    let n = model.num_vertices();
+    let max_mass = model.masses().iter().copied().fold(0.0, f64::max);
+    let damping_matrix = damping.implicit_matrix();
+    let laplacian_bound = laplacian_norm(&model);
+    let matrix_bound = max_mass * (1.0 / (dt * dt) + damping_matrix.mass / dt)
+        + laplacian_bound
+            * (1.0 + (damping_matrix.damping_laplacian + damping_matrix.lagged_stiffness) / dt);
+    // The rotation-preserving variant can spin a body up when the solve is
+    // not converged (`rotation_preserving_laplacian_damping_*` below); the
+    // linear momentum must still follow the law, so the run is not stopped
+    // for the energy it gains (the tolerance scales with the velocities).
+    let divergence_energy_factor = if damping.preserves_rotation() {
+        f64::MAX
+    } else {
+        Settings::default().divergence_energy_factor
+    };
+    let settings = Settings {
+        dt,
+        iterations,
+        gravity: Point::zeros(),
+        threads: 1,
+        divergence_energy_factor,
+        ..Settings::default()
+    };
+    let mut sim = Simulation::new(model, scheme.integrator(), damping, settings).unwrap();
+    let positions = sim.state().positions.clone();
+    sim.set_state(State {
+        positions,
+        velocities: scene.velocities[..n].to_vec(),
+    })
+    .unwrap();
+    let masses = sim.model().masses().to_vec();
+    let mut momentum_scale = sum_of_momenta(&masses, &sim.state().velocities);
+    let mut previous = None;
+    let mut current = sim.linear_momentum();
+    for step in 1..=STEPS {
+        let extent_before = extent(&sim.state().positions);
+        sim.step()
+            .map_err(|e| TestCaseError::fail(format!("{scheme:?} step {step}: {e}")))?;
+        let expected =
+            predicted_by.momentum_after(law.mass_rate * dt, current, previous) * law.filter_scale;
+        let measured = sim.linear_momentum();
+        momentum_scale = momentum_scale.max(sum_of_momenta(&masses, &sim.state().velocities));
+        let extent = extent_before.max(extent(&sim.state().positions));
+        let tolerance = 16.0 * U * n as f64 * (4.0 * dt * matrix_bound * extent + momentum_scale);
+        let error = (measured - expected).amax();
+        prop_assert!(
+            error <= tolerance,
+            "{scheme:?} step {step}: momentum {measured} vs expected {expected}: \
+             error {error:e} > {tolerance:e}"
+        );
+        previous = Some(current);
+        current = measured;
+    }
+    Ok(())
+}
+
+/// Runs [`check_momentum`] for every integrator, with a fresh damping model
+/// from `damping` for each.
+fn check_all_schemes(
+    scene: &Scene,
+    damping: impl Fn() -> Box<dyn Damping>,
+    law: MomentumLaw,
+    dt: f64,
+    iterations: usize,
+) -> Result<(), TestCaseError> {
+    for scheme in SCHEMES {
+        check_momentum(scene, scheme, scheme, damping(), law, dt, iterations)?;
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 16, max_shrink_iters: 100, ..ProptestConfig::default() })]
+
+    #[test]
+    fn laplacian_damping_keeps_momentum(
+        scene in scene(),
+        damping_stiffness in 1e-4..1e-1f64,
+        preserve_rotation: bool,
+        dt in 1e-3..0.05f64,
+        iterations in 1usize..=15,
+    ) {
+        let damping = || -> Box<dyn Damping> {
+            Box::new(LaplacianDamping::new(damping_stiffness, 0.0, preserve_rotation).unwrap())
+        };
+        check_all_schemes(&scene, damping, MomentumLaw::KEPT, dt, iterations)?;
+    }
+
+    #[test]
+    fn pbd_damping_keeps_momentum(
+        scene in scene(),
+        factor in 0.0..=1.0f64,
+        dt in 1e-3..0.05f64,
+        iterations in 1usize..=15,
+    ) {
+        let damping = || -> Box<dyn Damping> { Box::new(PbdDamping::new(factor).unwrap()) };
+        check_all_schemes(&scene, damping, MomentumLaw::KEPT, dt, iterations)?;
+    }
+
+    #[test]
+    fn lagged_rayleigh_stiffness_damping_keeps_momentum(
+        scene in scene(),
+        damping_stiffness in 1e-4..1e-1f64,
+        dt in 1e-3..0.05f64,
+        iterations in 1usize..=15,
+    ) {
+        let damping = || -> Box<dyn Damping> {
+            Box::new(RayleighLagged::new(0.0, damping_stiffness).unwrap())
+        };
+        check_all_schemes(&scene, damping, MomentumLaw::KEPT, dt, iterations)?;
+    }
+
+    #[test]
+    fn laplacian_rayleigh_damping_follows_the_recurrence(
+        scene in scene(),
+        damping_stiffness in 0.0..1e-1f64,
+        mass_rate in 1e-1..50.0f64,
+        preserve_rotation: bool,
+        dt in 1e-3..0.05f64,
+        iterations in 1usize..=15,
+    ) {
+        let damping = || -> Box<dyn Damping> {
+            Box::new(LaplacianDamping::new(damping_stiffness, mass_rate, preserve_rotation).unwrap())
+        };
+        let law = MomentumLaw { mass_rate, filter_scale: 1.0 };
+        check_all_schemes(&scene, damping, law, dt, iterations)?;
+    }
+
+    #[test]
+    fn lagged_rayleigh_damping_follows_the_recurrence(
+        scene in scene(),
+        damping_stiffness in 0.0..1e-1f64,
+        mass_rate in 1e-1..50.0f64,
+        dt in 1e-3..0.05f64,
+        iterations in 1usize..=15,
+    ) {
+        let damping = || -> Box<dyn Damping> {
+            Box::new(RayleighLagged::new(mass_rate, damping_stiffness).unwrap())
+        };
+        let law = MomentumLaw { mass_rate, filter_scale: 1.0 };
+        check_all_schemes(&scene, damping, law, dt, iterations)?;
+    }
+
+    #[test]
+    fn implicit_ether_drag_follows_the_recurrence(
+        scene in scene(),
+        mass_rate in 1e-1..50.0f64,
+        dt in 1e-3..0.05f64,
+        iterations in 1usize..=15,
+    ) {
+        let damping = || -> Box<dyn Damping> { Box::new(EtherDrag::implicit(mass_rate).unwrap()) };
+        let law = MomentumLaw { mass_rate, filter_scale: 1.0 };
+        check_all_schemes(&scene, damping, law, dt, iterations)?;
+    }
+
+    #[test]
+    fn explicit_ether_drag_factor_scales_the_undamped_update(
+        scene in scene(),
+        factor in 0.0..=1.0f64,
+        dt in 1e-3..0.05f64,
+        iterations in 1usize..=15,
+    ) {
+        let damping = || -> Box<dyn Damping> { Box::new(EtherDrag::factor(factor).unwrap()) };
+        let law = MomentumLaw { mass_rate: 0.0, filter_scale: 1.0 - factor };
+        check_all_schemes(&scene, damping, law, dt, iterations)?;
+    }
+
+    #[test]
+    fn explicit_ether_drag_rate_scales_the_undamped_update(
+        scene in scene(),
+        rate in 0.0..50.0f64,
+        dt in 1e-3..0.05f64,
+        iterations in 1usize..=15,
+    ) {
+        let damping = || -> Box<dyn Damping> { Box::new(EtherDrag::rate(rate).unwrap()) };
+        let law = MomentumLaw { mass_rate: 0.0, filter_scale: (-rate * dt).exp() };
+        check_all_schemes(&scene, damping, law, dt, iterations)?;
+    }
+}
+
+/// A fixed scene for the controls.
+fn control_scene() -> Scene {
+    let masses: Vec<f64> = (0..27).map(|i| 0.5 + 0.1 * i as f64).collect();
+    let velocities = (0..27)
+        .map(|i| {
+            let t = i as f64;
+            Point::new((0.7 * t).sin(), (1.3 * t).cos(), 0.5 - 0.03 * t)
+        })
+        .collect();
+    Scene {
+        seed: 11,
+        chain_points: None,
+        stiffness: 1e3,
+        masses,
+        velocities,
+    }
+}
+
+#[test]
+fn controls_fail_the_same_checks() {
+    // The checks can fail: each wrong law below differs from the true one by
+    // far more than the round-off tolerance (relatively, by about `a1 h` or
+    // `(a1 h)^2`, that is 0.05 or 2.5e-3 here, against 1e-12).
+    let scene = control_scene();
+    let drag = || -> Box<dyn Damping> { Box::new(EtherDrag::implicit(5.0).unwrap()) };
+    let law = MomentumLaw {
+        mass_rate: 5.0,
+        filter_scale: 1.0,
+    };
+    for scheme in SCHEMES {
+        // Implicit ether drag exerts a net force: momentum is not kept.
+        let kept = check_momentum(&scene, scheme, scheme, drag(), MomentumLaw::KEPT, 0.01, 5);
+        assert!(kept.is_err(), "{scheme:?} kept momentum under drag");
+        // Each integrator follows its own recurrence and no other's.
+        for predicted_by in SCHEMES {
+            let result = check_momentum(&scene, scheme, predicted_by, drag(), law, 0.01, 5);
+            assert_eq!(
+                result.is_ok(),
+                predicted_by == scheme,
+                "{scheme:?} predicted by {predicted_by:?}: {result:?}"
+            );
+        }
+    }
+    // With an explicit filter BDF-2's undamped update is not `P' = P`: the
+    // naive `P' = (1 - k) P` (backward Euler's law) fails after the start-up.
+    let naive = MomentumLaw {
+        mass_rate: 0.0,
+        filter_scale: 0.9,
+    };
+    let filter = Box::new(EtherDrag::factor(0.1).unwrap());
+    let result = check_momentum(
+        &scene,
+        Scheme::Bdf2,
+        Scheme::BackwardEuler,
+        filter,
+        naive,
+        0.01,
+        5,
+    );
+    assert!(result.is_err());
+}
+
+/// The largest `|J_n| / |J_0|` over `steps` steps of a dense tet cube
+/// (0.3 m, 1000 kg/m^3, 1e5 Pa) spinning at 1 rad/s, with one local-global
+/// iteration per step of 0.01 s: the usual few-iteration PD regime, where
+/// the solve is far from converged.
+fn spin_growth(scheme: Scheme, damping: Box<dyn Damping>, steps: usize) -> f64 {
+    let cube = jittered_box([1, 1, 1], [0.3, 0.3, 0.3], 0.1, 0);
+    let masses = cube.lumped_masses(1000.0).unwrap();
+    let mut model = Model::new();
+    let body = model.add_body(cube, masses).unwrap();
+    model.add_tet_strain(body, 1e5, None).unwrap();
+    let settings = Settings {
+        dt: 0.01,
+        iterations: 1,
+        gravity: Point::zeros(),
+        threads: 1,
+        divergence_energy_factor: f64::MAX,
+        ..Settings::default()
+    };
+    let mut sim = Simulation::new(model, scheme.integrator(), damping, settings).unwrap();
+    sim.add_rigid_velocity(0, Point::zeros(), Point::new(0.0, 0.0, 1.0));
+    let initial = sim.angular_momentum().norm();
+    (0..steps)
+        .map(|_| {
+            sim.step().unwrap();
+            sim.angular_momentum().norm() / initial
+        })
+        .fold(0.0, f64::max)
+}
+
+/// How far `|J|` may grow in [`spin_growth`]: no model may add angular
+/// momentum, but unconverged PD conserves it only approximately, so the
+/// bound is the undamped run's own drift (measured below 2e-4 for all three
+/// integrators) with a wide margin.
+const SPIN_GROWTH_BOUND: f64 = 1.01;
+
+#[test]
+fn undamped_and_plain_laplacian_runs_do_not_spin_up() {
+    // The control for the test below: the same check passes without damping
+    // and with plain Laplacian damping (which removes spin).
+    for scheme in SCHEMES {
+        let none = spin_growth(scheme, Box::new(NoDamping), 20);
+        assert!(
+            none <= SPIN_GROWTH_BOUND,
+            "{scheme:?} undamped: |J| grew {none}x"
+        );
+        let plain = Box::new(LaplacianDamping::new(0.01, 0.0, false).unwrap());
+        let plain = spin_growth(scheme, plain, 20);
+        assert!(
+            plain <= SPIN_GROWTH_BOUND,
+            "{scheme:?} plain: |J| grew {plain}x"
+        );
+    }
+}
+
+#[test]
+#[ignore = "bug: the rotation-preserving Laplacian variant gives back the angular impulse \
+            of the damping force `h a2 L_d v_d`, but an unconverged PD solve cancels most \
+            of that impulse with the frozen projections, so it adds angular momentum: \
+            |J| grows 11x (BE), 2x (IM), 4x (BDF-2) in 20 steps here; a body at rest \
+            spins up from round-off"]
+fn rotation_preserving_laplacian_damping_does_not_create_angular_momentum() {
+    for scheme in SCHEMES {
+        let damping = Box::new(LaplacianDamping::new(0.01, 0.0, true).unwrap());
+        let growth = spin_growth(scheme, damping, 20);
+        assert!(
+            growth <= SPIN_GROWTH_BOUND,
+            "{scheme:?}: |J| grew {growth}x"
+        );
+    }
+}
