@@ -47,9 +47,9 @@ pub(crate) fn non_negative(parameter: &'static str, value: f64) -> Result<f64, D
     Ok(value)
 }
 
-/// Accepts `value` in `[0, 1]`; the comparisons also reject NaN.
+/// Accepts `value` in `[0, 1]`; `contains` is false for NaN.
 pub(crate) fn unit_interval(parameter: &'static str, value: f64) -> Result<f64, DampingError> {
-    if !(value >= 0.0 && value <= 1.0) {
+    if !(0.0..=1.0).contains(&value) {
         return Err(DampingError::InvalidParameter {
             parameter,
             value,

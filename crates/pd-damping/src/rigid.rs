@@ -226,9 +226,11 @@ mod tests {
             Matrix3::from_diagonal(&Point::new(0.0, 2.0, 2.0))
         );
         // The x component lies in the null space and is dropped; y and z are
-        // divided by 2 through an eigenbasis that is exactly the unit axes.
+        // divided by 2. Values of size 2: a few roundings of the eigensolver,
+        // 8 u each.
         let solved = fit.solve_inertia(&Point::new(5.0, 3.0, -4.0));
-        assert_eq!(solved, Point::new(0.0, 1.5, -2.0));
+        let error = (solved - Point::new(0.0, 1.5, -2.0)).norm();
+        assert!(error <= 8.0 * f64::EPSILON * 2.0, "{solved:?}");
     }
 
     #[test]

@@ -8,7 +8,9 @@
 //!   vertex `I`, every step;
 //! - `frames/frame_NNNNN.vtk` / `.obj` every `output.every` steps (frame 0 is
 //!   the initial state);
-//! - `summary.json`: sizes, timings (medians), and how the run ended.
+//! - `summary.json`: sizes, timings (medians), and how the run ended;
+//! - `final_state.json`: the last state, an initial-state file another scene
+//!   can start from (`initial_state = ".../final_state.json"`).
 //!
 //! Rows are flushed every step, so a run that stops early (divergence, a
 //! signal) keeps every row written before it.
@@ -202,6 +204,12 @@ impl Recorder {
             "median_global_ms": json_number(median(&self.global_ms)),
             "frames": self.frames,
         });
+        let state = sim.state();
+        crate::state::write_state(
+            &self.dir.join("final_state.json"),
+            &state.positions,
+            &state.velocities,
+        )?;
         let path = self.dir.join("summary.json");
         let text = serde_json::to_string_pretty(&summary).expect("a JSON value always serialises");
         crate::frames::write_atomically(&path, |w| writeln!(w, "{text}"))?;

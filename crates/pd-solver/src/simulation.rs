@@ -409,13 +409,26 @@ impl Simulation {
             fixed,
         };
 
-        if self.damping.preserves_rotation() {
-            for (spin, body) in s.spins.iter_mut().zip(&self.rotating_bodies) {
-                *spin = RigidFit::of(body, masses, x_n, v_n).angular_momentum;
-            }
-        }
         self.integrator
             .prepare(h, x_n, v_n, self.settings.gravity, &mut s.targets);
+        if self.damping.preserves_rotation() {
+            // Damp only the strain rate: move each free body's damping anchor
+            // with its rigid rotation at the start of the step, so that D acts
+            // on v_d minus that rotation's velocity (docs/damping.md). The matrix is
+            // unchanged; L_d's zero column sums keep linear momentum exact.
+            for (spin, body) in s.spins.iter_mut().zip(&self.rotating_bodies) {
+                let fit = RigidFit::of(body, masses, x_n, v_n);
+                *spin = fit.angular_momentum;
+                // The rigid rotation's displacement over 1/gamma (one step for
+                // backward Euler and implicit midpoint): exact, not linearised,
+                // so a rigidly spinning body feels no damping at all.
+                let rotation = nalgebra::Rotation3::new(fit.angular_velocity() / c.gamma);
+                for &i in body {
+                    let r = x_n[i] - fit.centre;
+                    s.targets.damping_anchor[i] += rotation * r - r;
+                }
+            }
+        }
         if self.damping.has_explicit_force() {
             s.forces.iter_mut().for_each(|f| *f = Point::zeros());
             self.damping
@@ -818,12 +831,14 @@ fn connected_components(model: &Model) -> (Vec<Vec<usize>>, Vec<Vec<usize>>) {
     (components, rotating)
 }
 
-/// The rotation-preserving Laplacian variant (docs/damping.md): gives each
-/// free body back the spin (angular momentum about its centre of mass) it
-/// had at the start of the step, as a rigid rotation about its centre of
+/// Second half of the rotation-preserving Laplacian variant (docs/damping.md;
+/// the first half shifts the damping anchor by the rigid rotation): gives
+/// each free body back the spin (angular momentum about its centre of mass)
+/// it had at the start of the step, as a rigid rotation about its centre of
 /// mass, which changes no linear momentum. For a free body the spin is
 /// conserved physically (uniform gravity exerts no torque about the centre
-/// of mass), so this removes exactly the damping's (and the solver's) loss.
+/// of mass), so this removes exactly the remaining loss, which the anchor
+/// shift has made small.
 fn restore_spin(
     rotating_bodies: &[Vec<usize>],
     spins: &[Point],
