@@ -1,12 +1,17 @@
 //! Project chores, run as `cargo xtask NAME` (matklad's xtask convention).
 //!
-//! Tasks: `ci` runs what `.ci/run` runs (format check, clippy, tests).
+//! - `ci`: what `.ci/run` runs (format check, clippy, tests);
+//! - `damping-table [--quick]`: measures every damping model with every
+//!   integrator on the bundled scenes and writes `docs/damping-table.md`.
 
+mod damping_table;
+
+use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 
 fn main() -> ExitCode {
-    let task = std::env::args().nth(1);
-    match task.as_deref() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    match args.first().map(String::as_str) {
         Some("ci") => run_all(&[
             &["fmt", "--all", "--", "--check"],
             &[
@@ -19,13 +24,34 @@ fn main() -> ExitCode {
             ],
             &["test", "--workspace"],
         ]),
+        Some("damping-table") => {
+            let quick = args.iter().any(|a| a == "--quick");
+            match damping_table::run(&workspace_root(), quick) {
+                Ok(path) => {
+                    eprintln!("wrote {}", path.display());
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    ExitCode::FAILURE
+                }
+            }
+        }
         _ => {
             eprintln!(
-                "usage: cargo xtask <task>\n\ntasks:\n  ci    format check, clippy (warnings are errors), all tests"
+                "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md"
             );
             ExitCode::from(2)
         }
     }
+}
+
+/// The workspace root: the parent of this crate's folder.
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("xtask lives inside the workspace")
+        .to_path_buf()
 }
 
 fn run_all(commands: &[&[&str]]) -> ExitCode {

@@ -28,11 +28,11 @@ impl LowerPattern {
     pub fn to_symmetric(&self, values: &[f64]) -> pd_constraints::CsrMatrix {
         let mut triplets = Vec::with_capacity(2 * values.len());
         for col in 0..self.n {
-            for slot in self.col_ptr[col]..self.col_ptr[col + 1] {
-                let row = self.row_idx[slot];
-                triplets.push(pd_constraints::Triplet::new(row, col, values[slot]));
+            let range = self.col_ptr[col]..self.col_ptr[col + 1];
+            for (&row, &value) in self.row_idx[range.clone()].iter().zip(&values[range]) {
+                triplets.push(pd_constraints::Triplet::new(row, col, value));
                 if row != col {
-                    triplets.push(pd_constraints::Triplet::new(col, row, values[slot]));
+                    triplets.push(pd_constraints::Triplet::new(col, row, value));
                 }
             }
         }

@@ -113,26 +113,14 @@ impl Model {
             });
         }
         let offset = b.offset;
-        let new: Result<Vec<_>, _> = b
+        let rest = &self.rest_positions;
+        let new = b
             .mesh
             .tets()
             .iter()
-            .map(|t| {
-                TetStrain::new(
-                    &self.rest_positions,
-                    t.map(|v| v + offset),
-                    stiffness,
-                    limits,
-                )
-            })
-            .collect();
-        let new = new.map_err(|source| SolverError::Constraint {
-            body: body.0,
-            source,
-        })?;
-        let count = new.len();
-        self.tet_strain.extend(new);
-        Ok(count)
+            .map(|t| TetStrain::new(rest, t.map(|v| v + offset), stiffness, limits))
+            .collect::<Result<Vec<_>, _>>();
+        Self::append(body, new, &mut self.tet_strain)
     }
 
     /// Adds a spring along every edge of a body (stiffness in N/m, rest
@@ -148,18 +136,29 @@ impl Model {
             });
         }
         let offset = b.offset;
-        let new: Result<Vec<_>, _> = b
+        let rest = &self.rest_positions;
+        let new = b
             .mesh
             .edges()
             .iter()
-            .map(|e| Spring::new(&self.rest_positions, e.map(|v| v + offset), stiffness))
-            .collect();
+            .map(|e| Spring::new(rest, e.map(|v| v + offset), stiffness))
+            .collect::<Result<Vec<_>, _>>();
+        Self::append(body, new, &mut self.springs)
+    }
+
+    /// Appends freshly built constraints of one body, or names the body in
+    /// the error; returns how many were added.
+    fn append<C>(
+        body: BodyId,
+        new: Result<Vec<C>, pd_constraints::ConstraintError>,
+        to: &mut Vec<C>,
+    ) -> Result<usize, SolverError> {
         let new = new.map_err(|source| SolverError::Constraint {
             body: body.0,
             source,
         })?;
         let count = new.len();
-        self.springs.extend(new);
+        to.extend(new);
         Ok(count)
     }
 

@@ -267,7 +267,7 @@ impl Simulation {
                     reason: format!("{} {name} for {n} vertices", values.len()),
                 });
             }
-            if let Some(v) = values.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            if let Some(v) = first_non_finite(values) {
                 return Err(SolverError::InvalidState {
                     reason: format!("{name} of vertex {v} are not finite"),
                 });
@@ -575,11 +575,7 @@ impl Simulation {
         let step = self.steps + 1;
         // From the step count, so that time does not drift by round-off.
         let time = step as f64 * h;
-        if let Some(v) = s
-            .iterate
-            .iter()
-            .position(|p| !p.iter().all(|c| c.is_finite()))
-        {
+        if let Some(v) = first_non_finite(&s.iterate) {
             return Err(SolverError::Diverged {
                 step,
                 time,
@@ -588,11 +584,7 @@ impl Simulation {
         }
         self.integrator
             .finish(h, x_n, v_n, &s.iterate, &mut s.velocities);
-        for (v, fixed) in s.velocities.iter_mut().zip(fixed) {
-            if *fixed {
-                *v = Point::zeros();
-            }
-        }
+        zero_fixed(&mut s.velocities, fixed);
         if self.damping.preserves_rotation() {
             restore_spin(
                 &self.rotating_bodies,
@@ -604,16 +596,8 @@ impl Simulation {
         }
         self.damping
             .filter_velocities(&context, &s.iterate, &mut s.velocities);
-        for (v, fixed) in s.velocities.iter_mut().zip(fixed) {
-            if *fixed {
-                *v = Point::zeros();
-            }
-        }
-        if let Some(v) = s
-            .velocities
-            .iter()
-            .position(|p| !p.iter().all(|c| c.is_finite()))
-        {
+        zero_fixed(&mut s.velocities, fixed);
+        if let Some(v) = first_non_finite(&s.velocities) {
             return Err(SolverError::Diverged {
                 step,
                 time,
@@ -851,6 +835,20 @@ fn restore_spin(
         let restore = fit.solve_inertia(&(spin - fit.angular_momentum));
         for &i in body {
             velocities[i] += restore.cross(&(positions[i] - fit.centre));
+        }
+    }
+}
+
+/// Index of the first point with a non-finite coordinate.
+fn first_non_finite(points: &[Point]) -> Option<usize> {
+    points.iter().position(|p| !p.iter().all(|c| c.is_finite()))
+}
+
+/// Hard-fixed vertices never move: their velocity is zero.
+fn zero_fixed(velocities: &mut [Point], fixed: &[bool]) {
+    for (v, &fixed) in velocities.iter_mut().zip(fixed) {
+        if fixed {
+            *v = Point::zeros();
         }
     }
 }

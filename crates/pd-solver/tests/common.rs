@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 use pd_constraints::assembly::{self, LaplacianKind};
+use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
 use pd_mesh::{Mesh, Point};
 use pd_solver::Model;
 
@@ -46,4 +47,33 @@ pub fn laplacian_norm(model: &Model) -> f64 {
     (0..l.nrows())
         .map(|r| l.row(r).map(|(_, v)| v.abs()).sum::<f64>())
         .fold(0.0, f64::max)
+}
+
+/// The three integrators, as the tests iterate over them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Scheme {
+    /// `pd_integrators::BackwardEuler`.
+    BackwardEuler,
+    /// `pd_integrators::ImplicitMidpoint`.
+    ImplicitMidpoint,
+    /// `pd_integrators::Bdf2`.
+    Bdf2,
+}
+
+/// Every integrator.
+pub const SCHEMES: [Scheme; 3] = [
+    Scheme::BackwardEuler,
+    Scheme::ImplicitMidpoint,
+    Scheme::Bdf2,
+];
+
+impl Scheme {
+    /// A fresh integrator of this kind.
+    pub fn integrator(self) -> Box<dyn Integrator> {
+        match self {
+            Self::BackwardEuler => Box::new(BackwardEuler),
+            Self::ImplicitMidpoint => Box::new(ImplicitMidpoint),
+            Self::Bdf2 => Box::new(Bdf2::new()),
+        }
+    }
 }

@@ -31,12 +31,11 @@
 
 mod common;
 
-use common::{U, jittered_box, laplacian_norm};
+use common::{SCHEMES, Scheme, U, jittered_box, laplacian_norm};
 use pd_damping::rigid::RigidFit;
 use pd_damping::{
     Damping, DampingContext, EtherDrag, LaplacianDamping, NoDamping, PbdDamping, RayleighLagged,
 };
-use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
 use pd_mesh::{Point, generators};
 use pd_solver::{Model, Settings, Simulation, State};
 use proptest::prelude::*;
@@ -44,37 +43,14 @@ use proptest::prelude::*;
 /// Steps per run: enough for BDF-2 to run several steps on its own history.
 const STEPS: usize = 8;
 
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Scheme {
-    BackwardEuler,
-    ImplicitMidpoint,
-    Bdf2,
-}
-
-const SCHEMES: [Scheme; 3] = [
-    Scheme::BackwardEuler,
-    Scheme::ImplicitMidpoint,
-    Scheme::Bdf2,
-];
-
-impl Scheme {
-    fn integrator(self) -> Box<dyn Integrator> {
-        match self {
-            Self::BackwardEuler => Box::new(BackwardEuler),
-            Self::ImplicitMidpoint => Box::new(ImplicitMidpoint),
-            Self::Bdf2 => Box::new(Bdf2::new()),
-        }
-    }
-
-    /// The momentum after a step of `h` with mass-proportional damping `a1`
-    /// (1/s), from the momentum before it and, for BDF-2 once it has a
-    /// history, the one before that (module docs).
-    fn momentum_after(self, a1h: f64, current: Point, previous: Option<Point>) -> Point {
-        match (self, previous) {
-            (Self::ImplicitMidpoint, _) => current * ((1.0 - 0.5 * a1h) / (1.0 + 0.5 * a1h)),
-            (Self::Bdf2, Some(previous)) => (current * 4.0 - previous) / (3.0 + 2.0 * a1h),
-            (Self::BackwardEuler | Self::Bdf2, _) => current / (1.0 + a1h),
-        }
+/// The momentum after a step of `h` with mass-proportional damping `a1`
+/// (1/s), from the momentum before it and, for BDF-2 once it has a
+/// history, the one before that (module docs).
+fn momentum_after(scheme: Scheme, a1h: f64, current: Point, previous: Option<Point>) -> Point {
+    match (scheme, previous) {
+        (Scheme::ImplicitMidpoint, _) => current * ((1.0 - 0.5 * a1h) / (1.0 + 0.5 * a1h)),
+        (Scheme::Bdf2, Some(previous)) => (current * 4.0 - previous) / (3.0 + 2.0 * a1h),
+        (Scheme::BackwardEuler | Scheme::Bdf2, _) => current / (1.0 + a1h),
     }
 }
 
@@ -230,7 +206,7 @@ fn check_momentum(
         sim.step()
             .map_err(|e| TestCaseError::fail(format!("{scheme:?} step {step}: {e}")))?;
         let expected =
-            predicted_by.momentum_after(law.mass_rate * dt, current, previous) * law.filter_scale;
+            momentum_after(predicted_by, law.mass_rate * dt, current, previous) * law.filter_scale;
         let measured = sim.linear_momentum();
         momentum_scale = momentum_scale.max(sum_of_momenta(&masses, &sim.state().velocities));
         let extent = extent_before.max(extent(&sim.state().positions));

@@ -22,38 +22,14 @@
 
 mod common;
 
-use common::{U, jittered_box, laplacian_norm};
+use common::{SCHEMES, Scheme, U, jittered_box, laplacian_norm};
 use pd_damping::{Damping, EtherDrag, LaplacianDamping, NoDamping, PbdDamping, RayleighLagged};
-use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
 use pd_mesh::{Point, generators};
 use pd_solver::{Model, Settings, Simulation};
 use proptest::prelude::*;
 
 /// Steps per run.
 const STEPS: usize = 20;
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Scheme {
-    BackwardEuler,
-    ImplicitMidpoint,
-    Bdf2,
-}
-
-const SCHEMES: [Scheme; 3] = [
-    Scheme::BackwardEuler,
-    Scheme::ImplicitMidpoint,
-    Scheme::Bdf2,
-];
-
-impl Scheme {
-    fn integrator(self) -> Box<dyn Integrator> {
-        match self {
-            Self::BackwardEuler => Box::new(BackwardEuler),
-            Self::ImplicitMidpoint => Box::new(ImplicitMidpoint),
-            Self::Bdf2 => Box::new(Bdf2::new()),
-        }
-    }
-}
 
 /// What the damping model does to a uniform translation.
 #[derive(Debug, Clone, Copy)]

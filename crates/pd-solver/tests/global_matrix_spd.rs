@@ -16,7 +16,10 @@ use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
 use pd_mesh::{Point, VertexSelection};
 use pd_solver::{Model, Settings, Simulation, State};
 
-fn integrators() -> Vec<(&'static str, fn() -> Box<dyn Integrator>)> {
+/// A scene name and a constructor.
+type MakeIntegrator = (&'static str, fn() -> Box<dyn Integrator>);
+
+fn integrators() -> Vec<MakeIntegrator> {
     vec![
         ("backward-euler", || Box::new(BackwardEuler)),
         ("implicit-midpoint", || Box::new(ImplicitMidpoint)),

@@ -19,30 +19,12 @@
 
 mod common;
 
-use common::jittered_box;
+use common::{Scheme, jittered_box};
 use pd_constraints::assembly::{self, LaplacianKind};
 use pd_constraints::{ConstraintBlock, CsrMatrix};
 use pd_damping::{Damping, EtherDrag, LaplacianDamping, NoDamping, RayleighLagged};
-use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
 use pd_mesh::{Point, VertexSelection};
 use pd_solver::{Model, Settings, Simulation, State};
-
-#[derive(Clone, Copy, PartialEq, Debug)]
-enum Scheme {
-    BackwardEuler,
-    ImplicitMidpoint,
-    Bdf2,
-}
-
-impl Scheme {
-    fn create(self) -> Box<dyn Integrator> {
-        match self {
-            Scheme::BackwardEuler => Box::new(BackwardEuler),
-            Scheme::ImplicitMidpoint => Box::new(ImplicitMidpoint),
-            Scheme::Bdf2 => Box::new(Bdf2::new()),
-        }
-    }
-}
 
 /// (model, a1, a2 of L_d, a3 of K).
 fn models() -> Vec<(Box<dyn Damping>, [f64; 3])> {
@@ -143,7 +125,7 @@ fn converged_steps_satisfy_each_integrators_equations() {
                 gravity,
                 ..Settings::default()
             };
-            let mut sim = Simulation::new(model, scheme.create(), damping, settings).unwrap();
+            let mut sim = Simulation::new(model, scheme.integrator(), damping, settings).unwrap();
             // Start bent and moving, so every force is active.
             let positions: Vec<Point> = sim
                 .state()
