@@ -11,7 +11,7 @@ use crate::{Damping, DampingError, DampingMatrix};
 ///
 /// ```
 /// use pd_damping::{Damping, DampingMatrix, RayleighLagged};
-/// let damping = RayleighLagged::new(0.1, 0.01)?;
+/// let damping = RayleighLagged::new(0.01, 0.1)?;
 /// assert_eq!(damping.name(), "rayleigh-lagged");
 /// assert_eq!(
 ///     damping.implicit_matrix(),
@@ -26,13 +26,14 @@ pub struct RayleighLagged {
 }
 
 impl RayleighLagged {
-    /// Lagged Rayleigh damping with coefficient `mass` (`a1`, in 1/s) on the
-    /// mass matrix and `stiffness` (`a2`, in s) on the lagged Hessian.
+    /// Lagged Rayleigh damping with coefficient `stiffness` (`a2`, in s) on
+    /// the lagged Hessian and `mass` (`a1`, in 1/s) on the mass matrix: the
+    /// same argument order as [`crate::LaplacianDamping::new`].
     ///
     /// # Errors
     /// [`DampingError::InvalidParameter`] naming `mass` or `stiffness` unless
     /// it is finite and `>= 0`.
-    pub fn new(mass: f64, stiffness: f64) -> Result<Self, DampingError> {
+    pub fn new(stiffness: f64, mass: f64) -> Result<Self, DampingError> {
         Ok(Self {
             mass: non_negative("mass", mass)?,
             stiffness: non_negative("stiffness", stiffness)?,

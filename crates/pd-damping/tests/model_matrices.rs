@@ -15,7 +15,7 @@ fn names_are_as_scenes_spell_them() {
         "laplacian"
     );
     assert_eq!(
-        RayleighLagged::new(0.0, 0.1).unwrap().name(),
+        RayleighLagged::new(0.1, 0.0).unwrap().name(),
         "rayleigh-lagged"
     );
 }
@@ -41,7 +41,7 @@ fn laplacian_is_constant_and_reports_rotation_preservation() {
 
 #[test]
 fn rayleigh_lagged_is_lagged() {
-    let matrix = RayleighLagged::new(0.3, 0.02).unwrap().implicit_matrix();
+    let matrix = RayleighLagged::new(0.02, 0.3).unwrap().implicit_matrix();
     assert_eq!(
         matrix,
         DampingMatrix {

@@ -72,11 +72,11 @@ fn laplacian_coefficients_must_be_finite_and_non_negative() {
 #[test]
 fn rayleigh_coefficients_must_be_finite_and_non_negative() {
     for value in NOT_FINITE.into_iter().chain([-1e-300, -1.0]) {
-        assert_rejects(RayleighLagged::new(value, 0.0), "mass", value);
-        assert_rejects(RayleighLagged::new(0.0, value), "stiffness", value);
+        assert_rejects(RayleighLagged::new(0.0, value), "mass", value);
+        assert_rejects(RayleighLagged::new(value, 0.0), "stiffness", value);
     }
     assert!(RayleighLagged::new(0.0, 0.0).is_ok());
-    assert!(RayleighLagged::new(0.5, 1e-2).is_ok());
+    assert!(RayleighLagged::new(1e-2, 0.5).is_ok());
 }
 
 #[test]

@@ -230,7 +230,7 @@ impl DampingSpec {
             } => Box::new(EtherDrag::implicit(rate)?),
             Self::Pbd { factor } => Box::new(PbdDamping::new(factor)?),
             Self::RayleighLagged { mass, stiffness } => {
-                Box::new(RayleighLagged::new(mass, stiffness)?)
+                Box::new(RayleighLagged::new(stiffness, mass)?)
             }
             Self::Laplacian {
                 stiffness,

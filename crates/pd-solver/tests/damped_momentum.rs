@@ -274,7 +274,7 @@ proptest! {
         iterations in 1usize..=15,
     ) {
         let damping = || -> Box<dyn Damping> {
-            Box::new(RayleighLagged::new(0.0, damping_stiffness).unwrap())
+            Box::new(RayleighLagged::new(damping_stiffness, 0.0).unwrap())
         };
         check_all_schemes(&scene, damping, MomentumLaw::KEPT, dt, iterations)?;
     }
@@ -304,7 +304,7 @@ proptest! {
         iterations in 1usize..=15,
     ) {
         let damping = || -> Box<dyn Damping> {
-            Box::new(RayleighLagged::new(mass_rate, damping_stiffness).unwrap())
+            Box::new(RayleighLagged::new(damping_stiffness, mass_rate).unwrap())
         };
         let law = MomentumLaw { mass_rate, filter_scale: 1.0 };
         check_all_schemes(&scene, damping, law, dt, iterations)?;

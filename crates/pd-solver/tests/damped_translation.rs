@@ -310,7 +310,7 @@ proptest! {
         stepping in stepping(),
     ) {
         let damping = || -> Box<dyn Damping> {
-            Box::new(RayleighLagged::new(0.0, damping_stiffness).unwrap())
+            Box::new(RayleighLagged::new(damping_stiffness, 0.0).unwrap())
         };
         check_schemes(&SCHEMES, &scene, damping, TranslationLaw::KEPT, stepping)?;
     }

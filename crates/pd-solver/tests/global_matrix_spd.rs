@@ -42,8 +42,8 @@ fn models() -> Vec<(Box<dyn Damping>, f64)> {
             Box::new(LaplacianDamping::new(0.05, 2.0, true).unwrap()),
             2.0,
         ),
-        (Box::new(RayleighLagged::new(0.0, 0.05).unwrap()), 0.0),
-        (Box::new(RayleighLagged::new(1.5, 0.2).unwrap()), 1.5),
+        (Box::new(RayleighLagged::new(0.05, 0.0).unwrap()), 0.0),
+        (Box::new(RayleighLagged::new(0.2, 1.5).unwrap()), 1.5),
     ]
 }
 

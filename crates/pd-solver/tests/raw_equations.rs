@@ -40,7 +40,7 @@ fn models() -> Vec<(Box<dyn Damping>, [f64; 3])> {
             [1.0, 0.02, 0.0],
         ),
         (
-            Box::new(RayleighLagged::new(0.5, 0.02).unwrap()),
+            Box::new(RayleighLagged::new(0.02, 0.5).unwrap()),
             [0.5, 0.0, 0.02],
         ),
     ]
