@@ -8,8 +8,9 @@ use crate::{BackwardEuler, Integrator, Point, StepCoefficients, StepTargets};
 /// `gamma = 3/(2h)`, and `v_{n+1} = (3 x_{n+1} - 4 x_n + x_{n-1})/(2h)`.
 ///
 /// It needs the previous state, so its first step (and the first after
-/// [`Integrator::reset`]) is one backward Euler step. Second order; it damps
-/// a mode of frequency `omega` by about `(h omega)^3 / 4` per step.
+/// [`Integrator::reset`]) is one backward Euler step. Second order; its
+/// numerical damping ratio for a mode of frequency `omega` is about
+/// `(h omega)^3 / 4` (an amplitude loss of about `(h omega)^4 / 4` per step).
 #[derive(Debug, Clone, Default)]
 pub struct Bdf2 {
     previous_positions: Vec<Point>,
