@@ -100,13 +100,12 @@ impl LaggedSystem {
                 continue;
             }
             let h_len = block.hessian_len();
-            let stencil_size = (h_len as f64).sqrt().round() as usize / 3;
             let mut slots = Vec::with_capacity(block.len() * h_len);
             for c in 0..block.len() {
                 let stencil = block.stencil(c);
-                for k in 0..stencil_size {
+                for k in 0..stencil.len() {
                     for a in 0..3 {
-                        for l in 0..stencil_size {
+                        for l in 0..stencil.len() {
                             for b in 0..3 {
                                 let (fu, fw) =
                                     (global.free_index[stencil[k]], global.free_index[stencil[l]]);
@@ -194,9 +193,9 @@ impl LaggedSystem {
         for h in &self.hessians {
             let block = &blocks[h.block];
             let h_len = block.hessian_len();
-            let size = (h_len as f64).sqrt().round() as usize;
             for (c, hessian) in h.values.chunks_exact(h_len).enumerate() {
                 let stencil = block.stencil(c);
+                let size = 3 * stencil.len();
                 for (k, &u) in stencil.iter().enumerate() {
                     let mut acc = Point::zeros();
                     for (l, &v) in stencil.iter().enumerate() {

@@ -3,8 +3,8 @@
 
 use pd_constraints::assembly::{self, LaplacianKind};
 use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
-use pd_mesh::{Mesh, Point};
-use pd_solver::Model;
+use pd_mesh::{Mesh, Point, VertexSelection};
+use pd_solver::{BodyId, Model};
 
 /// Unit round-off of f64.
 pub const U: f64 = f64::EPSILON / 2.0;
@@ -34,6 +34,30 @@ pub fn jittered_box(cells: [usize; 3], size: [f64; 3], jitter: f64, seed: u64) -
         .map(|p| p + Point::new(next() * cell.x, next() * cell.y, next() * cell.z) * jitter)
         .collect();
     Mesh::from_tets(vertices, mesh.tets().to_vec()).unwrap()
+}
+
+/// A cantilever: a jittered box beam (`jittered_box` with jitter 0.1) of
+/// density 1000 kg/m^3 with corotational strain of `stiffness` Pa, and every
+/// vertex with x <= 0.01 m fixed.
+pub fn clamped_beam(
+    cells: [usize; 3],
+    size: [f64; 3],
+    seed: u64,
+    stiffness: f64,
+) -> (Model, BodyId) {
+    let mesh = jittered_box(cells, size, 0.1, seed);
+    let clamp = VertexSelection::Box {
+        min: [-1.0; 3],
+        max: [0.01, 1.0, 1.0],
+    }
+    .resolve(&mesh)
+    .unwrap();
+    let masses = mesh.lumped_masses(1000.0).unwrap();
+    let mut model = Model::new();
+    let body = model.add_body(mesh, masses).unwrap();
+    model.add_tet_strain(body, stiffness, None).unwrap();
+    model.fix_vertices(body, &clamp).unwrap();
+    (model, body)
 }
 
 /// Largest absolute row sum of the system Laplacian (N/m): a bound on its

@@ -12,10 +12,10 @@ mod common;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
-use common::{SCHEMES, jittered_box};
+use common::{SCHEMES, clamped_beam};
 use pd_damping::{Damping, EtherDrag, LaplacianDamping, NoDamping, PbdDamping, RayleighLagged};
-use pd_mesh::{Point, VertexSelection};
-use pd_solver::{Model, Settings, Simulation};
+use pd_mesh::Point;
+use pd_solver::{Settings, Simulation};
 
 struct Counting;
 
@@ -66,18 +66,9 @@ fn steps_after_the_first_do_not_allocate() {
         for scheme in SCHEMES {
             for damping in models() {
                 let name = damping.name();
-                let mesh = jittered_box([6, 2, 2], [0.6, 0.2, 0.2], 0.1, 9);
-                let clamp = VertexSelection::Box {
-                    min: [-1.0; 3],
-                    max: [0.01, 1.0, 1.0],
-                }
-                .resolve(&mesh)
-                .unwrap();
-                let masses = mesh.lumped_masses(1000.0).unwrap();
-                let mut model = Model::new();
-                let body = model.add_body(mesh.clone(), masses.clone()).unwrap();
-                model.add_tet_strain(body, 1e5, None).unwrap();
-                model.fix_vertices(body, &clamp).unwrap();
+                let (mut model, _) = clamped_beam([6, 2, 2], [0.6, 0.2, 0.2], 9, 1e5);
+                let mesh = model.bodies()[0].mesh.clone();
+                let masses = model.masses().to_vec();
                 // A free second body, so rigid-motion code paths run too.
                 let free = model
                     .add_body(mesh.translated(Point::new(0.0, 1.0, 0.0)), masses)

@@ -19,11 +19,11 @@
 
 mod common;
 
-use common::{Scheme, jittered_box};
+use common::{Scheme, clamped_beam};
 use pd_constraints::assembly::{self, LaplacianKind};
 use pd_constraints::{ConstraintBlock, CsrMatrix};
 use pd_damping::{Damping, EtherDrag, LaplacianDamping, NoDamping, RayleighLagged};
-use pd_mesh::{Point, VertexSelection};
+use pd_mesh::Point;
 use pd_solver::{Model, Settings, Simulation, State};
 
 /// (model, a1, a2 of L_d, a3 of K).
@@ -47,19 +47,7 @@ fn models() -> Vec<(Box<dyn Damping>, [f64; 3])> {
 }
 
 fn model() -> Model {
-    let mesh = jittered_box([3, 1, 1], [0.6, 0.2, 0.2], 0.1, 5);
-    let clamp = VertexSelection::Box {
-        min: [-1.0; 3],
-        max: [0.01, 1.0, 1.0],
-    }
-    .resolve(&mesh)
-    .unwrap();
-    let masses = mesh.lumped_masses(1000.0).unwrap();
-    let mut model = Model::new();
-    let body = model.add_body(mesh, masses).unwrap();
-    model.add_tet_strain(body, 2e4, None).unwrap();
-    model.fix_vertices(body, &clamp).unwrap();
-    model
+    clamped_beam([3, 1, 1], [0.6, 0.2, 0.2], 5, 2e4).0
 }
 
 /// `D v` for `D = a1 M + a2 L_d + a3 K(x0)` (K: PSD-projected Hessians of the

@@ -4,28 +4,17 @@
 
 mod common;
 
-use common::jittered_box;
+use common::clamped_beam;
 use pd_damping::NoDamping;
 use pd_integrators::BackwardEuler;
-use pd_mesh::{Point, VertexSelection};
-use pd_solver::{Model, Settings, Simulation};
+use pd_mesh::Point;
+use pd_solver::{Settings, Simulation};
 
 fn run(threads: usize, tolerance: f64) -> (Vec<Point>, Vec<Point>, Vec<usize>, f64) {
     // 4 x 3 x 3 cells x 6 = 216 tets plus 1000+ springs: several chunks per
     // block, so both threads get work.
-    let mesh = jittered_box([8, 3, 3], [1.0, 0.3, 0.3], 0.1, 3);
-    let clamp = VertexSelection::Box {
-        min: [-1.0; 3],
-        max: [0.01, 1.0, 1.0],
-    }
-    .resolve(&mesh)
-    .unwrap();
-    let masses = mesh.lumped_masses(1000.0).unwrap();
-    let mut model = Model::new();
-    let body = model.add_body(mesh, masses).unwrap();
-    model.add_tet_strain(body, 2e5, None).unwrap();
+    let (mut model, body) = clamped_beam([8, 3, 3], [1.0, 0.3, 0.3], 3, 2e5);
     model.add_springs(body, 1e3).unwrap();
-    model.fix_vertices(body, &clamp).unwrap();
     let settings = Settings {
         dt: 0.01,
         iterations: 15,
