@@ -1,23 +1,29 @@
-//! The `pd` command-line tool: runs Projective Dynamics scenes.
+//! The `pd` command-line tool: runs Projective Dynamics scenes and turns
+//! their results into pictures.
 //!
-//! `pd run [SCENE] [--out DIR]` runs a scene file (TOML or JSON) and writes
-//! metrics, probes, frames and a summary; without a scene it runs the
-//! bundled cantilever. Exit codes: 0 success, 2 bad input (scene, mesh,
-//! state file), 3 divergence, 4 output failure.
+//! - `pd run [SCENE] [--out DIR] [--checkpoint-every K]` runs a scene file
+//!   (TOML or JSON) and writes metrics, probes, frames and a summary;
+//!   without a scene it runs the bundled cantilever;
+//! - `pd resume DIR` continues a run from its last checkpoint;
+//! - `pd render DIR` draws a run's surface frames as PNG images and a GIF;
+//! - `pd plot DIR` plots energies and momenta against time (PNG and SVG);
+//! - `pd compare SCENE --damping a,b,...` (or `--integrator a,b,...`) runs a
+//!   scene once per variant and compares them.
+//!
+//! Logs go to stderr through `tracing`, filtered by `RUST_LOG` (default
+//! `info`); `--quiet` prints nothing but errors. Exit codes: 0 success,
+//! 2 bad input (scene, mesh, state, checkpoint or frame file, options),
+//! 3 divergence, 4 output failure.
 
-use std::path::{Path, PathBuf};
+mod compare;
+mod pictures;
+mod run;
+
+use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Instant;
 
 use clap::{Parser, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
-use pd_io::recorder::{Outcome, Recorder};
-use pd_io::scene::{Scene, Syntax};
-use pd_solver::SolverError;
-
-/// The bundled default scene (also at `scenes/cantilever.toml`).
-const DEFAULT_SCENE: &str = include_str!("../../../scenes/cantilever.toml");
-const DEFAULT_SCENE_NAME: &str = "cantilever (built in: scenes/cantilever.toml)";
+use tracing_subscriber::EnvFilter;
 
 #[derive(Parser)]
 #[command(
@@ -28,6 +34,9 @@ const DEFAULT_SCENE_NAME: &str = "cantilever (built in: scenes/cantilever.toml)"
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Print nothing but errors (overrides RUST_LOG).
+    #[arg(long, short, global = true)]
+    quiet: bool,
 }
 
 #[derive(Subcommand)]
@@ -46,14 +55,76 @@ enum Command {
         /// Threads for the local step (0: all cores).
         #[arg(long)]
         threads: Option<usize>,
-        /// Print nothing but errors.
-        #[arg(long, short)]
-        quiet: bool,
+        /// Write `checkpoint.json` into the output folder every K steps
+        /// (0: never), for `pd resume`.
+        #[arg(long, value_name = "K", default_value_t = 0)]
+        checkpoint_every: usize,
+    },
+    /// Continue a run from the checkpoint in its output folder, to the end
+    /// of its scene; the results are identical bit for bit to an
+    /// uninterrupted run.
+    Resume {
+        /// The run's output folder (holding `checkpoint.json`).
+        dir: PathBuf,
+    },
+    /// Draw a run's surface frames (`DIR/frames/*.obj`) as PNG images and an
+    /// animated GIF in `DIR/render/`.
+    Render {
+        /// The run's output folder.
+        dir: PathBuf,
+        /// More runs drawn side by side with the first, with the same camera.
+        #[arg(long, value_name = "DIR")]
+        panel: Vec<PathBuf>,
+        /// Where to write [default: DIR/render].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Width of one panel, pixels.
+        #[arg(long, default_value_t = 480)]
+        width: u32,
+        /// Height of a panel, pixels.
+        #[arg(long, default_value_t = 360)]
+        height: u32,
+        /// Most frames in the GIF (frames are skipped evenly beyond it).
+        #[arg(long, default_value_t = 40)]
+        gif_frames: usize,
+        /// The GIF is the images shrunk by this factor.
+        #[arg(long, default_value_t = 2)]
+        gif_downscale: u32,
+    },
+    /// Plot a run's energies and momenta against time (`DIR/metrics.csv`)
+    /// as PNG and SVG in `DIR/plots/`.
+    Plot {
+        /// The run's output folder.
+        dir: PathBuf,
+    },
+    /// Run a scene once per damping model or integrator and compare them:
+    /// a side-by-side animation, a plot of total energy, and a table.
+    Compare {
+        /// Scene file (.toml or .json); without one, the bundled cantilever.
+        scene: Option<PathBuf>,
+        /// Damping models, comma separated (short names with default
+        /// parameters: none, ether-drag, pbd, rayleigh-lagged, laplacian).
+        #[arg(long, value_delimiter = ',', conflicts_with = "integrator")]
+        damping: Vec<String>,
+        /// Integrators, comma separated (backward-euler, implicit-midpoint,
+        /// bdf2).
+        #[arg(long, value_delimiter = ',')]
+        integrator: Vec<String>,
+        /// Output folder [default: out/compare-<scene name>].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Override the scene's number of steps.
+        #[arg(long)]
+        steps: Option<usize>,
+        /// Threads for the local step (0: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
     },
 }
 
-/// How a run can fail, each with its exit code.
-enum Failure {
+/// How a command can fail, each with its exit code.
+#[derive(Debug)]
+pub(crate) enum Failure {
     Input(String),
     Diverged(String),
     Output(String),
@@ -68,133 +139,97 @@ impl Failure {
         }
     }
 
-    fn message(&self) -> &str {
+    pub(crate) fn message(&self) -> &str {
         match self {
             Failure::Input(m) | Failure::Diverged(m) | Failure::Output(m) => m,
         }
     }
 }
 
+fn init_logging(quiet: bool) {
+    let filter = if quiet {
+        EnvFilter::new("error")
+    } else {
+        EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new("info"))
+    };
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .without_time()
+        .init();
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    init_logging(cli.quiet);
+    let quiet = cli.quiet;
     let result = match cli.command {
         Command::Run {
             scene,
             out,
             steps,
             threads,
+            checkpoint_every,
+        } => run::run(
+            scene.as_deref(),
+            out,
+            &run::Overrides { steps, threads },
+            checkpoint_every,
             quiet,
-        } => run(scene.as_deref(), out, steps, threads, quiet),
+        ),
+        Command::Resume { dir } => run::resume(&dir, quiet),
+        Command::Render {
+            dir,
+            panel,
+            out,
+            width,
+            height,
+            gif_frames,
+            gif_downscale,
+        } => {
+            let mut dirs = vec![dir];
+            dirs.extend(panel);
+            let out = out.unwrap_or_else(|| dirs[0].join("render"));
+            let panels: Vec<(String, PathBuf)> = dirs
+                .into_iter()
+                .map(|d| (pictures::label_of(&d), d))
+                .collect();
+            pictures::render(
+                &panels,
+                &out,
+                &pictures::RenderOptions {
+                    width,
+                    height,
+                    gif_frames,
+                    gif_downscale,
+                },
+            )
+        }
+        Command::Plot { dir } => pictures::plot(&dir),
+        Command::Compare {
+            scene,
+            damping,
+            integrator,
+            out,
+            steps,
+            threads,
+        } => compare::compare(
+            scene.as_deref(),
+            &damping,
+            &integrator,
+            out,
+            &run::Overrides { steps, threads },
+            quiet,
+        ),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(failure) => {
+            // Printed directly (not through tracing) so that --quiet and
+            // RUST_LOG never hide it.
             eprintln!("error: {}", failure.message());
             ExitCode::from(failure.code())
         }
     }
-}
-
-fn run(
-    scene_path: Option<&Path>,
-    out: Option<PathBuf>,
-    steps: Option<usize>,
-    threads: Option<usize>,
-    quiet: bool,
-) -> Result<(), Failure> {
-    let (mut scene, name) = match scene_path {
-        Some(path) => (
-            Scene::load(path).map_err(|e| Failure::Input(e.to_string()))?,
-            path.file_stem()
-                .map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned()),
-        ),
-        None => (
-            Scene::parse(DEFAULT_SCENE, Syntax::Toml, Path::new(DEFAULT_SCENE_NAME))
-                .map_err(|e| Failure::Input(format!("the bundled scene is invalid: {e}")))?,
-            "cantilever".to_string(),
-        ),
-    };
-    if let Some(steps) = steps {
-        scene.steps = steps;
-    }
-    if let Some(threads) = threads {
-        scene.settings.threads = threads;
-    }
-    let out = out.unwrap_or_else(|| Path::new("out").join(&name));
-
-    let build_start = Instant::now();
-    let mut sim = scene.build().map_err(|e| Failure::Input(e.to_string()))?;
-    let build_seconds = build_start.elapsed().as_secs_f64();
-    let mut recorder =
-        Recorder::create(&out, &scene, &sim).map_err(|e| Failure::Output(e.to_string()))?;
-    if !quiet {
-        eprintln!(
-            "{}: {} vertices ({} free), {} constraints, {} + {} damping; set up in {:.0} ms",
-            scene.source.display(),
-            sim.model().num_vertices(),
-            sim.num_free_vertices(),
-            sim.model().num_constraints(),
-            sim.integrator_name(),
-            sim.damping_name(),
-            build_seconds * 1e3
-        );
-    }
-
-    let progress = if quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(scene.steps as u64).with_style(
-            ProgressStyle::with_template(
-                "{bar:40} {pos}/{len} steps, {elapsed} elapsed, eta {eta}",
-            )
-            .expect("the template is valid"),
-        )
-    };
-    let mut failure = None;
-    for _ in 0..scene.steps {
-        match sim.step() {
-            Ok(stats) => {
-                if let Err(e) = recorder.record(&sim, &stats) {
-                    failure = Some(Failure::Output(e.to_string()));
-                    break;
-                }
-            }
-            Err(e @ SolverError::Diverged { .. }) => {
-                failure = Some(Failure::Diverged(e.to_string()));
-                break;
-            }
-            Err(e) => {
-                failure = Some(Failure::Input(e.to_string()));
-                break;
-            }
-        }
-        progress.inc(1);
-    }
-    progress.finish_and_clear();
-
-    let outcome = match &failure {
-        None => Outcome::Completed,
-        Some(f) => Outcome::Failed(f.message().to_string()),
-    };
-    let median_ms = recorder.median_step_ms();
-    let frames = recorder.frames();
-    let dir = recorder.dir().to_path_buf();
-    let summary = recorder
-        .finish(&scene, &sim, &outcome)
-        .map_err(|e| Failure::Output(e.to_string()))?;
-    if !quiet {
-        eprintln!(
-            "{} of {} steps ({:.3} s simulated), median step {:.2} ms; {} frames, metrics and {} in {}",
-            sim.steps(),
-            scene.steps,
-            sim.time(),
-            median_ms,
-            frames,
-            summary
-                .file_name()
-                .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
-            dir.display()
-        );
-    }
-    failure.map_or(Ok(()), Err)
 }

@@ -1,6 +1,6 @@
 //! The second-order backward differentiation formula.
 
-use crate::{BackwardEuler, Integrator, Point, StepCoefficients, StepTargets};
+use crate::{BackwardEuler, History, Integrator, Point, StepCoefficients, StepTargets};
 
 /// BDF-2: `x_{n+1} - 4/3 x_n + 1/3 x_{n-1} = 2h/3 v_{n+1}` and the same for
 /// velocities. With `x_hat = (4 x_n - x_{n-1})/3`: `c1 = 4/9`, `c2 = 1`,
@@ -121,6 +121,37 @@ impl Integrator for Bdf2 {
     fn reset(&mut self) {
         self.has_history = false;
     }
+
+    fn history(&self) -> History {
+        History {
+            states: Bdf2::history(self)
+                .map(|(x, v)| (x.to_vec(), v.to_vec()))
+                .into_iter()
+                .collect(),
+        }
+    }
+
+    fn restore_history(&mut self, history: &History, vertices: usize) -> Result<(), String> {
+        match history.states.as_slice() {
+            [] => {
+                self.reset();
+                Ok(())
+            }
+            [(x, v)] if x.len() == vertices && v.len() == vertices => {
+                self.set_history(x, v);
+                Ok(())
+            }
+            [(x, v)] => Err(format!(
+                "bdf2 history has {} positions and {} velocities for {vertices} vertices",
+                x.len(),
+                v.len()
+            )),
+            states => Err(format!(
+                "bdf2 keeps one previous state, but {} were given",
+                states.len()
+            )),
+        }
+    }
 }
 
 #[cfg(test)]
@@ -145,5 +176,28 @@ mod tests {
         let mut t = StepTargets::with_len(1);
         bdf.prepare(h, &x1, &v1, Point::zeros(), &mut t);
         assert!((t.inertial[0].x - 0.2).abs() < 1e-15);
+    }
+
+    #[test]
+    fn history_round_trips_through_the_trait() {
+        let mut bdf = Bdf2::new();
+        assert!(Integrator::history(&bdf).states.is_empty());
+        let x0 = [Point::new(0.0, 1.0, 0.0)];
+        let v0 = [Point::new(1.0, 0.0, 0.0)];
+        let x1 = [Point::new(0.1, 1.0, 0.0)];
+        let mut v1 = [Point::zeros()];
+        bdf.finish(0.1, &x0, &v0, &x1, &mut v1);
+        let saved = Integrator::history(&bdf);
+        assert_eq!(saved.states, vec![(x0.to_vec(), v0.to_vec())]);
+        let mut fresh = Bdf2::new();
+        fresh.restore_history(&saved, 1).unwrap();
+        assert_eq!(fresh.coefficients(0.1), bdf.coefficients(0.1));
+        assert_eq!(Integrator::history(&fresh), saved);
+        assert!(fresh.restore_history(&saved, 2).is_err());
+        let two = History {
+            states: vec![saved.states[0].clone(), saved.states[0].clone()],
+        };
+        assert!(fresh.restore_history(&two, 1).unwrap_err().contains("one previous state"));
+        assert!(crate::BackwardEuler.restore_history(&saved, 1).is_err());
     }
 }

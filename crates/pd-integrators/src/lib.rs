@@ -113,4 +113,40 @@ pub trait Integrator: std::fmt::Debug + Send + Sync {
 
     /// Forgets the history (after the state is replaced from outside).
     fn reset(&mut self) {}
+
+    /// The history the next step depends on, for a checkpoint: the previous
+    /// states `(x, v)`, most recent first (empty for one-step methods and
+    /// before a multistep method's first step).
+    fn history(&self) -> History {
+        History::default()
+    }
+
+    /// Restores a history saved by [`Integrator::history`] of an integrator
+    /// of the same kind, so that the next step is bit for bit the one the
+    /// saved integrator would have taken.
+    ///
+    /// # Errors
+    /// A history this integrator cannot hold (too many states, or states of
+    /// a different length than `vertices`), described.
+    fn restore_history(&mut self, history: &History, vertices: usize) -> Result<(), String> {
+        let _ = vertices;
+        if history.states.is_empty() {
+            self.reset();
+            Ok(())
+        } else {
+            Err(format!(
+                "{} keeps no history, but {} previous states were given",
+                self.name(),
+                history.states.len()
+            ))
+        }
+    }
+}
+
+/// An integrator's history: previous states `(positions, velocities)`, most
+/// recent first (SI units, global vertex numbering).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct History {
+    /// `(x_{n-1}, v_{n-1}), (x_{n-2}, v_{n-2}), ...`.
+    pub states: Vec<(Vec<Point>, Vec<Point>)>,
 }

@@ -32,6 +32,7 @@
 //! assert!(err.to_string().contains("bad.toml:4"), "{err}");
 //! ```
 
+pub mod checkpoint;
 mod error;
 pub mod frames;
 pub mod recorder;

@@ -15,6 +15,8 @@
 //! Rows are flushed every step, so a run that stops early (divergence, a
 //! signal) keeps every row written before it.
 
+mod resume;
+
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};

@@ -42,7 +42,7 @@ mod simulation;
 
 pub use model::{Body, BodyId, Model};
 pub use settings::Settings;
-pub use simulation::{Energies, SetupStats, Simulation, State, StepStats};
+pub use simulation::{Checkpoint, Energies, SetupStats, Simulation, State, StepStats};
 
 /// Everything that can go wrong building or stepping a simulation.
 #[derive(Debug, thiserror::Error)]

@@ -17,6 +17,12 @@ use crate::lagged::LaggedSystem;
 use crate::local::LocalStep;
 use crate::{Model, Settings, SolverError};
 
+// Saving and restoring a simulation; its own file, a child of this module
+// so that it can reach the private fields.
+#[path = "checkpoint.rs"]
+mod checkpoint;
+pub use checkpoint::Checkpoint;
+
 /// Positions (m) and velocities (m/s) of every vertex, global numbering.
 #[derive(Debug, Clone, PartialEq)]
 pub struct State {

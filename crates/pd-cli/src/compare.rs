@@ -1,0 +1,297 @@
+//! `pd compare`: one scene, several damping models or integrators.
+//!
+//! Short damping names stand for the parameters of the measured table in
+//! `docs/damping-table.md`: `none`; `ether-drag` = explicit rate 1/s;
+//! `pbd` = factor 0.05; `rayleigh-lagged` = stiffness 0.003 s, mass 0;
+//! `laplacian` = stiffness 0.003 s, mass 0; `laplacian-rot` = the same with
+//! `preserve_rotation`. Integrators keep the scene's damping model.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use pd_io::scene::{DampingSpec, FrameFormat, IntegratorKind};
+use pd_viz::plot::Plot;
+use serde_json::json;
+use tracing::{info, warn};
+
+use crate::Failure;
+use crate::pictures::{Metrics, RenderOptions, render, write_plot};
+use crate::run::{LoadedScene, Overrides, load_scene, run_loaded};
+
+/// The damping model a short name stands for.
+pub(crate) fn damping_of(name: &str) -> Option<DampingSpec> {
+    Some(match name {
+        "none" => DampingSpec::None,
+        "ether-drag" => DampingSpec::EtherRate {
+            rate: 1.0,
+            implicit: false,
+        },
+        "pbd" => DampingSpec::Pbd { factor: 0.05 },
+        "rayleigh-lagged" => DampingSpec::RayleighLagged {
+            mass: 0.0,
+            stiffness: 0.003,
+        },
+        "laplacian" => DampingSpec::Laplacian {
+            stiffness: 0.003,
+            mass: 0.0,
+            preserve_rotation: false,
+        },
+        "laplacian-rot" => DampingSpec::Laplacian {
+            stiffness: 0.003,
+            mass: 0.0,
+            preserve_rotation: true,
+        },
+        _ => return None,
+    })
+}
+
+const DAMPING_NAMES: &str = "none, ether-drag, pbd, rayleigh-lagged, laplacian, laplacian-rot";
+
+/// One row of the comparison table.
+struct Row {
+    name: String,
+    status: String,
+    median_step_ms: f64,
+    steps: usize,
+    initial_energy: f64,
+    final_energy: f64,
+    momentum_kept: Option<f64>,
+    angular_momentum_kept: Option<f64>,
+    final_momentum: f64,
+    final_angular_momentum: f64,
+}
+
+fn norm(x: f64, y: f64, z: f64) -> f64 {
+    (x * x + y * y + z * z).sqrt()
+}
+
+/// `|final| / |initial|`, or `None` when the initial value is zero (there
+/// is nothing to keep).
+fn kept(initial: f64, last: f64) -> Option<f64> {
+    (initial > 0.0).then(|| last / initial)
+}
+
+fn median(values: &[f64]) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let m = v.len() / 2;
+    if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        0.5 * (v[m - 1] + v[m])
+    }
+}
+
+fn row_of(name: &str, status: String, dir: &Path) -> Result<Row, Failure> {
+    let path = dir.join("metrics.csv");
+    let m = Metrics::read(&path)?;
+    let col = |c: &str| m.column(c, &path);
+    let total = col("total")?;
+    let (px, py, pz) = (col("px")?, col("py")?, col("pz")?);
+    let (jx, jy, jz) = (col("jx")?, col("jy")?, col("jz")?);
+    let last = total.len() - 1;
+    let p = |i: usize| norm(px[i], py[i], pz[i]);
+    let j = |i: usize| norm(jx[i], jy[i], jz[i]);
+    // Row 0 is the initial state and has no step time.
+    let step_ms = col("step_ms")?;
+    Ok(Row {
+        name: name.to_string(),
+        status,
+        median_step_ms: median(&step_ms[1..]),
+        steps: last,
+        initial_energy: total[0],
+        final_energy: total[last],
+        momentum_kept: kept(p(0), p(last)),
+        angular_momentum_kept: kept(j(0), j(last)),
+        final_momentum: p(last),
+        final_angular_momentum: j(last),
+    })
+}
+
+fn fmt_opt(v: Option<f64>) -> String {
+    v.map_or_else(|| "n/a".into(), |v| format!("{v:.4}"))
+}
+
+/// `pd compare`.
+pub(crate) fn compare(
+    scene_path: Option<&Path>,
+    damping: &[String],
+    integrators: &[String],
+    out: Option<PathBuf>,
+    overrides: &Overrides,
+    quiet: bool,
+) -> Result<(), Failure> {
+    let loaded = load_scene(scene_path, overrides)?;
+    let mut variants = Vec::new();
+    for name in damping {
+        let spec = damping_of(name).ok_or_else(|| {
+            Failure::Input(format!(
+                "--damping: unknown model {name:?}; expected one of: {DAMPING_NAMES}"
+            ))
+        })?;
+        let mut scene = loaded.scene.clone();
+        scene.damping = spec;
+        variants.push((name.clone(), scene));
+    }
+    for name in integrators {
+        let kind = IntegratorKind::parse(name).ok_or_else(|| {
+            Failure::Input(format!(
+                "--integrator: unknown integrator {name:?}; expected one of: backward-euler, implicit-midpoint, bdf2"
+            ))
+        })?;
+        let mut scene = loaded.scene.clone();
+        scene.integrator = kind;
+        variants.push((name.clone(), scene));
+    }
+    if variants.is_empty() {
+        return Err(Failure::Input(
+            "give the variants to compare: --damping a,b,... or --integrator a,b,...".into(),
+        ));
+    }
+    if let Some(name) = variants
+        .iter()
+        .enumerate()
+        .find(|(i, (n, _))| variants[..*i].iter().any(|(m, _)| m == n))
+        .map(|(_, (n, _))| n.clone())
+    {
+        return Err(Failure::Input(format!("variant {name:?} is given twice")));
+    }
+    let out = out.unwrap_or_else(|| Path::new("out").join(format!("compare-{}", loaded.name)));
+
+    let mut rows = Vec::new();
+    let mut diverged = Vec::new();
+    for (name, mut scene) in variants {
+        // Frames are needed for the animation.
+        if scene.output.every == 0 {
+            scene.output.every = (scene.steps / 40).max(1);
+        }
+        if !scene.output.formats.contains(&FrameFormat::Obj) {
+            scene.output.formats.push(FrameFormat::Obj);
+        }
+        let dir = out.join(&name);
+        info!("variant {name}: running into {}", dir.display());
+        let variant = LoadedScene {
+            scene,
+            text: loaded.text.clone(),
+            name: name.clone(),
+        };
+        let status = match run_loaded(&variant, &dir, 0, quiet) {
+            Ok(_) => "completed".to_string(),
+            Err(Failure::Diverged(message)) => {
+                warn!("variant {name} diverged: {message}");
+                diverged.push(name.clone());
+                "diverged".to_string()
+            }
+            Err(other) => return Err(other),
+        };
+        rows.push((row_of(&name, status, &dir)?, dir));
+    }
+
+    // The animation and the energy plot.
+    let panels: Vec<(String, PathBuf)> = rows
+        .iter()
+        .map(|(row, dir)| (row.name.clone(), dir.clone()))
+        .collect();
+    let width = if panels.len() > 3 { 240 } else { 320 };
+    render(
+        &panels,
+        &out.join("render"),
+        &RenderOptions {
+            width,
+            height: width * 3 / 4,
+            gif_frames: 40,
+            gif_downscale: 1,
+        },
+    )?;
+    let mut series = Vec::new();
+    for (row, dir) in &rows {
+        let path = dir.join("metrics.csv");
+        series.push(Metrics::read(&path)?.series("total", &row.name, &path)?);
+    }
+    write_plot(
+        &Plot {
+            title: "Total energy".into(),
+            x_label: "time (s)".into(),
+            y_label: "kinetic + elastic + gravity (J)".into(),
+            series,
+        },
+        &out,
+        "energy",
+    )?;
+
+    // The table.
+    let base = rows[0].0.median_step_ms;
+    let mut md = String::new();
+    let _ = writeln!(
+        md,
+        "| variant | status | steps | median step ms | overhead vs {} | initial energy J | final energy J | momentum kept | angular momentum kept |",
+        rows[0].0.name
+    );
+    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|");
+    let mut json_rows = Vec::new();
+    for (row, _) in &rows {
+        let overhead = row.median_step_ms / base - 1.0;
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.3} | {:+.1}% | {:.6e} | {:.6e} | {} | {} |",
+            row.name,
+            row.status,
+            row.steps,
+            row.median_step_ms,
+            100.0 * overhead,
+            row.initial_energy,
+            row.final_energy,
+            fmt_opt(row.momentum_kept),
+            fmt_opt(row.angular_momentum_kept),
+        );
+        json_rows.push(json!({
+            "variant": row.name,
+            "status": row.status,
+            "steps": row.steps,
+            "median_step_ms": finite(row.median_step_ms),
+            "overhead": finite(overhead),
+            "initial_energy": finite(row.initial_energy),
+            "final_energy": finite(row.final_energy),
+            "momentum_kept": row.momentum_kept.and_then(finite),
+            "angular_momentum_kept": row.angular_momentum_kept.and_then(finite),
+            "final_momentum": finite(row.final_momentum),
+            "final_angular_momentum": finite(row.final_angular_momentum),
+        }));
+    }
+    md.push_str(
+        "\nMedian wall time of a step; overhead against the first variant, measured in the same \
+         command. Energy is kinetic + elastic + gravitational. *Kept* is |final| / |initial| of \
+         the linear momentum and of the angular momentum about the origin (n/a when the \
+         initial value is zero).\n",
+    );
+    let write = |name: &str, text: &str| {
+        let path = out.join(name);
+        std::fs::write(&path, text).map_err(|e| Failure::Output(format!("{}: {e}", path.display())))
+    };
+    write("comparison.md", &md)?;
+    let table = json!({ "scene": loaded.scene.source.display().to_string(), "variants": json_rows });
+    write(
+        "comparison.json",
+        &(serde_json::to_string_pretty(&table).expect("a JSON value serialises") + "\n"),
+    )?;
+    info!(
+        "comparison.md, comparison.json, energy.png/svg and render/ in {}",
+        out.display()
+    );
+    if diverged.is_empty() {
+        Ok(())
+    } else {
+        Err(Failure::Diverged(format!(
+            "variants diverged: {} (the comparison is written to {})",
+            diverged.join(", "),
+            out.display()
+        )))
+    }
+}
+
+fn finite(v: f64) -> Option<f64> {
+    v.is_finite().then_some(v)
+}

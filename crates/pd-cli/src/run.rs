@@ -1,0 +1,236 @@
+//! `pd run` and `pd resume`.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressStyle};
+use pd_io::checkpoint::{
+    CHECKPOINT_FILE, CheckpointFile, SceneText, read_checkpoint, write_checkpoint,
+};
+use pd_io::recorder::{Outcome, Recorder};
+use pd_io::scene::{Scene, Syntax};
+use pd_solver::{Simulation, SolverError};
+use tracing::{debug, info};
+
+use crate::Failure;
+
+/// The bundled default scene (also at `scenes/cantilever.toml`).
+const DEFAULT_SCENE: &str = include_str!("../../../scenes/cantilever.toml");
+const DEFAULT_SCENE_NAME: &str = "cantilever (built in: scenes/cantilever.toml)";
+
+/// Command-line overrides of a scene's values.
+pub(crate) struct Overrides {
+    pub steps: Option<usize>,
+    pub threads: Option<usize>,
+}
+
+/// A scene with the text it was parsed from and a short name.
+pub(crate) struct LoadedScene {
+    pub scene: Scene,
+    pub text: SceneText,
+    pub name: String,
+}
+
+/// Reads and validates a scene file, or the bundled cantilever.
+pub(crate) fn load_scene(path: Option<&Path>, overrides: &Overrides) -> Result<LoadedScene, Failure> {
+    let (text, name) = match path {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| Failure::Input(format!("{}: {e}", path.display())))?;
+            // Absolute, so that a resumed run finds relative mesh paths from
+            // any working folder.
+            let source = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+            let name = path
+                .file_stem()
+                .map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
+            (
+                SceneText {
+                    source,
+                    syntax: Syntax::of(path),
+                    text,
+                },
+                name,
+            )
+        }
+        None => (
+            SceneText {
+                source: PathBuf::from(DEFAULT_SCENE_NAME),
+                syntax: Syntax::Toml,
+                text: DEFAULT_SCENE.to_string(),
+            },
+            "cantilever".to_string(),
+        ),
+    };
+    let mut scene = Scene::parse(&text.text, text.syntax, &text.source)
+        .map_err(|e| Failure::Input(e.to_string()))?;
+    if let Some(steps) = overrides.steps {
+        scene.steps = steps;
+    }
+    if let Some(threads) = overrides.threads {
+        scene.settings.threads = threads;
+    }
+    Ok(LoadedScene { scene, text, name })
+}
+
+/// Builds the simulation of a scene; bad input is exit code 2.
+pub(crate) fn build(scene: &Scene) -> Result<Simulation, Failure> {
+    let start = Instant::now();
+    let sim = scene.build().map_err(|e| Failure::Input(e.to_string()))?;
+    info!(
+        "{}: {} vertices ({} free), {} constraints, {} + {} damping; set up in {:.0} ms",
+        scene.source.display(),
+        sim.model().num_vertices(),
+        sim.num_free_vertices(),
+        sim.model().num_constraints(),
+        sim.integrator_name(),
+        sim.damping_name(),
+        start.elapsed().as_secs_f64() * 1e3
+    );
+    Ok(sim)
+}
+
+/// `pd run`.
+pub(crate) fn run(
+    scene_path: Option<&Path>,
+    out: Option<PathBuf>,
+    overrides: &Overrides,
+    checkpoint_every: usize,
+    quiet: bool,
+) -> Result<(), Failure> {
+    let loaded = load_scene(scene_path, overrides)?;
+    let out = out.unwrap_or_else(|| Path::new("out").join(&loaded.name));
+    run_loaded(&loaded, &out, checkpoint_every, quiet)
+}
+
+/// Runs a loaded scene into `out` from its start.
+pub(crate) fn run_loaded(
+    loaded: &LoadedScene,
+    out: &Path,
+    checkpoint_every: usize,
+    quiet: bool,
+) -> Result<(), Failure> {
+    let mut sim = build(&loaded.scene)?;
+    let recorder =
+        Recorder::create(out, &loaded.scene, &sim).map_err(|e| Failure::Output(e.to_string()))?;
+    // A checkpoint of an earlier run in the same folder no longer matches.
+    let stale = out.join(CHECKPOINT_FILE);
+    if stale.exists() {
+        std::fs::remove_file(&stale)
+            .map_err(|e| Failure::Output(format!("{}: {e}", stale.display())))?;
+    }
+    execute(loaded, &mut sim, recorder, checkpoint_every, quiet)
+}
+
+/// `pd resume DIR`.
+pub(crate) fn resume(dir: &Path, quiet: bool) -> Result<(), Failure> {
+    let path = dir.join(CHECKPOINT_FILE);
+    let file = read_checkpoint(&path).map_err(|e| Failure::Input(e.to_string()))?;
+    let mut scene = Scene::parse(&file.scene.text, file.scene.syntax, &file.scene.source)
+        .map_err(|e| Failure::Input(format!("the scene in {}: {e}", path.display())))?;
+    scene.steps = file.steps_requested;
+    scene.settings.threads = file.threads;
+    let mut sim = build(&scene)?;
+    sim.restore(&file.checkpoint)
+        .map_err(|e| Failure::Input(format!("{}: {e}", path.display())))?;
+    info!(
+        "resuming {} at step {} of {} (t = {} s)",
+        dir.display(),
+        sim.steps(),
+        scene.steps,
+        sim.time()
+    );
+    let recorder = Recorder::resume(dir, &scene, &sim).map_err(|e| match e {
+        pd_io::Error::Io { .. } => Failure::Output(e.to_string()),
+        _ => Failure::Input(e.to_string()),
+    })?;
+    let loaded = LoadedScene {
+        scene,
+        text: file.scene,
+        name: String::new(),
+    };
+    execute(&loaded, &mut sim, recorder, file.checkpoint_every, quiet)
+}
+
+/// Steps `sim` to the scene's end, recording and checkpointing, then writes
+/// the summary and final state.
+fn execute(
+    loaded: &LoadedScene,
+    sim: &mut Simulation,
+    mut recorder: Recorder,
+    checkpoint_every: usize,
+    quiet: bool,
+) -> Result<(), Failure> {
+    let scene = &loaded.scene;
+    let progress = if quiet {
+        ProgressBar::hidden()
+    } else {
+        let bar = ProgressBar::new(scene.steps as u64).with_style(
+            ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} steps, {elapsed} elapsed, eta {eta}",
+            )
+            .expect("the template is valid"),
+        );
+        bar.set_position(sim.steps() as u64);
+        bar
+    };
+    let checkpoint_path = recorder.dir().join(CHECKPOINT_FILE);
+    let mut failure = None;
+    while sim.steps() < scene.steps {
+        match sim.step() {
+            Ok(stats) => {
+                if let Err(e) = recorder.record(sim, &stats) {
+                    failure = Some(Failure::Output(e.to_string()));
+                    break;
+                }
+                if checkpoint_every > 0 && sim.steps() % checkpoint_every == 0 {
+                    let file = CheckpointFile {
+                        scene: loaded.text.clone(),
+                        steps_requested: scene.steps,
+                        threads: scene.settings.threads,
+                        checkpoint_every,
+                        checkpoint: sim.checkpoint(),
+                    };
+                    if let Err(e) = write_checkpoint(&checkpoint_path, &file) {
+                        failure = Some(Failure::Output(e.to_string()));
+                        break;
+                    }
+                    debug!("checkpoint at step {}", sim.steps());
+                }
+            }
+            Err(e @ SolverError::Diverged { .. }) => {
+                failure = Some(Failure::Diverged(e.to_string()));
+                break;
+            }
+            Err(e) => {
+                failure = Some(Failure::Input(e.to_string()));
+                break;
+            }
+        }
+        progress.inc(1);
+    }
+    progress.finish_and_clear();
+
+    let outcome = match &failure {
+        None => Outcome::Completed,
+        Some(f) => Outcome::Failed(f.message().to_string()),
+    };
+    let median_step_ms = recorder.median_step_ms();
+    let frames = recorder.frames();
+    let dir = recorder.dir().to_path_buf();
+    let summary = recorder
+        .finish(scene, sim, &outcome)
+        .map_err(|e| Failure::Output(e.to_string()))?;
+    info!(
+        "{} of {} steps ({:.3} s simulated), median step {:.2} ms; {} frames, metrics and {} in {}",
+        sim.steps(),
+        scene.steps,
+        sim.time(),
+        median_step_ms,
+        frames,
+        summary
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+        dir.display()
+    );
+    failure.map_or(Ok(()), Err)
+}

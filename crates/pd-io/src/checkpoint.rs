@@ -1,0 +1,393 @@
+//! Checkpoint files: a run's full state after some step together with the
+//! scene it belongs to, so that `pd resume` can continue the run and produce
+//! results identical bit for bit to an uninterrupted run.
+//!
+//! A checkpoint is one JSON object (written atomically, so an interrupted
+//! write leaves the previous checkpoint intact):
+//!
+//! ```json
+//! {
+//!   "format": "pd-checkpoint",
+//!   "version": 1,
+//!   "scene": { "source": "/abs/path/scene.toml", "syntax": "toml",
+//!              "text": "...the scene file's text...", "hash": "fnv1a64:0123456789abcdef" },
+//!   "steps_requested": 200,
+//!   "threads": 0,
+//!   "checkpoint_every": 20,
+//!   "steps": 40, "time": 0.4,
+//!   "integrator": "bdf2",
+//!   "positions": [[x, y, z], ...], "velocities": [[x, y, z], ...],
+//!   "history": [ { "positions": [...], "velocities": [...] } ],
+//!   "energy_reference": -1.5, "energy_scale": 12.0
+//! }
+//! ```
+//!
+//! The scene's text is embedded (with the absolute path it was read from, so
+//! that relative mesh paths still resolve) and a 64-bit FNV-1a hash of it,
+//! which reading checks: an edited or damaged scene text is refused. Files
+//! the scene refers to (meshes, initial states) are not embedded; the
+//! simulation rebuilt from them must have the checkpoint's vertex count.
+//! `steps_requested` and `threads` are the run's values after command-line
+//! overrides. Numbers are written with serde_json's shortest round-trip
+//! formatting and read back with its `float_roundtrip` parser, so every
+//! `f64` comes back with the same bits.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use pd_integrators::History;
+use pd_mesh::Point;
+use pd_solver::{Checkpoint, State};
+use serde::{Deserialize, Serialize};
+
+use crate::frames::write_atomically;
+use crate::scene::Syntax;
+use crate::{Error, Result};
+
+/// The file name of a run's checkpoint inside its output folder.
+pub const CHECKPOINT_FILE: &str = "checkpoint.json";
+
+/// The scene a checkpoint belongs to.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneText {
+    /// Where the text was read from (absolute when it could be resolved);
+    /// relative paths inside the scene are anchored at its folder.
+    pub source: PathBuf,
+    /// TOML or JSON.
+    pub syntax: Syntax,
+    /// The scene file's text.
+    pub text: String,
+}
+
+impl SceneText {
+    /// The 64-bit FNV-1a hash of the text, as `fnv1a64:` and 16 hex digits.
+    /// It detects accidental edits and damage, not deliberate tampering.
+    pub fn hash(&self) -> String {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        for byte in self.text.bytes() {
+            h ^= u64::from(byte);
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        format!("fnv1a64:{h:016x}")
+    }
+}
+
+/// A checkpoint file's contents.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckpointFile {
+    /// The scene.
+    pub scene: SceneText,
+    /// Steps the run is to take in all (the scene's, or the override).
+    pub steps_requested: usize,
+    /// Threads of the local step (0: all cores).
+    pub threads: usize,
+    /// The run's checkpoint interval in steps, which a resumed run keeps.
+    pub checkpoint_every: usize,
+    /// The simulation's state.
+    pub checkpoint: Checkpoint,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScene {
+    source: PathBuf,
+    syntax: String,
+    text: String,
+    hash: String,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawState {
+    positions: Vec<[f64; 3]>,
+    velocities: Vec<[f64; 3]>,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Raw {
+    format: String,
+    version: u32,
+    scene: RawScene,
+    steps_requested: usize,
+    threads: usize,
+    checkpoint_every: usize,
+    steps: usize,
+    time: f64,
+    integrator: String,
+    positions: Vec<[f64; 3]>,
+    velocities: Vec<[f64; 3]>,
+    history: Vec<RawState>,
+    energy_reference: f64,
+    energy_scale: f64,
+}
+
+const FORMAT: &str = "pd-checkpoint";
+const VERSION: u32 = 1;
+
+fn arrays(points: &[Point]) -> Vec<[f64; 3]> {
+    points.iter().map(|p| [p.x, p.y, p.z]).collect()
+}
+
+fn points(arrays: &[[f64; 3]]) -> Vec<Point> {
+    arrays.iter().map(|&a| Point::from(a)).collect()
+}
+
+/// Writes a checkpoint file, replacing any previous one atomically.
+///
+/// # Errors
+/// [`Error::Content`] for a non-finite number (JSON cannot hold it);
+/// [`Error::Io`] naming `path`.
+pub fn write_checkpoint(path: &Path, file: &CheckpointFile) -> Result<()> {
+    let c = &file.checkpoint;
+    let finite = |points: &[Point]| points.iter().all(|p| p.iter().all(|x| x.is_finite()));
+    let history_finite = c.history.states.iter().all(|(x, v)| finite(x) && finite(v));
+    if !(finite(&c.state.positions)
+        && finite(&c.state.velocities)
+        && history_finite
+        && c.time.is_finite()
+        && c.energy_reference.is_finite()
+        && c.energy_scale.is_finite())
+    {
+        return Err(Error::Content {
+            path: path.to_path_buf(),
+            message: "the state has a non-finite value; JSON cannot hold it".into(),
+        });
+    }
+    let raw = Raw {
+        format: FORMAT.into(),
+        version: VERSION,
+        scene: RawScene {
+            source: file.scene.source.clone(),
+            syntax: match file.scene.syntax {
+                Syntax::Toml => "toml".into(),
+                Syntax::Json => "json".into(),
+            },
+            text: file.scene.text.clone(),
+            hash: file.scene.hash(),
+        },
+        steps_requested: file.steps_requested,
+        threads: file.threads,
+        checkpoint_every: file.checkpoint_every,
+        steps: c.steps,
+        time: c.time,
+        integrator: c.integrator.clone(),
+        positions: arrays(&c.state.positions),
+        velocities: arrays(&c.state.velocities),
+        history: c
+            .history
+            .states
+            .iter()
+            .map(|(x, v)| RawState {
+                positions: arrays(x),
+                velocities: arrays(v),
+            })
+            .collect(),
+        energy_reference: c.energy_reference,
+        energy_scale: c.energy_scale,
+    };
+    write_atomically(path, |w| {
+        serde_json::to_writer(&mut *w, &raw)?;
+        writeln!(w)
+    })
+}
+
+/// Reads and checks a checkpoint file.
+///
+/// # Errors
+/// [`Error::Io`] if it cannot be read; [`Error::Parse`] (with the line) for
+/// malformed JSON, a missing or unknown key; [`Error::Field`] naming the
+/// field for a wrong format name or version, a scene text whose hash does
+/// not match, an unknown syntax, or states of mismatched lengths.
+pub fn read_checkpoint(path: &Path) -> Result<CheckpointFile> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let mut deserializer = serde_json::Deserializer::from_str(&text);
+    let raw: Raw = serde_path_to_error::deserialize(&mut deserializer).map_err(|err| {
+        let field = err.path().to_string();
+        let inner = err.into_inner();
+        if inner.classify() == serde_json::error::Category::Data && field != "." {
+            Error::Field {
+                path: path.to_path_buf(),
+                field,
+                message: inner.to_string(),
+            }
+        } else {
+            Error::Parse {
+                path: path.to_path_buf(),
+                line: inner.line().max(1),
+                message: inner.to_string(),
+            }
+        }
+    })?;
+    let field = |field: &str, message: String| Error::Field {
+        path: path.to_path_buf(),
+        field: field.into(),
+        message,
+    };
+    if raw.format != FORMAT {
+        return Err(field(
+            "format",
+            format!("is {:?}, expected {FORMAT:?}", raw.format),
+        ));
+    }
+    if raw.version != VERSION {
+        return Err(field(
+            "version",
+            format!("is {}, this pd reads version {VERSION}", raw.version),
+        ));
+    }
+    let syntax = match raw.scene.syntax.as_str() {
+        "toml" => Syntax::Toml,
+        "json" => Syntax::Json,
+        other => {
+            return Err(field(
+                "scene.syntax",
+                format!("is {other:?}, expected \"toml\" or \"json\""),
+            ));
+        }
+    };
+    let scene = SceneText {
+        source: raw.scene.source,
+        syntax,
+        text: raw.scene.text,
+    };
+    if scene.hash() != raw.scene.hash {
+        return Err(field(
+            "scene.hash",
+            format!(
+                "is {}, but the embedded scene text hashes to {}: the checkpoint was edited or damaged",
+                raw.scene.hash,
+                scene.hash()
+            ),
+        ));
+    }
+    let n = raw.positions.len();
+    if raw.velocities.len() != n {
+        return Err(field(
+            "velocities",
+            format!("has {} entries for {n} positions", raw.velocities.len()),
+        ));
+    }
+    for (i, state) in raw.history.iter().enumerate() {
+        if state.positions.len() != n || state.velocities.len() != n {
+            return Err(field(
+                &format!("history[{i}]"),
+                format!(
+                    "has {} positions and {} velocities for {n} vertices",
+                    state.positions.len(),
+                    state.velocities.len()
+                ),
+            ));
+        }
+    }
+    Ok(CheckpointFile {
+        scene,
+        steps_requested: raw.steps_requested,
+        threads: raw.threads,
+        checkpoint_every: raw.checkpoint_every,
+        checkpoint: Checkpoint {
+            steps: raw.steps,
+            time: raw.time,
+            state: State {
+                positions: points(&raw.positions),
+                velocities: points(&raw.velocities),
+            },
+            integrator: raw.integrator,
+            history: History {
+                states: raw
+                    .history
+                    .iter()
+                    .map(|s| (points(&s.positions), points(&s.velocities)))
+                    .collect(),
+            },
+            energy_reference: raw.energy_reference,
+            energy_scale: raw.energy_scale,
+        },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> CheckpointFile {
+        let awkward = [
+            Point::new(0.1, 1.0 / 3.0, -1e-300),
+            Point::new(f64::MAX, f64::MIN_POSITIVE, -0.0),
+        ];
+        CheckpointFile {
+            scene: SceneText {
+                source: PathBuf::from("/tmp/scene.toml"),
+                syntax: Syntax::Toml,
+                text: "[simulation]\ndt = 0.01\nsteps = 3\n\"quoted\" = 1\n".into(),
+            },
+            steps_requested: 7,
+            threads: 1,
+            checkpoint_every: 3,
+            checkpoint: Checkpoint {
+                steps: 3,
+                time: 0.03,
+                state: State {
+                    positions: awkward.to_vec(),
+                    velocities: vec![awkward[1], awkward[0]],
+                },
+                integrator: "bdf2".into(),
+                history: History {
+                    states: vec![(awkward.to_vec(), awkward.to_vec())],
+                },
+                energy_reference: -2.0 / 7.0,
+                energy_scale: 1e-17 / 3.0,
+            },
+        }
+    }
+
+    fn temp(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("pd-io-checkpoint-{}-{name}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir.join(CHECKPOINT_FILE)
+    }
+
+    #[test]
+    fn round_trips_every_bit() {
+        let path = temp("round-trip");
+        let file = sample();
+        write_checkpoint(&path, &file).unwrap();
+        let back = read_checkpoint(&path).unwrap();
+        // PartialEq on f64 would accept -0.0 == 0.0: compare bits too.
+        assert_eq!(back, file);
+        let bits = |p: &[Point]| p.iter().flat_map(|v| v.iter().map(|x| x.to_bits())).collect::<Vec<_>>();
+        assert_eq!(bits(&back.checkpoint.state.positions), bits(&file.checkpoint.state.positions));
+        assert_eq!(back.checkpoint.energy_scale.to_bits(), file.checkpoint.energy_scale.to_bits());
+    }
+
+    #[test]
+    fn refuses_edited_scene_text_and_bad_fields() {
+        let path = temp("edited");
+        write_checkpoint(&path, &sample()).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let edited = text.replace("steps = 3", "steps = 4");
+        std::fs::write(&path, edited).unwrap();
+        let err = read_checkpoint(&path).unwrap_err().to_string();
+        assert!(err.contains("scene.hash"), "{err}");
+
+        std::fs::write(&path, text.replace("\"pd-checkpoint\"", "\"other\"")).unwrap();
+        let err = read_checkpoint(&path).unwrap_err().to_string();
+        assert!(err.contains("format"), "{err}");
+
+        std::fs::write(&path, &text[..text.len() / 2]).unwrap();
+        let err = read_checkpoint(&path).unwrap_err().to_string();
+        assert!(err.contains(&format!("{}:1", path.display())), "{err}");
+
+        std::fs::write(&path, "").unwrap();
+        assert!(read_checkpoint(&path).is_err());
+    }
+
+    #[test]
+    fn refuses_non_finite_state() {
+        let path = temp("nan");
+        let mut file = sample();
+        file.checkpoint.state.velocities[1].y = f64::NAN;
+        let err = write_checkpoint(&path, &file).unwrap_err().to_string();
+        assert!(err.contains("non-finite"), "{err}");
+    }
+}

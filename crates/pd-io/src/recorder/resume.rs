@@ -1,0 +1,150 @@
+//! Reopening a run's output folder to continue it from a checkpoint.
+
+use std::fs::{File, OpenOptions};
+use std::io::BufWriter;
+use std::path::Path;
+
+use pd_solver::Simulation;
+
+use super::{Recorder, Topology};
+use crate::frames::write_atomically;
+use crate::scene::Scene;
+use crate::{Error, Result};
+
+impl Recorder {
+    /// Reopens the output folder `dir` of a run of `scene` to continue it
+    /// from `sim`, restored from a checkpoint taken after step
+    /// `sim.steps()`: drops the rows of `metrics.csv` and `probes.csv` and
+    /// the frames written after that step (a run may have gone on past its
+    /// last checkpoint before it stopped), and appends from there. The
+    /// medians in `summary.json` then cover the earlier steps' timings too.
+    ///
+    /// # Errors
+    /// [`Error::Content`] naming the file if it has fewer rows than the
+    /// checkpoint's step or rows out of order; [`Error::Io`].
+    pub fn resume(dir: &Path, scene: &Scene, sim: &Simulation) -> Result<Self> {
+        let steps = sim.steps();
+        let metrics_path = dir.join("metrics.csv");
+        let kept = truncate_rows(&metrics_path, steps)?;
+        let mut step_ms = Vec::new();
+        let mut local_ms = Vec::new();
+        let mut global_ms = Vec::new();
+        // Rows after row 0 carry the timings of their step (columns 13-15).
+        for (row, line) in kept.lines().skip(2).enumerate() {
+            let fields: Vec<&str> = line.split(',').collect();
+            let parse = |i: usize| -> Result<f64> {
+                fields.get(i).and_then(|f| f.parse().ok()).ok_or_else(|| Error::Content {
+                    path: metrics_path.clone(),
+                    message: format!("row {} has no number in column {}", row + 1, i + 1),
+                })
+            };
+            step_ms.push(parse(13)?);
+            local_ms.push(parse(14)?);
+            global_ms.push(parse(15)?);
+        }
+        let metrics = append(&metrics_path)?;
+        let probes = if scene.output.probes.is_empty() {
+            None
+        } else {
+            let path = dir.join("probes.csv");
+            truncate_rows(&path, steps)?;
+            Some((append(&path)?, path))
+        };
+        let frames = if scene.output.every > 0 {
+            let frames = steps / scene.output.every + 1;
+            remove_frames_from(&dir.join("frames"), frames)?;
+            frames
+        } else {
+            0
+        };
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            output: scene.output.clone(),
+            topology: Topology::of(sim),
+            metrics,
+            metrics_path,
+            probes,
+            step_ms,
+            local_ms,
+            global_ms,
+            frames,
+        })
+    }
+}
+
+/// Keeps the header and the rows of steps `0..=steps` (rewriting the file
+/// atomically if anything goes); returns the kept text.
+fn truncate_rows(path: &Path, steps: usize) -> Result<String> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let content = |message: String| Error::Content {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut end = None;
+    let mut offset = 0;
+    for (index, line) in text.split_inclusive('\n').enumerate() {
+        offset += line.len();
+        if index == 0 {
+            continue;
+        }
+        let step: usize = line
+            .split(',')
+            .next()
+            .and_then(|s| s.trim().parse().ok())
+            .ok_or_else(|| content(format!("line {}: no step number", index + 1)))?;
+        if step != index - 1 || !line.ends_with('\n') {
+            return Err(content(format!(
+                "line {}: expected the complete row of step {}",
+                index + 1,
+                index - 1
+            )));
+        }
+        if step == steps {
+            end = Some(offset);
+            break;
+        }
+    }
+    let Some(end) = end else {
+        return Err(content(format!(
+            "has no row for step {steps}, where the checkpoint is; it does not belong to this checkpoint"
+        )));
+    };
+    let kept = &text[..end];
+    if end < text.len() {
+        write_atomically(path, |w| std::io::Write::write_all(w, kept.as_bytes()))?;
+    }
+    Ok(kept.to_string())
+}
+
+fn append(path: &Path) -> Result<BufWriter<File>> {
+    OpenOptions::new()
+        .append(true)
+        .open(path)
+        .map(BufWriter::new)
+        .map_err(|e| Error::io(path, e))
+}
+
+/// Removes `frame_NNNNN.*` files numbered `first` or higher.
+fn remove_frames_from(frames: &Path, first: usize) -> Result<()> {
+    let entries = match std::fs::read_dir(frames) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            std::fs::create_dir_all(frames).map_err(|e| Error::io(frames, e))?;
+            return Ok(());
+        }
+        Err(e) => return Err(Error::io(frames, e)),
+    };
+    for entry in entries {
+        let entry = entry.map_err(|e| Error::io(frames, e))?;
+        let name = entry.file_name();
+        let name = name.to_string_lossy();
+        let index = name
+            .strip_prefix("frame_")
+            .and_then(|rest| rest.split('.').next())
+            .and_then(|digits| digits.parse::<usize>().ok());
+        if index.is_some_and(|i| i >= first) {
+            std::fs::remove_file(entry.path()).map_err(|e| Error::io(entry.path(), e))?;
+        }
+    }
+    Ok(())
+}

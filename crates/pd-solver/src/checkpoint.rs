@@ -1,0 +1,133 @@
+//! Checkpoints: everything the next step of a [`Simulation`] depends on,
+//! so that a restored simulation continues bit for bit as the saved one
+//! would have.
+//!
+//! The model, settings and damping model are not part of a checkpoint: they
+//! come from the scene, which a checkpoint file stores next to this (the
+//! `pd-io` crate). Damping models keep no state between steps (every method
+//! of `pd_damping::Damping` takes `&self`); the cached factorisations are
+//! recomputed on demand and are deterministic functions of the matrix
+//! coefficients, so neither needs saving.
+
+use pd_integrators::History;
+
+use super::{Simulation, State};
+use crate::SolverError;
+
+/// The saved state of a [`Simulation`] after some step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Checkpoint {
+    /// Steps taken.
+    pub steps: usize,
+    /// Simulated time, s.
+    pub time: f64,
+    /// Positions (m) and velocities (m/s).
+    pub state: State,
+    /// The integrator's name, to refuse restoring into another integrator.
+    pub integrator: String,
+    /// The integrator's history (previous states of multistep methods).
+    pub history: History,
+    /// The total energy the divergence check compares with, J.
+    pub energy_reference: f64,
+    /// The energy scale of the divergence check, J.
+    pub energy_scale: f64,
+}
+
+impl Simulation {
+    /// Saves everything the coming steps depend on besides the model, the
+    /// settings and the damping model.
+    ///
+    /// ```
+    /// use pd_damping::NoDamping;
+    /// use pd_integrators::Bdf2;
+    /// use pd_mesh::generators;
+    /// use pd_solver::{Model, Settings, Simulation};
+    ///
+    /// let build = || {
+    ///     let chain = generators::chain(4, 1.0).unwrap();
+    ///     let masses = vec![0.1; 4];
+    ///     let mut model = Model::new();
+    ///     let body = model.add_body(chain, masses).unwrap();
+    ///     model.add_springs(body, 50.0).unwrap();
+    ///     model.fix_vertices(body, &[0]).unwrap();
+    ///     let settings = Settings { dt: 0.01, ..Settings::default() };
+    ///     Simulation::new(model, Box::new(Bdf2::new()), Box::new(NoDamping), settings).unwrap()
+    /// };
+    /// let mut a = build();
+    /// a.run(3).unwrap();
+    /// let saved = a.checkpoint();
+    /// a.run(4).unwrap();
+    ///
+    /// let mut b = build();
+    /// b.restore(&saved).unwrap();
+    /// b.run(4).unwrap();
+    /// assert_eq!(a.state(), b.state()); // bit for bit
+    /// assert_eq!(a.time().to_bits(), b.time().to_bits());
+    /// ```
+    pub fn checkpoint(&self) -> Checkpoint {
+        Checkpoint {
+            steps: self.steps,
+            time: self.time,
+            state: self.state.clone(),
+            integrator: self.integrator.name().to_string(),
+            history: self.integrator.history(),
+            energy_reference: self.energy_reference,
+            energy_scale: self.energy_scale,
+        }
+    }
+
+    /// Restores a checkpoint taken of a simulation of the same model,
+    /// settings, integrator and damping model.
+    ///
+    /// # Errors
+    /// [`SolverError::InvalidState`] if the checkpoint belongs to another
+    /// integrator, has the wrong number of vertices, a non-finite value, or
+    /// a history the integrator cannot hold; the simulation is then
+    /// unchanged.
+    pub fn restore(&mut self, checkpoint: &Checkpoint) -> Result<(), SolverError> {
+        let invalid = |reason: String| SolverError::InvalidState { reason };
+        if checkpoint.integrator != self.integrator.name() {
+            return Err(invalid(format!(
+                "the checkpoint is of integrator {:?}, the simulation uses {:?}",
+                checkpoint.integrator,
+                self.integrator.name()
+            )));
+        }
+        let n = self.model.num_vertices();
+        let state = &checkpoint.state;
+        for (name, values) in [
+            ("positions", &state.positions),
+            ("velocities", &state.velocities),
+        ] {
+            if values.len() != n {
+                return Err(invalid(format!("{} {name} for {n} vertices", values.len())));
+            }
+            if let Some(v) = values.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+                return Err(invalid(format!("{name} of vertex {v} are not finite")));
+            }
+        }
+        for (name, value) in [
+            ("time", checkpoint.time),
+            ("energy_reference", checkpoint.energy_reference),
+            ("energy_scale", checkpoint.energy_scale),
+        ] {
+            if !value.is_finite() {
+                return Err(invalid(format!("{name} is not finite")));
+            }
+        }
+        let before = self.integrator.history();
+        if let Err(reason) = self.integrator.restore_history(&checkpoint.history, n) {
+            // Leave the simulation as it was.
+            self.integrator
+                .restore_history(&before, n)
+                .expect("the integrator's own history restores");
+            return Err(invalid(reason));
+        }
+        self.state = checkpoint.state.clone();
+        self.steps = checkpoint.steps;
+        self.time = checkpoint.time;
+        self.energy_reference = checkpoint.energy_reference;
+        self.energy_scale = checkpoint.energy_scale;
+        Ok(())
+    }
+}
