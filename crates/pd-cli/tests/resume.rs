@@ -1,0 +1,146 @@
+//! `pd run --checkpoint-every K` then `pd resume DIR` gives results
+//! identical bit for bit to an uninterrupted run: for every integrator
+//! (BDF-2 needs its history restored) and with damping models of each
+//! kind (constant matrix, lagged matrix refactorised from the state,
+//! explicit velocity filter).
+
+mod common;
+
+use std::path::Path;
+
+use common::{arg, pd, pd_ok, stderr, temp_dir, tiny_scene};
+
+/// The metrics columns that depend on the simulation only (the last three
+/// are wall-clock timings, which differ between any two runs).
+const DETERMINISTIC_COLUMNS: usize = 13;
+
+fn metrics_without_timings(dir: &Path) -> Vec<String> {
+    std::fs::read_to_string(dir.join("metrics.csv"))
+        .unwrap()
+        .lines()
+        .map(|l| l.split(',').take(DETERMINISTIC_COLUMNS).collect::<Vec<_>>().join(","))
+        .collect()
+}
+
+fn frame_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut files: Vec<_> = std::fs::read_dir(dir.join("frames"))
+        .unwrap()
+        .map(|e| {
+            let path = e.unwrap().path();
+            (
+                path.file_name().unwrap().to_string_lossy().into_owned(),
+                std::fs::read(&path).unwrap(),
+            )
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+fn assert_same_results(reference: &Path, other: &Path) {
+    for file in ["final_state.json", "probes.csv"] {
+        assert!(
+            std::fs::read(reference.join(file)).unwrap() == std::fs::read(other.join(file)).unwrap(),
+            "{file} differs between {} and {}",
+            reference.display(),
+            other.display()
+        );
+    }
+    assert_eq!(metrics_without_timings(reference), metrics_without_timings(other));
+    let (a, b) = (frame_files(reference), frame_files(other));
+    assert_eq!(
+        a.iter().map(|f| &f.0).collect::<Vec<_>>(),
+        b.iter().map(|f| &f.0).collect::<Vec<_>>()
+    );
+    for (fa, fb) in a.iter().zip(&b) {
+        assert!(fa.1 == fb.1, "frame {} differs", fa.0);
+    }
+}
+
+/// Keeps the first `rows` lines of a file and appends a half-written line,
+/// as a run killed mid-write leaves it.
+fn cut(path: &Path, lines: usize) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut kept: String = text.split_inclusive('\n').take(lines).collect();
+    kept.push_str("9,0.09,1.2");
+    std::fs::write(path, kept).unwrap();
+}
+
+fn check_resume(integrator: &str, damping: &str) {
+    let dir = temp_dir(&format!("resume-{integrator}-{}", damping.len()));
+    let scene = tiny_scene(&dir, "scene", integrator, damping);
+    let (whole, interrupted) = (dir.join("whole"), dir.join("interrupted"));
+    pd_ok(&["run", arg(&scene), "--out", arg(&whole)]);
+    pd_ok(&["run", arg(&scene), "--out", arg(&interrupted), "--checkpoint-every", "4"]);
+    // Checkpointing itself changes nothing.
+    assert_same_results(&whole, &interrupted);
+
+    // Pretend the run was killed during step 10, after its last checkpoint
+    // (step 8): step 9's rows are complete, step 10's half written, frame 5
+    // (step 10) and the final files missing.
+    cut(&interrupted.join("metrics.csv"), 1 + 10);
+    cut(&interrupted.join("probes.csv"), 1 + 10);
+    std::fs::remove_file(interrupted.join("frames/frame_00005.obj")).unwrap();
+    std::fs::remove_file(interrupted.join("frames/frame_00005.vtk")).unwrap();
+    std::fs::remove_file(interrupted.join("final_state.json")).unwrap();
+    std::fs::remove_file(interrupted.join("summary.json")).unwrap();
+
+    pd_ok(&["resume", arg(&interrupted)]);
+    assert_same_results(&whole, &interrupted);
+    let summary = std::fs::read_to_string(interrupted.join("summary.json")).unwrap();
+    assert!(summary.contains("\"status\": \"completed\""), "{summary}");
+}
+
+#[test]
+fn backward_euler_without_damping() {
+    check_resume("backward-euler", "model = \"none\"");
+}
+
+#[test]
+fn implicit_midpoint_with_lagged_rayleigh() {
+    check_resume("implicit-midpoint", "model = \"rayleigh-lagged\"\nstiffness = 0.003");
+}
+
+#[test]
+fn bdf2_with_laplacian_damping() {
+    check_resume("bdf2", "model = \"laplacian\"\nstiffness = 0.003\npreserve_rotation = true");
+}
+
+#[test]
+fn bdf2_with_explicit_ether_drag() {
+    check_resume("bdf2", "model = \"ether-drag\"\nrate = 1.0");
+}
+
+#[test]
+fn bad_checkpoints_are_input_errors() {
+    let dir = temp_dir("resume-bad");
+    let scene = tiny_scene(&dir, "scene", "bdf2", "model = \"none\"");
+    let out = dir.join("out");
+
+    // No checkpoint at all.
+    pd_ok(&["run", arg(&scene), "--out", arg(&out)]);
+    let output = pd(&["resume", arg(&out)]);
+    assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
+    assert!(stderr(&output).contains("checkpoint.json"), "{}", stderr(&output));
+
+    // A damaged checkpoint.
+    pd_ok(&["run", arg(&scene), "--out", arg(&out), "--checkpoint-every", "3"]);
+    let checkpoint = out.join("checkpoint.json");
+    let good = std::fs::read_to_string(&checkpoint).unwrap();
+    std::fs::write(&checkpoint, &good[..good.len() / 3]).unwrap();
+    let output = pd(&["resume", arg(&out)]);
+    assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
+
+    // The scene text edited inside the checkpoint.
+    std::fs::write(&checkpoint, good.replace("iterations = 5", "iterations = 6")).unwrap();
+    let output = pd(&["resume", arg(&out)]);
+    assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
+    assert!(stderr(&output).contains("scene.hash"), "{}", stderr(&output));
+
+    // metrics.csv shorter than the checkpoint (the checkpoint is at step 9).
+    std::fs::write(&checkpoint, &good).unwrap();
+    cut(&out.join("metrics.csv"), 1 + 5);
+    let output = pd(&["resume", arg(&out)]);
+    assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
+    assert!(stderr(&output).contains("metrics.csv"), "{}", stderr(&output));
+}
