@@ -65,10 +65,11 @@ fn norm(x: f64, y: f64, z: f64) -> f64 {
     (x * x + y * y + z * z).sqrt()
 }
 
-/// `|final| / |initial|`, or `None` when the initial value is zero (there
-/// is nothing to keep).
-fn kept(initial: f64, last: f64) -> Option<f64> {
-    (initial > 0.0).then(|| last / initial)
+/// `|final| / |initial|`, or `None` when the initial value is below 0.1%
+/// of the largest during the run: then there was nothing to keep (a body
+/// starting at rest), and the ratio would only measure round-off growth.
+fn kept(initial: f64, last: f64, largest: f64) -> Option<f64> {
+    (initial > 0.0 && initial >= 1e-3 * largest).then(|| last / initial)
 }
 
 fn median(values: &[f64]) -> f64 {
@@ -104,8 +105,8 @@ fn row_of(name: &str, status: String, dir: &Path) -> Result<Row, Failure> {
         steps: last,
         initial_energy: total[0],
         final_energy: total[last],
-        momentum_kept: kept(p(0), p(last)),
-        angular_momentum_kept: kept(j(0), j(last)),
+        momentum_kept: kept(p(0), p(last), (0..=last).map(p).fold(0.0, f64::max)),
+        angular_momentum_kept: kept(j(0), j(last), (0..=last).map(j).fold(0.0, f64::max)),
         final_momentum: p(last),
         final_angular_momentum: j(last),
     })
@@ -265,14 +266,15 @@ pub(crate) fn compare(
         "\nMedian wall time of a step; overhead against the first variant, measured in the same \
          command. Energy is kinetic + elastic + gravitational. *Kept* is |final| / |initial| of \
          the linear momentum and of the angular momentum about the origin (n/a when the \
-         initial value is zero).\n",
+         initial value is below 0.1% of the largest in the run: nothing to keep).\n",
     );
     let write = |name: &str, text: &str| {
         let path = out.join(name);
         std::fs::write(&path, text).map_err(|e| Failure::Output(format!("{}: {e}", path.display())))
     };
     write("comparison.md", &md)?;
-    let table = json!({ "scene": loaded.scene.source.display().to_string(), "variants": json_rows });
+    let table =
+        json!({ "scene": loaded.scene.source.display().to_string(), "variants": json_rows });
     write(
         "comparison.json",
         &(serde_json::to_string_pretty(&table).expect("a JSON value serialises") + "\n"),

@@ -20,8 +20,10 @@ pub(crate) struct RenderOptions {
 
 /// A panel's default label: the run folder's name.
 pub(crate) fn label_of(dir: &Path) -> String {
-    dir.file_name()
-        .map_or_else(|| dir.display().to_string(), |n| n.to_string_lossy().into_owned())
+    dir.file_name().map_or_else(
+        || dir.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
 }
 
 /// The OBJ frames of a run, in order.
@@ -153,9 +155,11 @@ impl Metrics {
 
     /// A column's values.
     pub(crate) fn column(&self, name: &str, path: &Path) -> Result<Vec<f64>, Failure> {
-        let index = self.columns.iter().position(|c| c == name).ok_or_else(|| {
-            Failure::Input(format!("{}: no column `{name}`", path.display()))
-        })?;
+        let index = self
+            .columns
+            .iter()
+            .position(|c| c == name)
+            .ok_or_else(|| Failure::Input(format!("{}: no column `{name}`", path.display())))?;
         Ok(self.rows.iter().map(|r| r[index]).collect())
     }
 
@@ -189,7 +193,8 @@ pub(crate) fn plot(dir: &Path) -> Result<(), Failure> {
     let path = dir.join("metrics.csv");
     let metrics = Metrics::read(&path)?;
     let out = dir.join("plots");
-    std::fs::create_dir_all(&out).map_err(|e| Failure::Output(format!("{}: {e}", out.display())))?;
+    std::fs::create_dir_all(&out)
+        .map_err(|e| Failure::Output(format!("{}: {e}", out.display())))?;
     let plots = [
         (
             "energy",

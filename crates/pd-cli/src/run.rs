@@ -32,7 +32,10 @@ pub(crate) struct LoadedScene {
 }
 
 /// Reads and validates a scene file, or the bundled cantilever.
-pub(crate) fn load_scene(path: Option<&Path>, overrides: &Overrides) -> Result<LoadedScene, Failure> {
+pub(crate) fn load_scene(
+    path: Option<&Path>,
+    overrides: &Overrides,
+) -> Result<LoadedScene, Failure> {
     let (text, name) = match path {
         Some(path) => {
             let text = std::fs::read_to_string(path)

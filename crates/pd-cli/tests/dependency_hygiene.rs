@@ -38,12 +38,21 @@ fn dependencies(krate: &str) -> Vec<String> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let manifest = concat!(env!("CARGO_MANIFEST_DIR"), "/../../Cargo.toml");
     let output = Command::new(&cargo)
-            .args(["tree", "--offline", "--locked", "-e", "normal", "--prefix", "none", "-p"])
-            .arg(krate)
-            .arg("--manifest-path")
-            .arg(manifest)
-            .output()
-            .expect("cargo tree runs");
+        .args([
+            "tree",
+            "--offline",
+            "--locked",
+            "-e",
+            "normal",
+            "--prefix",
+            "none",
+            "-p",
+        ])
+        .arg(krate)
+        .arg("--manifest-path")
+        .arg(manifest)
+        .output()
+        .expect("cargo tree runs");
     assert!(
         output.status.success(),
         "cargo tree -p {krate}: {}",

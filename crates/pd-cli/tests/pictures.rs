@@ -22,7 +22,9 @@ fn read_png(path: &Path) -> (u32, u32, Vec<u8>, usize) {
 fn gif_frames(path: &Path) -> (usize, (u16, u16)) {
     let mut options = gif::DecodeOptions::new();
     options.set_color_output(gif::ColorOutput::RGBA);
-    let mut decoder = options.read_info(std::fs::File::open(path).unwrap()).unwrap();
+    let mut decoder = options
+        .read_info(std::fs::File::open(path).unwrap())
+        .unwrap();
     let size = (decoder.width(), decoder.height());
     let mut count = 0;
     while decoder.read_next_frame().unwrap().is_some() {
@@ -37,7 +39,16 @@ fn render_writes_a_png_per_frame_and_a_gif() {
     let scene = tiny_scene(&dir, "beam", "backward-euler", "model = \"none\"");
     let run = dir.join("run");
     pd_ok(&["run", arg(&scene), "--out", arg(&run)]);
-    pd_ok(&["render", arg(&run), "--width", "160", "--height", "120", "--gif-frames", "4"]);
+    pd_ok(&[
+        "render",
+        arg(&run),
+        "--width",
+        "160",
+        "--height",
+        "120",
+        "--gif-frames",
+        "4",
+    ]);
 
     // 10 steps, a frame every 2: frames 0..=5.
     let render = run.join("render");
@@ -61,7 +72,16 @@ fn render_writes_a_png_per_frame_and_a_gif() {
     // Panels side by side: twice as wide.
     let out = dir.join("panels");
     pd_ok(&[
-        "render", arg(&run), "--panel", arg(&run), "--out", arg(&out), "--width", "100", "--height", "80",
+        "render",
+        arg(&run),
+        "--panel",
+        arg(&run),
+        "--out",
+        arg(&out),
+        "--width",
+        "100",
+        "--height",
+        "80",
     ]);
     assert_eq!(read_png(&out.join("frame_00000.png")).0, 200);
 }
@@ -82,7 +102,11 @@ fn render_and_plot_report_bad_input_and_output() {
     std::fs::write(run.join("frames/frame_00003.obj"), "v 0 0 0\nf 1 2 3\n").unwrap();
     let output = pd(&["render", arg(&run)]);
     assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
-    assert!(stderr(&output).contains("frame_00003.obj:2"), "{}", stderr(&output));
+    assert!(
+        stderr(&output).contains("frame_00003.obj:2"),
+        "{}",
+        stderr(&output)
+    );
     std::fs::remove_file(run.join("frames/frame_00003.obj")).unwrap();
 
     // An output folder that cannot be created (below a file): exit code 4.
@@ -97,7 +121,11 @@ fn render_and_plot_report_bad_input_and_output() {
     std::fs::write(&metrics, text.replacen("\n0,", "\nzero,", 1)).unwrap();
     let output = pd(&["plot", arg(&run)]);
     assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
-    assert!(stderr(&output).contains("metrics.csv:2"), "{}", stderr(&output));
+    assert!(
+        stderr(&output).contains("metrics.csv:2"),
+        "{}",
+        stderr(&output)
+    );
 }
 
 #[test]
@@ -115,7 +143,10 @@ fn plot_writes_png_and_svg() {
         let (w, h, _, _) = read_png(&run.join(format!("plots/{stem}.png")));
         assert_eq!((w, h), (800, 500));
         let svg = std::fs::read_to_string(run.join(format!("plots/{stem}.svg"))).unwrap();
-        assert!(svg.contains(label) && svg.contains("<polyline"), "{stem}.svg");
+        assert!(
+            svg.contains(label) && svg.contains("<polyline"),
+            "{stem}.svg"
+        );
     }
 }
 
@@ -124,12 +155,22 @@ fn compare_damping_models_and_integrators() {
     let dir = temp_dir("compare");
     let scene = tiny_scene(&dir, "beam", "backward-euler", "model = \"none\"");
     let out = dir.join("damping");
-    pd_ok(&["compare", arg(&scene), "--damping", "none,laplacian,pbd", "--out", arg(&out)]);
+    pd_ok(&[
+        "compare",
+        arg(&scene),
+        "--damping",
+        "none,laplacian,pbd",
+        "--out",
+        arg(&out),
+    ]);
     let table: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("comparison.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(out.join("comparison.json")).unwrap())
+            .unwrap();
     let rows = table["variants"].as_array().unwrap();
     assert_eq!(
-        rows.iter().map(|r| r["variant"].as_str().unwrap()).collect::<Vec<_>>(),
+        rows.iter()
+            .map(|r| r["variant"].as_str().unwrap())
+            .collect::<Vec<_>>(),
         ["none", "laplacian", "pbd"]
     );
     assert_eq!(rows[0]["overhead"].as_f64(), Some(0.0));
@@ -141,10 +182,21 @@ fn compare_damping_models_and_integrators() {
     assert_eq!(md.lines().filter(|l| l.starts_with("| ")).count(), 1 + 3);
     // Up to 3 variants get 320 x 240 panels, side by side.
     assert_eq!(gif_frames(&out.join("render/animation.gif")).1, (960, 240));
-    assert!(std::fs::read_to_string(out.join("energy.svg")).unwrap().contains("laplacian"));
+    assert!(
+        std::fs::read_to_string(out.join("energy.svg"))
+            .unwrap()
+            .contains("laplacian")
+    );
 
     let out = dir.join("integrators");
-    pd_ok(&["compare", arg(&scene), "--integrator", "backward-euler,bdf2", "--out", arg(&out)]);
+    pd_ok(&[
+        "compare",
+        arg(&scene),
+        "--integrator",
+        "backward-euler,bdf2",
+        "--out",
+        arg(&out),
+    ]);
     assert!(out.join("bdf2/metrics.csv").exists());
 
     for bad in [
@@ -153,7 +205,12 @@ fn compare_damping_models_and_integrators() {
         vec!["compare", arg(&scene)],
     ] {
         let output = pd(&bad);
-        assert_eq!(output.status.code(), Some(2), "{bad:?}: {}", stderr(&output));
+        assert_eq!(
+            output.status.code(),
+            Some(2),
+            "{bad:?}: {}",
+            stderr(&output)
+        );
     }
 }
 
@@ -162,7 +219,14 @@ fn compare_reports_divergence_after_writing_the_table() {
     let dir = temp_dir("compare-diverge");
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/diverging.toml");
     let out = dir.join("out");
-    let output = pd(&["compare", arg(&scene), "--damping", "none", "--out", arg(&out)]);
+    let output = pd(&[
+        "compare",
+        arg(&scene),
+        "--damping",
+        "none",
+        "--out",
+        arg(&out),
+    ]);
     assert_eq!(output.status.code(), Some(3), "{}", stderr(&output));
     let table = std::fs::read_to_string(out.join("comparison.json")).unwrap();
     assert!(table.contains("\"diverged\""), "{table}");

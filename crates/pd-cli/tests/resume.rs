@@ -18,7 +18,12 @@ fn metrics_without_timings(dir: &Path) -> Vec<String> {
     std::fs::read_to_string(dir.join("metrics.csv"))
         .unwrap()
         .lines()
-        .map(|l| l.split(',').take(DETERMINISTIC_COLUMNS).collect::<Vec<_>>().join(","))
+        .map(|l| {
+            l.split(',')
+                .take(DETERMINISTIC_COLUMNS)
+                .collect::<Vec<_>>()
+                .join(",")
+        })
         .collect()
 }
 
@@ -40,13 +45,17 @@ fn frame_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
 fn assert_same_results(reference: &Path, other: &Path) {
     for file in ["final_state.json", "probes.csv"] {
         assert!(
-            std::fs::read(reference.join(file)).unwrap() == std::fs::read(other.join(file)).unwrap(),
+            std::fs::read(reference.join(file)).unwrap()
+                == std::fs::read(other.join(file)).unwrap(),
             "{file} differs between {} and {}",
             reference.display(),
             other.display()
         );
     }
-    assert_eq!(metrics_without_timings(reference), metrics_without_timings(other));
+    assert_eq!(
+        metrics_without_timings(reference),
+        metrics_without_timings(other)
+    );
     let (a, b) = (frame_files(reference), frame_files(other));
     assert_eq!(
         a.iter().map(|f| &f.0).collect::<Vec<_>>(),
@@ -71,7 +80,14 @@ fn check_resume(integrator: &str, damping: &str) {
     let scene = tiny_scene(&dir, "scene", integrator, damping);
     let (whole, interrupted) = (dir.join("whole"), dir.join("interrupted"));
     pd_ok(&["run", arg(&scene), "--out", arg(&whole)]);
-    pd_ok(&["run", arg(&scene), "--out", arg(&interrupted), "--checkpoint-every", "4"]);
+    pd_ok(&[
+        "run",
+        arg(&scene),
+        "--out",
+        arg(&interrupted),
+        "--checkpoint-every",
+        "4",
+    ]);
     // Checkpointing itself changes nothing.
     assert_same_results(&whole, &interrupted);
 
@@ -98,12 +114,18 @@ fn backward_euler_without_damping() {
 
 #[test]
 fn implicit_midpoint_with_lagged_rayleigh() {
-    check_resume("implicit-midpoint", "model = \"rayleigh-lagged\"\nstiffness = 0.003");
+    check_resume(
+        "implicit-midpoint",
+        "model = \"rayleigh-lagged\"\nstiffness = 0.003",
+    );
 }
 
 #[test]
 fn bdf2_with_laplacian_damping() {
-    check_resume("bdf2", "model = \"laplacian\"\nstiffness = 0.003\npreserve_rotation = true");
+    check_resume(
+        "bdf2",
+        "model = \"laplacian\"\nstiffness = 0.003\npreserve_rotation = true",
+    );
 }
 
 #[test]
@@ -121,10 +143,21 @@ fn bad_checkpoints_are_input_errors() {
     pd_ok(&["run", arg(&scene), "--out", arg(&out)]);
     let output = pd(&["resume", arg(&out)]);
     assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
-    assert!(stderr(&output).contains("checkpoint.json"), "{}", stderr(&output));
+    assert!(
+        stderr(&output).contains("checkpoint.json"),
+        "{}",
+        stderr(&output)
+    );
 
     // A damaged checkpoint.
-    pd_ok(&["run", arg(&scene), "--out", arg(&out), "--checkpoint-every", "3"]);
+    pd_ok(&[
+        "run",
+        arg(&scene),
+        "--out",
+        arg(&out),
+        "--checkpoint-every",
+        "3",
+    ]);
     let checkpoint = out.join("checkpoint.json");
     let good = std::fs::read_to_string(&checkpoint).unwrap();
     std::fs::write(&checkpoint, &good[..good.len() / 3]).unwrap();
@@ -132,15 +165,27 @@ fn bad_checkpoints_are_input_errors() {
     assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
 
     // The scene text edited inside the checkpoint.
-    std::fs::write(&checkpoint, good.replace("iterations = 5", "iterations = 6")).unwrap();
+    std::fs::write(
+        &checkpoint,
+        good.replace("iterations = 5", "iterations = 6"),
+    )
+    .unwrap();
     let output = pd(&["resume", arg(&out)]);
     assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
-    assert!(stderr(&output).contains("scene.hash"), "{}", stderr(&output));
+    assert!(
+        stderr(&output).contains("scene.hash"),
+        "{}",
+        stderr(&output)
+    );
 
     // metrics.csv shorter than the checkpoint (the checkpoint is at step 9).
     std::fs::write(&checkpoint, &good).unwrap();
     cut(&out.join("metrics.csv"), 1 + 5);
     let output = pd(&["resume", arg(&out)]);
     assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
-    assert!(stderr(&output).contains("metrics.csv"), "{}", stderr(&output));
+    assert!(
+        stderr(&output).contains("metrics.csv"),
+        "{}",
+        stderr(&output)
+    );
 }

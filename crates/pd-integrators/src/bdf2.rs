@@ -197,7 +197,12 @@ mod tests {
         let two = History {
             states: vec![saved.states[0].clone(), saved.states[0].clone()],
         };
-        assert!(fresh.restore_history(&two, 1).unwrap_err().contains("one previous state"));
+        assert!(
+            fresh
+                .restore_history(&two, 1)
+                .unwrap_err()
+                .contains("one previous state")
+        );
         assert!(crate::BackwardEuler.restore_history(&saved, 1).is_err());
     }
 }

@@ -342,7 +342,8 @@ mod tests {
     }
 
     fn temp(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("pd-io-checkpoint-{}-{name}", std::process::id()));
+        let dir =
+            std::env::temp_dir().join(format!("pd-io-checkpoint-{}-{name}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         dir.join(CHECKPOINT_FILE)
     }
@@ -355,9 +356,19 @@ mod tests {
         let back = read_checkpoint(&path).unwrap();
         // PartialEq on f64 would accept -0.0 == 0.0: compare bits too.
         assert_eq!(back, file);
-        let bits = |p: &[Point]| p.iter().flat_map(|v| v.iter().map(|x| x.to_bits())).collect::<Vec<_>>();
-        assert_eq!(bits(&back.checkpoint.state.positions), bits(&file.checkpoint.state.positions));
-        assert_eq!(back.checkpoint.energy_scale.to_bits(), file.checkpoint.energy_scale.to_bits());
+        let bits = |p: &[Point]| {
+            p.iter()
+                .flat_map(|v| v.iter().map(|x| x.to_bits()))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(
+            bits(&back.checkpoint.state.positions),
+            bits(&file.checkpoint.state.positions)
+        );
+        assert_eq!(
+            back.checkpoint.energy_scale.to_bits(),
+            file.checkpoint.energy_scale.to_bits()
+        );
     }
 
     #[test]

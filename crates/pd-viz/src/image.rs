@@ -121,9 +121,7 @@ pub fn write_png(path: &Path, image: &RgbImage) -> Result<()> {
     let mut encoder = png::Encoder::new(create(path)?, image.width, image.height);
     encoder.set_color(png::ColorType::Rgb);
     encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder
-        .write_header()
-        .map_err(|e| encode_error(path, e))?;
+    let mut writer = encoder.write_header().map_err(|e| encode_error(path, e))?;
     writer
         .write_image_data(&image.data)
         .map_err(|e| encode_error(path, e))?;

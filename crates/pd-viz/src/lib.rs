@@ -31,11 +31,8 @@ fn register_font() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
         // The embedded font is a valid TrueType file (a test draws with it).
-        let _ = plotters::style::register_font(
-            FONT_FAMILY,
-            plotters::style::FontStyle::Normal,
-            FONT,
-        );
+        let _ =
+            plotters::style::register_font(FONT_FAMILY, plotters::style::FontStyle::Normal, FONT);
     });
 }
 

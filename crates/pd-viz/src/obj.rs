@@ -121,9 +121,17 @@ mod tests {
             ("v 0 0 0\nl 0 1\n", 2),
             ("v 0 0 nan\n", 1),
         ] {
-            let err = parse_obj(text, Path::new("bad.obj")).unwrap_err().to_string();
-            assert!(err.starts_with(&format!("bad.obj:{line}:")), "{text:?}: {err}");
+            let err = parse_obj(text, Path::new("bad.obj"))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.starts_with(&format!("bad.obj:{line}:")),
+                "{text:?}: {err}"
+            );
         }
-        assert_eq!(parse_obj("", Path::new("e.obj")).unwrap(), Surface::default());
+        assert_eq!(
+            parse_obj("", Path::new("e.obj")).unwrap(),
+            Surface::default()
+        );
     }
 }

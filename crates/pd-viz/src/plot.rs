@@ -53,17 +53,27 @@ impl Plot {
             }
         }
         if !x.0.is_finite() {
-            return Err(Error::Input(format!("{:?}: no finite data to plot", self.title)));
+            return Err(Error::Input(format!(
+                "{:?}: no finite data to plot",
+                self.title
+            )));
         }
         let widen = |(lo, hi): (f64, f64), fraction: f64| {
-            let pad = if hi > lo { fraction * (hi - lo) } else { 0.5 * lo.abs().max(1e-9) };
+            let pad = if hi > lo {
+                fraction * (hi - lo)
+            } else {
+                0.5 * lo.abs().max(1e-9)
+            };
             (lo - pad, hi + pad)
         };
         let x = if x.1 > x.0 { x } else { widen(x, 0.0) };
         Ok((x, widen(y, 0.05)))
     }
 
-    fn draw<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> std::result::Result<(), String> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        area: &DrawingArea<DB, Shift>,
+    ) -> std::result::Result<(), String> {
         let (xr, yr) = self.ranges().map_err(|e| e.to_string())?;
         area.fill(&WHITE).map_err(|e| e.to_string())?;
         let mut chart = ChartBuilder::on(area)
@@ -95,7 +105,9 @@ impl Plot {
                 ))
                 .map_err(|e| e.to_string())?
                 .label(series.label.clone())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2))
+                });
         }
         chart
             .configure_series_labels()
@@ -118,7 +130,8 @@ impl Plot {
         self.ranges()?;
         let mut image = RgbImage::filled(width, height, [255; 3]);
         {
-            let area = BitMapBackend::with_buffer(&mut image.data, (width, height)).into_drawing_area();
+            let area =
+                BitMapBackend::with_buffer(&mut image.data, (width, height)).into_drawing_area();
             self.draw(&area).map_err(|message| Error::Encode {
                 path: path.to_path_buf(),
                 message,
@@ -176,7 +189,9 @@ mod tests {
             y_label: "E (J)".into(),
             series: vec![Series {
                 label: "total".into(),
-                points: (0..50).map(|i| (i as f64 * 0.01, (i as f64 * 0.2).sin())).collect(),
+                points: (0..50)
+                    .map(|i| (i as f64 * 0.01, (i as f64 * 0.2).sin()))
+                    .collect(),
             }],
         };
         plot.write_png(&dir.join("p.png"), 400, 300).unwrap();
@@ -185,7 +200,10 @@ mod tests {
         assert!(svg.contains("<svg") && svg.contains("energy") && svg.contains("polyline"));
         let png = std::fs::read(dir.join("p.png")).unwrap();
         assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
-        let empty = Plot { series: vec![], ..plot };
+        let empty = Plot {
+            series: vec![],
+            ..plot
+        };
         assert!(empty.write_png(&dir.join("q.png"), 100, 100).is_err());
     }
 

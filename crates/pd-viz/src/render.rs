@@ -103,7 +103,12 @@ impl Camera {
         }
         let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max).max(1e-9);
         let margin = 0.25 * extent;
-        let ground = [lo[0] - margin, hi[0] + margin, lo[2] - margin, hi[2] + margin];
+        let ground = [
+            lo[0] - margin,
+            hi[0] + margin,
+            lo[2] - margin,
+            hi[2] + margin,
+        ];
         let grid_step = nice_step((ground[1] - ground[0]).max(ground[3] - ground[2]) / 8.0);
         let towards_eye = normalised([0.6, 0.5, 1.0]);
         let right = normalised(cross([0.0, 1.0, 0.0], towards_eye));
@@ -170,7 +175,14 @@ struct Canvas {
 }
 
 impl Canvas {
-    fn triangle(&mut self, a: (f64, f64, f64), b: (f64, f64, f64), c: (f64, f64, f64), colour: [u8; 3], depth_test: bool) {
+    fn triangle(
+        &mut self,
+        a: (f64, f64, f64),
+        b: (f64, f64, f64),
+        c: (f64, f64, f64),
+        colour: [u8; 3],
+        depth_test: bool,
+    ) {
         let area = (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
         if area.abs() < 1e-12 {
             return;
@@ -202,12 +214,23 @@ impl Canvas {
         }
     }
 
-    fn line(&mut self, a: (f64, f64, f64), b: (f64, f64, f64), colour: [u8; 3], radius: i64, depth_test: bool) {
+    fn line(
+        &mut self,
+        a: (f64, f64, f64),
+        b: (f64, f64, f64),
+        colour: [u8; 3],
+        radius: i64,
+        depth_test: bool,
+    ) {
         let steps = ((b.0 - a.0).abs().max((b.1 - a.1).abs()).ceil() as usize).max(1);
         let (w, h) = (self.image.width as i64, self.image.height as i64);
         for s in 0..=steps {
             let t = s as f64 / steps as f64;
-            let (x, y, z) = (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1), a.2 + t * (b.2 - a.2));
+            let (x, y, z) = (
+                a.0 + t * (b.0 - a.0),
+                a.1 + t * (b.1 - a.1),
+                a.2 + t * (b.2 - a.2),
+            );
             for dy in -radius..=radius {
                 for dx in -radius..=radius {
                     let (px, py) = (x.floor() as i64 + dx, y.floor() as i64 + dy);
@@ -241,8 +264,20 @@ pub fn render_surface(camera: &Camera, surface: &Surface, body: usize) -> RgbIma
     let g = camera.ground;
     let y = camera.ground_y;
     let corner = |x: f64, z: f64| camera.project([x, y, z]);
-    canvas.triangle(corner(g[0], g[2]), corner(g[1], g[2]), corner(g[1], g[3]), GROUND, false);
-    canvas.triangle(corner(g[0], g[2]), corner(g[1], g[3]), corner(g[0], g[3]), GROUND, false);
+    canvas.triangle(
+        corner(g[0], g[2]),
+        corner(g[1], g[2]),
+        corner(g[1], g[3]),
+        GROUND,
+        false,
+    );
+    canvas.triangle(
+        corner(g[0], g[2]),
+        corner(g[1], g[3]),
+        corner(g[0], g[3]),
+        GROUND,
+        false,
+    );
     let step = camera.grid_step;
     let mut x = (g[0] / step).ceil() * step;
     while x <= g[1] {
@@ -257,7 +292,11 @@ pub fn render_surface(camera: &Camera, surface: &Surface, body: usize) -> RgbIma
 
     let base = BODY[body % BODY.len()];
     let light = normalised([0.35, 1.0, 0.6]);
-    let projected: Vec<_> = surface.positions.iter().map(|&p| camera.project(p)).collect();
+    let projected: Vec<_> = surface
+        .positions
+        .iter()
+        .map(|&p| camera.project(p))
+        .collect();
     for t in &surface.triangles {
         let [a, b, c] = t.map(|i| surface.positions[i]);
         let n = cross(sub(b, a), sub(c, a));
@@ -269,10 +308,22 @@ pub fn render_surface(camera: &Camera, surface: &Surface, body: usize) -> RgbIma
         let lambert = (dot(n, light) / len).abs();
         let shade = 0.3 + 0.7 * lambert;
         let colour = base.map(|c| (c * shade).round().clamp(0.0, 255.0) as u8);
-        canvas.triangle(projected[t[0]], projected[t[1]], projected[t[2]], colour, true);
+        canvas.triangle(
+            projected[t[0]],
+            projected[t[1]],
+            projected[t[2]],
+            colour,
+            true,
+        );
     }
     for l in &surface.lines {
-        canvas.line(projected[l[0]], projected[l[1]], LINE, SUPERSAMPLE as i64, true);
+        canvas.line(
+            projected[l[0]],
+            projected[l[1]],
+            LINE,
+            SUPERSAMPLE as i64,
+            true,
+        );
     }
     canvas.image.downscaled(SUPERSAMPLE)
 }
@@ -289,7 +340,10 @@ pub fn render_panels(panels: &[Panel], width: u32, height: u32) -> Result<Vec<Rg
         return Err(Error::Input("no panels to render".into()));
     }
     if let Some(empty) = panels.iter().find(|p| p.frames.is_empty()) {
-        return Err(Error::Input(format!("panel {:?} has no frames", empty.label)));
+        return Err(Error::Input(format!(
+            "panel {:?} has no frames",
+            empty.label
+        )));
     }
     let camera = Camera::fit(panels, width, height)?;
     let count = panels.iter().map(|p| p.frames.len()).max().unwrap_or(0);
@@ -352,7 +406,12 @@ mod tests {
 
     fn square(y: f64) -> Surface {
         Surface {
-            positions: vec![[0.0, y, 0.0], [1.0, y, 0.0], [1.0, y + 1.0, 0.0], [0.0, y + 1.0, 0.0]],
+            positions: vec![
+                [0.0, y, 0.0],
+                [1.0, y, 0.0],
+                [1.0, y + 1.0, 0.0],
+                [0.0, y + 1.0, 0.0],
+            ],
             triangles: vec![[0, 1, 2], [0, 2, 3]],
             lines: vec![],
         }
@@ -384,11 +443,21 @@ mod tests {
         // larger z (nearer the eye) must win whatever the drawing order.
         let mut s = square(0.0);
         // Tilted, so that its shade differs from the first square's.
-        s.positions.extend([[0.0, 0.0, 1.0], [1.0, 0.0, 1.5], [1.0, 1.0, 1.5], [0.0, 1.0, 1.0]]);
+        s.positions.extend([
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 1.5],
+            [1.0, 1.0, 1.5],
+            [0.0, 1.0, 1.0],
+        ]);
         s.triangles.extend([[4, 5, 6], [4, 6, 7]]);
         let mut reversed = s.clone();
         reversed.triangles.reverse();
-        let panels = |s: Surface| vec![Panel { label: String::new(), frames: vec![s] }];
+        let panels = |s: Surface| {
+            vec![Panel {
+                label: String::new(),
+                frames: vec![s],
+            }]
+        };
         let a = render_panels(&panels(s), 100, 100).unwrap();
         let b = render_panels(&panels(reversed), 100, 100).unwrap();
         assert_eq!(a, b);
@@ -396,7 +465,10 @@ mod tests {
 
     #[test]
     fn nothing_to_draw_is_an_error() {
-        let empty = Panel { label: "x".into(), frames: vec![Surface::default()] };
+        let empty = Panel {
+            label: "x".into(),
+            frames: vec![Surface::default()],
+        };
         assert!(render_panels(&[empty], 10, 10).is_err());
         assert!(render_panels(&[], 10, 10).is_err());
     }

@@ -33,10 +33,13 @@ impl Recorder {
         for (row, line) in kept.lines().skip(2).enumerate() {
             let fields: Vec<&str> = line.split(',').collect();
             let parse = |i: usize| -> Result<f64> {
-                fields.get(i).and_then(|f| f.parse().ok()).ok_or_else(|| Error::Content {
-                    path: metrics_path.clone(),
-                    message: format!("row {} has no number in column {}", row + 1, i + 1),
-                })
+                fields
+                    .get(i)
+                    .and_then(|f| f.parse().ok())
+                    .ok_or_else(|| Error::Content {
+                        path: metrics_path.clone(),
+                        message: format!("row {} has no number in column {}", row + 1, i + 1),
+                    })
             };
             step_ms.push(parse(13)?);
             local_ms.push(parse(14)?);
@@ -50,12 +53,13 @@ impl Recorder {
             truncate_rows(&path, steps)?;
             Some((append(&path)?, path))
         };
-        let frames = if scene.output.every > 0 {
-            let frames = steps / scene.output.every + 1;
-            remove_frames_from(&dir.join("frames"), frames)?;
-            frames
-        } else {
-            0
+        // Frames 0..=steps/every exist at the checkpoint; none without frames.
+        let frames = match steps.checked_div(scene.output.every) {
+            Some(last) => {
+                remove_frames_from(&dir.join("frames"), last + 1)?;
+                last + 1
+            }
+            None => 0,
         };
         Ok(Self {
             dir: dir.to_path_buf(),
