@@ -131,3 +131,55 @@ impl Simulation {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use pd_damping::NoDamping;
+    use pd_integrators::{BackwardEuler, Bdf2, Integrator};
+    use pd_mesh::generators;
+
+    use crate::{Model, Settings, Simulation};
+
+    fn chain(integrator: Box<dyn Integrator>) -> Simulation {
+        let mesh = generators::chain(4, 1.0).unwrap();
+        let mut model = Model::new();
+        let body = model.add_body(mesh, vec![0.1; 4]).unwrap();
+        model.add_springs(body, 50.0).unwrap();
+        model.fix_vertices(body, &[0]).unwrap();
+        let settings = Settings {
+            dt: 0.01,
+            ..Settings::default()
+        };
+        Simulation::new(model, integrator, Box::new(NoDamping), settings).unwrap()
+    }
+
+    #[test]
+    fn refuses_mismatched_checkpoints_and_changes_nothing() {
+        let mut bdf = chain(Box::new(Bdf2::new()));
+        bdf.run(2).unwrap();
+        let saved = bdf.checkpoint();
+        assert_eq!(saved.history.states.len(), 1);
+
+        let mut be = chain(Box::new(BackwardEuler));
+        let before = be.checkpoint();
+        let err = be.restore(&saved).unwrap_err().to_string();
+        assert!(err.contains("bdf2"), "{err}");
+        assert_eq!(be.checkpoint(), before);
+
+        let mut other = chain(Box::new(Bdf2::new()));
+        let before = other.checkpoint();
+        let mut short = saved.clone();
+        short.state.positions.pop();
+        assert!(other.restore(&short).is_err());
+        let mut nan = saved.clone();
+        nan.state.velocities[2].x = f64::NAN;
+        assert!(other.restore(&nan).is_err());
+        let mut bad_history = saved.clone();
+        bad_history.history.states[0].0.pop();
+        assert!(other.restore(&bad_history).is_err());
+        assert_eq!(other.checkpoint(), before);
+
+        other.restore(&saved).unwrap();
+        assert_eq!(other.checkpoint(), saved);
+    }
+}
