@@ -75,8 +75,8 @@ fn cut(path: &Path, lines: usize) {
     std::fs::write(path, kept).unwrap();
 }
 
-fn check_resume(integrator: &str, damping: &str) {
-    let dir = temp_dir(&format!("resume-{integrator}-{}", damping.len()));
+fn check_resume(integrator: &str, damping: &str, every: &str) {
+    let dir = temp_dir(&format!("resume-{integrator}-{}-{every}", damping.len()));
     let scene = tiny_scene(&dir, "scene", integrator, damping);
     let (whole, interrupted) = (dir.join("whole"), dir.join("interrupted"));
     pd_ok(&["run", arg(&scene), "--out", arg(&whole)]);
@@ -86,14 +86,14 @@ fn check_resume(integrator: &str, damping: &str) {
         "--out",
         arg(&interrupted),
         "--checkpoint-every",
-        "4",
+        every,
     ]);
     // Checkpointing itself changes nothing.
     assert_same_results(&whole, &interrupted);
 
     // Pretend the run was killed during step 10, after its last checkpoint
-    // (step 8): step 9's rows are complete, step 10's half written, frame 5
-    // (step 10) and the final files missing.
+    // (step 8 or 9): step 9's rows are complete, step 10's half written,
+    // frame 5 (step 10) and the final files missing.
     cut(&interrupted.join("metrics.csv"), 1 + 10);
     cut(&interrupted.join("probes.csv"), 1 + 10);
     std::fs::remove_file(interrupted.join("frames/frame_00005.obj")).unwrap();
@@ -109,7 +109,7 @@ fn check_resume(integrator: &str, damping: &str) {
 
 #[test]
 fn backward_euler_without_damping() {
-    check_resume("backward-euler", "model = \"none\"");
+    check_resume("backward-euler", "model = \"none\"", "4");
 }
 
 #[test]
@@ -117,6 +117,7 @@ fn implicit_midpoint_with_lagged_rayleigh() {
     check_resume(
         "implicit-midpoint",
         "model = \"rayleigh-lagged\"\nstiffness = 0.003",
+        "4",
     );
 }
 
@@ -125,12 +126,20 @@ fn bdf2_with_laplacian_damping() {
     check_resume(
         "bdf2",
         "model = \"laplacian\"\nstiffness = 0.003\npreserve_rotation = true",
+        "4",
     );
 }
 
 #[test]
 fn bdf2_with_explicit_ether_drag() {
-    check_resume("bdf2", "model = \"ether-drag\"\nrate = 1.0");
+    check_resume("bdf2", "model = \"ether-drag\"\nrate = 1.0", "4");
+}
+
+#[test]
+fn checkpoint_between_frames() {
+    // Checkpoints at steps 3, 6, 9 while frames are every 2 steps: the
+    // resumed run keeps frames 0-4 and rewrites only frame 5.
+    check_resume("bdf2", "model = \"none\"", "3");
 }
 
 #[test]
