@@ -50,7 +50,10 @@ fn check(bytes: &[u8], dir: &Path) {
         std::fs::write(&path, bytes).unwrap();
         if let Err(e) = Scene::load(&path) {
             let message = e.to_string();
-            assert!(message.contains(name), "error does not name the file: {message}");
+            assert!(
+                message.contains(name),
+                "error does not name the file: {message}"
+            );
         }
         if let Ok(text) = std::str::from_utf8(bytes) {
             let _ = Scene::parse(text, syntax, &path);

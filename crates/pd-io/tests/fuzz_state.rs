@@ -37,7 +37,10 @@ fn check(bytes: &[u8], dir: &Path) {
         }
         Err(e) => {
             let message = e.to_string();
-            assert!(message.contains("state.json"), "error does not name the file: {message}");
+            assert!(
+                message.contains("state.json"),
+                "error does not name the file: {message}"
+            );
         }
     }
 }

@@ -46,7 +46,11 @@ fn check(node: &[u8], ele: &[u8], dir: &Path) {
             // Accepted meshes satisfy the mesh invariants the reader promises.
             let n = mesh.num_vertices();
             assert!(mesh.tets().iter().flatten().all(|&v| v < n));
-            assert!(mesh.vertices().iter().all(|p| p.iter().all(|c| c.is_finite())));
+            assert!(
+                mesh.vertices()
+                    .iter()
+                    .all(|p| p.iter().all(|c| c.is_finite()))
+            );
         }
         Err(e) => {
             let message = e.to_string();

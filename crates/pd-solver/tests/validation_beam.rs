@@ -55,7 +55,11 @@ fn bending_mode(lin: &Linearised) -> (f64, Vec<f64>, f64) {
 /// The first axial mode: the eigenpair nearest the analytic value.
 fn axial_mode(lin: &Linearised) -> (f64, Vec<f64>, f64) {
     let start = lin.field(|p| {
-        pd_mesh::Point::new((std::f64::consts::PI * p.x / (2.0 * LENGTH)).sin(), 0.0, 0.0)
+        pd_mesh::Point::new(
+            (std::f64::consts::PI * p.x / (2.0 * LENGTH)).sin(),
+            0.0,
+            0.0,
+        )
     });
     let (lambda, phi, bound) = lin.eigenpair(axial_bar().powi(2), start);
     (lambda.sqrt(), phi, bound / (2.0 * lambda.sqrt()))
@@ -68,7 +72,16 @@ fn axial_mode(lin: &Linearised) -> (f64, Vec<f64>, f64) {
 fn simulated(n: usize, lin: &Linearised, phi: &[f64], omega: f64) -> (f64, f64) {
     let dt = 0.1 / omega;
     let steps = (4.0 * std::f64::consts::PI / 0.1).ceil() as usize;
-    let run = vibrate(mesh(n), lin, Box::new(NoDamping), phi, 1e-3 * LENGTH, dt, steps, 1e-8);
+    let run = vibrate(
+        mesh(n),
+        lin,
+        Box::new(NoDamping),
+        phi,
+        1e-3 * LENGTH,
+        dt,
+        steps,
+        1e-8,
+    );
     let (log_modulus, angle) = step_eigenvalue(&run.q);
     let (measured, zeta) = undo_midpoint(log_modulus, angle, dt);
     eprintln!(
@@ -93,9 +106,14 @@ fn simulated(n: usize, lin: &Linearised, phi: &[f64], omega: f64) -> (f64, f64) 
 fn check_simulated(name: &str, measured: f64, warped: f64, fem: f64) {
     let tolerance = 2e-6;
     let error = measured / fem - 1.0;
-    eprintln!("  {name}: simulated {measured:.7} rad/s, FEM {fem:.7}, relative difference {error:.2e} (tolerance {tolerance:.0e})");
+    eprintln!(
+        "  {name}: simulated {measured:.7} rad/s, FEM {fem:.7}, relative difference {error:.2e} (tolerance {tolerance:.0e})"
+    );
     assert!(error.abs() <= tolerance, "{name}: {error:e}");
-    assert!((warped / fem - 1.0).abs() > 100.0 * tolerance, "{name}: warping not resolved");
+    assert!(
+        (warped / fem - 1.0).abs() > 100.0 * tolerance,
+        "{name}: warping not resolved"
+    );
 }
 
 /// The lowest bending frequency of the simulated beam on the coarsest mesh

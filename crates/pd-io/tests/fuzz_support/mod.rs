@@ -131,7 +131,8 @@ pub fn mutation() -> impl Strategy<Value = Mutation> {
 
 /// Byte ranges of the numbers in `bytes`.
 fn numbers(bytes: &[u8]) -> Vec<(usize, usize)> {
-    let is_number_byte = |b: u8| b.is_ascii_digit() || matches!(b, b'.' | b'e' | b'E' | b'+' | b'-');
+    let is_number_byte =
+        |b: u8| b.is_ascii_digit() || matches!(b, b'.' | b'e' | b'E' | b'+' | b'-');
     let mut ranges = Vec::new();
     let mut i = 0;
     while i < bytes.len() {

@@ -105,10 +105,7 @@ impl Linearised {
             index[v] = i;
         }
         let dofs = 3 * free.len();
-        let mass = free
-            .iter()
-            .flat_map(|&v| [model.masses()[v]; 3])
-            .collect();
+        let mass = free.iter().flat_map(|&v| [model.masses()[v]; 3]).collect();
         let blocks = model.constraint_blocks();
         let mut k = Vec::new();
         for block in &blocks {
@@ -164,7 +161,11 @@ impl Linearised {
 
     /// `x^T M y`.
     pub fn mass_form(&self, x: &[f64], y: &[f64]) -> f64 {
-        x.iter().zip(y).zip(&self.mass).map(|((a, b), m)| a * b * m).sum()
+        x.iter()
+            .zip(y)
+            .zip(&self.mass)
+            .map(|((a, b), m)| a * b * m)
+            .sum()
     }
 
     /// The generalized eigenpair `K phi = lambda M phi` with `lambda`
