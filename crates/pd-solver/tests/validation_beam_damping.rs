@@ -167,7 +167,7 @@ fn laplacian_over_rayleigh_on_a_small_beam() {
     assert!((zeta_l / zeta_exact - 1.0).abs() < zeta_l * zeta_l + 1e-3);
 
     let dt = 0.1 / omega;
-    let steps = (4.0 * std::f64::consts::PI / 0.1).ceil() as f64;
+    let steps = (4.0 * std::f64::consts::PI / 0.1).ceil();
     let theta = 2.0 * (dt * omega / 2.0).atan();
     let floor = 4e-7;
 

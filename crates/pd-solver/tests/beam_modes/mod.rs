@@ -45,6 +45,9 @@ pub fn beam(size: [f64; 3], cells: [usize; 3]) -> Model {
     model
 }
 
+/// Solves `A x = b` in place for a one-column `b`.
+type Solver = Box<dyn Fn(&mut Mat<f64>)>;
+
 /// A symmetric sparse matrix as rows of `(column, value)`.
 pub struct Rows(pub Vec<Vec<(usize, f64)>>);
 
@@ -183,7 +186,7 @@ impl Linearised {
             triplets.push(Triplet::new(r, r, -shift * self.mass[r]));
         }
         let matrix = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets).unwrap();
-        let solve: Box<dyn Fn(&mut Mat<f64>)> = if shift == 0.0 {
+        let solve: Solver = if shift == 0.0 {
             let llt = matrix.sp_cholesky(faer::Side::Lower).unwrap();
             Box::new(move |x| llt.solve_in_place(x.as_mut()))
         } else {
