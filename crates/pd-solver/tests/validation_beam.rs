@@ -126,9 +126,9 @@ fn simulated_bending_frequency_is_the_discrete_one() {
 }
 
 /// As [`simulated_bending_frequency_is_the_discrete_one`] on the 2 x 2
-/// section mesh (about a minute).
+/// section mesh (about two minutes).
 #[test]
-#[ignore = "about a minute: PD needs ~1100 iterations per step here"]
+#[ignore = "about two minutes: PD needs ~1100 iterations per step here"]
 fn simulated_bending_frequency_fine_mesh() {
     simulated_bending(2);
 }
