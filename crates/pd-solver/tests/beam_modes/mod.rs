@@ -194,13 +194,12 @@ impl Linearised {
             Box::new(move |x| lu.solve_in_place(x.as_mut()))
         };
         let mut phi = start;
-        let mut lambda = f64::NAN;
-        for _ in 0..200 {
+        for _ in 0..300 {
             let norm = self.mass_form(&phi, &phi).sqrt();
             phi.iter_mut().for_each(|p| *p /= norm);
-            let previous = lambda;
-            lambda = self.stiffness.form(&phi, &phi);
-            if (lambda - previous).abs() <= 1e-15 * lambda {
+            // Stop on the residual, not on the Rayleigh quotient (which
+            // converges twice as fast as the vector).
+            if self.residual_bound(&phi) <= 1e-10 * self.stiffness.form(&phi, &phi) {
                 break;
             }
             let mut x = Mat::<f64>::from_fn(n, 1, |i, _| self.mass[i] * phi[i]);
@@ -209,16 +208,23 @@ impl Linearised {
         }
         let norm = self.mass_form(&phi, &phi).sqrt();
         phi.iter_mut().for_each(|p| *p /= norm);
-        lambda = self.stiffness.form(&phi, &phi);
-        let k_phi = self.stiffness.mul(&phi);
-        let bound = k_phi
+        let lambda = self.stiffness.form(&phi, &phi);
+        let bound = self.residual_bound(&phi);
+        (lambda, phi, bound)
+    }
+
+    /// `|M^-1/2 (K phi - lambda M phi)|` for an M-normalised `phi` and its
+    /// Rayleigh quotient `lambda`.
+    fn residual_bound(&self, phi: &[f64]) -> f64 {
+        let lambda = self.stiffness.form(phi, phi);
+        self.stiffness
+            .mul(phi)
             .iter()
-            .zip(&phi)
+            .zip(phi)
             .zip(&self.mass)
             .map(|((kp, p), m)| (kp - lambda * m * p).powi(2) / m)
             .sum::<f64>()
-            .sqrt();
-        (lambda, phi, bound)
+            .sqrt()
     }
 
     /// A dof vector from a displacement field.
