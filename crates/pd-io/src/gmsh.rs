@@ -109,13 +109,15 @@ pub fn read_gmsh(path: &Path) -> Result<Mesh> {
             "$Elements" => {
                 let Some(nodes) = &nodes else {
                     return Err(line.error(
-                        "`$Elements` comes before `$Nodes`; the nodes must be defined first"
-                            .into(),
+                        "`$Elements` comes before `$Nodes`; the nodes must be defined first".into(),
                     ));
                 };
                 elements = Some(read_elements(&mut lines, &line, nodes)?);
             }
-            name if name.starts_with('$') && !name.starts_with("$End") && line.fields.len() == 1 => {
+            name if name.starts_with('$')
+                && !name.starts_with("$End")
+                && line.fields.len() == 1 =>
+            {
                 skip_section(&mut lines, &line, &name[1..])?;
             }
             _ => {
@@ -152,8 +154,7 @@ pub fn read_gmsh(path: &Path) -> Result<Mesh> {
         )
     } else {
         Err(lines.error_at_end(
-            "the file has no tetrahedra (element type 4) and no triangles (element type 2)"
-                .into(),
+            "the file has no tetrahedra (element type 4) and no triangles (element type 2)".into(),
         ))
     }
 }
@@ -180,9 +181,7 @@ fn read_format(lines: &mut DataLines<'_>) -> Result<()> {
             ));
         }
         other => {
-            return Err(line.error(format!(
-                "the file type must be 0 (ASCII), found `{other}`"
-            )));
+            return Err(line.error(format!("the file type must be 0 (ASCII), found `{other}`")));
         }
     }
     line.unsigned(2, "data size")?;
@@ -239,7 +238,10 @@ fn read_nodes(lines: &mut DataLines<'_>, start: &Line<'_>) -> Result<Nodes> {
     let mut index_of_tag = HashMap::with_capacity(capacity);
     for _ in 0..num_blocks {
         let block = next(lines, "a node block header")?;
-        block.expect_fields(4, "entity dimension, entity tag, parametric, #nodes in block")?;
+        block.expect_fields(
+            4,
+            "entity dimension, entity tag, parametric, #nodes in block",
+        )?;
         let dim = block.unsigned(0, "entity dimension")?;
         block.signed(1, "entity tag")?;
         let parametric = block.unsigned(2, "parametric flag")?;
@@ -326,11 +328,7 @@ fn type_name(element_type: usize) -> &'static str {
     }
 }
 
-fn read_elements(
-    lines: &mut DataLines<'_>,
-    start: &Line<'_>,
-    nodes: &Nodes,
-) -> Result<Elements> {
+fn read_elements(lines: &mut DataLines<'_>, start: &Line<'_>, nodes: &Nodes) -> Result<Elements> {
     let header = next(lines, "the `$Elements` header")?;
     header.expect_fields(4, "#blocks, #elements, min tag, max tag")?;
     let num_blocks = header.unsigned(0, "number of element blocks")?;

@@ -242,9 +242,9 @@ fn unsupported(keyword: &str) -> String {
             "`{keyword}` are not supported: only tetrahedra and triangles are (convert the \
              mesh to tetrahedra)"
         ),
-        k if k.ends_with("P2") || k.contains("Order") => format!(
-            "`{keyword}`: higher-order elements are not supported, only linear ones"
-        ),
+        k if k.ends_with("P2") || k.contains("Order") => {
+            format!("`{keyword}`: higher-order elements are not supported, only linear ones")
+        }
         _ => format!("unknown or unsupported keyword `{keyword}`"),
     }
 }

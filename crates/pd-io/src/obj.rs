@@ -79,7 +79,11 @@ pub fn read_obj(path: &Path) -> Result<Mesh> {
                         line.fields.len() - 1
                     )));
                 }
-                points.push(finite_point(&line, 1, &format!("vertex {}", points.len() + 1))?);
+                points.push(finite_point(
+                    &line,
+                    1,
+                    &format!("vertex {}", points.len() + 1),
+                )?);
                 for f in 4..line.fields.len() {
                     line.number(f, "vertex weight or colour")?;
                 }
@@ -110,10 +114,9 @@ pub fn read_obj(path: &Path) -> Result<Mesh> {
                 let corners = corners(&line, points.len())?;
                 for pair in corners.windows(2) {
                     if pair[0] == pair[1] {
-                        return Err(line.error(format!(
-                            "the line joins vertex {} to itself",
-                            pair[0] + 1
-                        )));
+                        return Err(
+                            line.error(format!("the line joins vertex {} to itself", pair[0] + 1))
+                        );
                     }
                     edges.push([pair[0], pair[1]]);
                     edge_lines.push(line.line);

@@ -35,10 +35,7 @@ pub(crate) fn check_distinct(
 ) -> Result<()> {
     for (i, v) in vertices.iter().enumerate() {
         if vertices[..i].contains(v) {
-            return Err(line.error(format!(
-                "{what} uses vertex {} more than once",
-                v + base
-            )));
+            return Err(line.error(format!("{what} uses vertex {} more than once", v + base)));
         }
     }
     Ok(())

@@ -27,9 +27,9 @@ use pd_mesh::Point;
 
 use crate::frames::{Cells, write_obj, write_vtk};
 use crate::ply::write_ply;
+use crate::scene::{FrameFormat, OutputSpec, Scene};
 use crate::strain::StrainMeasure;
 use crate::vtu::{PvdEntry, write_pvd, write_vtu};
-use crate::scene::{FrameFormat, OutputSpec, Scene};
 use crate::{Error, Result};
 
 /// Merged output topology of every body, in the global vertex numbering.

@@ -57,8 +57,7 @@ impl StrainMeasure {
                 let dm = Matrix2::new(e1.dot(&d1), e1.dot(&d2), e2.dot(&d1), e2.dot(&d2));
                 (
                     t,
-                    dm.try_inverse()
-                        .unwrap_or(Matrix2::from_element(f64::NAN)),
+                    dm.try_inverse().unwrap_or(Matrix2::from_element(f64::NAN)),
                 )
             })
             .collect();

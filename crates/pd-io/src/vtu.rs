@@ -84,7 +84,10 @@ pub fn write_vtu(
             ));
         }
         if let Some(cell) = strain.iter().position(|s| !s.is_finite()) {
-            return Err(content(path, format!("strain of cell {cell} is not finite")));
+            return Err(content(
+                path,
+                format!("strain of cell {cell} is not finite"),
+            ));
         }
     }
 
@@ -261,10 +264,7 @@ mod tests {
 
     #[test]
     fn attribute_text_is_escaped() {
-        assert_eq!(
-            escape(r#"a&b<c>"d'"#),
-            "a&amp;b&lt;c&gt;&quot;d&apos;"
-        );
+        assert_eq!(escape(r#"a&b<c>"d'"#), "a&amp;b&lt;c&gt;&quot;d&apos;");
         assert_eq!(escape("frames/frame_00001.vtu"), "frames/frame_00001.vtu");
     }
 }

@@ -93,8 +93,19 @@ fn edit() -> impl Strategy<Value = Edit> {
         (
             any::<usize>(),
             prop::sample::select(vec![
-                "-1", "0", "99999999999999999999", "1e308", "nan", "inf", "-0", "1.5", "",
-                "$EndNodes", "End", "f", "\n",
+                "-1",
+                "0",
+                "99999999999999999999",
+                "1e308",
+                "nan",
+                "inf",
+                "-0",
+                "1.5",
+                "",
+                "$EndNodes",
+                "End",
+                "f",
+                "\n",
             ])
         )
             .prop_map(|(at, token)| Edit::ReplaceToken { at, token }),

@@ -45,7 +45,11 @@ fn the_file_extension_chooses_the_reader() {
             "[]",
         );
         let scene = Scene::parse(&text, Syntax::Toml, Path::new("dir/s.toml")).unwrap();
-        assert_eq!(scene.bodies[0].mesh, source(Path::new("dir").join(file)), "{file}");
+        assert_eq!(
+            scene.bodies[0].mesh,
+            source(Path::new("dir").join(file)),
+            "{file}"
+        );
     }
     let text = scene_with(
         "{ file = \"m.stl\" }",
@@ -71,7 +75,12 @@ fn frame_formats_vtu_and_ply_are_accepted_and_others_named() {
     let scene = Scene::parse(&text, Syntax::Toml, Path::new("s.toml")).unwrap();
     assert_eq!(
         scene.output.formats,
-        [FrameFormat::Vtk, FrameFormat::Vtu, FrameFormat::Obj, FrameFormat::Ply]
+        [
+            FrameFormat::Vtk,
+            FrameFormat::Vtu,
+            FrameFormat::Obj,
+            FrameFormat::Ply
+        ]
     );
     let text = scene_with(
         "{ generator = \"chain\", points = 3, length = 1.0 }",
@@ -105,11 +114,21 @@ fn scenes_build_and_run_from_every_new_format() {
         let scene = Scene::parse(&text, Syntax::Toml, &formats.join("scene.toml")).unwrap();
         let mut sim = scene.build().unwrap_or_else(|e| panic!("{file}: {e}"));
         let mesh = sim.model().bodies()[0].mesh.clone();
-        assert_eq!((mesh.num_vertices(), mesh.num_elements()), (vertices, elements), "{file}");
+        assert_eq!(
+            (mesh.num_vertices(), mesh.num_elements()),
+            (vertices, elements),
+            "{file}"
+        );
         sim.run(scene.steps).unwrap();
         // Gravity pulls the free vertices down.
         let state = sim.state();
-        assert!(state.positions[1..].iter().zip(&mesh.vertices()[1..]).all(|(x, r)| x.y < r.y), "{file}");
+        assert!(
+            state.positions[1..]
+                .iter()
+                .zip(&mesh.vertices()[1..])
+                .all(|(x, r)| x.y < r.y),
+            "{file}"
+        );
     }
 }
 
@@ -126,8 +145,10 @@ fn a_bad_mesh_file_is_reported_with_its_line_when_building() {
     let err = scene.build().unwrap_err();
     assert!(matches!(&err, Error::Parse { line: 3, .. }), "{err}");
     assert!(
-        err.to_string()
-            .starts_with(&format!("{}:3: vertex index 3 is out of range", dir.join("bad.obj").display())),
+        err.to_string().starts_with(&format!(
+            "{}:3: vertex index 3 is out of range",
+            dir.join("bad.obj").display()
+        )),
         "{err}"
     );
 }

@@ -38,7 +38,10 @@ fn flatten(points: &[Point]) -> Vec<f64> {
 /// The attribute `name="..."` of an XML start tag.
 fn attribute<'a>(tag: &'a str, name: &str) -> &'a str {
     let key = format!(" {name}=\"");
-    let start = tag.find(&key).unwrap_or_else(|| panic!("no {name} in {tag}")) + key.len();
+    let start = tag
+        .find(&key)
+        .unwrap_or_else(|| panic!("no {name} in {tag}"))
+        + key.len();
     let end = tag[start..].find('"').unwrap() + start;
     &tag[start..end]
 }
@@ -63,7 +66,9 @@ fn numbers<T: std::str::FromStr>(text: &str) -> Vec<T>
 where
     T::Err: std::fmt::Debug,
 {
-    text.split_whitespace().map(|t| t.parse().unwrap()).collect()
+    text.split_whitespace()
+        .map(|t| t.parse().unwrap())
+        .collect()
 }
 
 #[test]
@@ -140,11 +145,20 @@ fn vtu_without_fields_has_no_data_sections_and_bad_input_is_refused() {
             None,
             None,
         ),
-        write_vtu(&refused, &[Point::new(f64::INFINITY, 0.0, 0.0)], &Cells::default(), None, None),
+        write_vtu(
+            &refused,
+            &[Point::new(f64::INFINITY, 0.0, 0.0)],
+            &Cells::default(),
+            None,
+            None,
+        ),
     ];
     for err in errors {
         let err = err.unwrap_err();
-        assert!(matches!(&err, Error::Content { path, .. } if *path == refused), "{err}");
+        assert!(
+            matches!(&err, Error::Content { path, .. } if *path == refused),
+            "{err}"
+        );
     }
     assert!(!refused.exists());
 }
@@ -165,14 +179,26 @@ fn pvd_lists_frames_with_their_times() {
     let datasets: Vec<(f64, String)> = xml
         .lines()
         .filter(|l| l.trim_start().starts_with("<DataSet"))
-        .map(|l| (attribute(l, "timestep").parse().unwrap(), attribute(l, "file").to_string()))
+        .map(|l| {
+            (
+                attribute(l, "timestep").parse().unwrap(),
+                attribute(l, "file").to_string(),
+            )
+        })
         .collect();
     assert_eq!(datasets.len(), 4);
     for (entry, (time, file)) in entries.iter().zip(&datasets) {
         assert_eq!(entry.time.to_bits(), time.to_bits());
         assert_eq!(&entry.file, file);
     }
-    let err = write_pvd(&path, &[PvdEntry { time: f64::NAN, file: "x".into() }]).unwrap_err();
+    let err = write_pvd(
+        &path,
+        &[PvdEntry {
+            time: f64::NAN,
+            file: "x".into(),
+        }],
+    )
+    .unwrap_err();
     assert!(matches!(err, Error::Content { .. }), "{err}");
 }
 
@@ -217,11 +243,13 @@ fn parse_ply(text: &str) -> Ply {
                     assert_eq!(properties, ["list uchar int vertex_indices"]);
                     let n: usize = fields[0].parse().unwrap();
                     assert_eq!(fields.len(), n + 1);
-                    ply.faces.push(fields[1..].iter().map(|f| f.parse().unwrap()).collect());
+                    ply.faces
+                        .push(fields[1..].iter().map(|f| f.parse().unwrap()).collect());
                 }
                 "edge" => {
                     assert_eq!(properties, ["int vertex1", "int vertex2"]);
-                    ply.edges.push([fields[0].parse().unwrap(), fields[1].parse().unwrap()]);
+                    ply.edges
+                        .push([fields[0].parse().unwrap(), fields[1].parse().unwrap()]);
                 }
                 other => panic!("unexpected element {other}"),
             }
@@ -285,7 +313,10 @@ fn strain_is_zero_for_rigid_motions_and_matches_closed_forms_for_stretches() {
     // Round-off only: entries of F are O(1) and computed with a few
     // operations each, so F^T F - I is within a few ulps (2.2e-16) of 0.
     for (cell, s) in out.iter().enumerate() {
-        assert!(s.abs() < 1e-14, "cell {cell}: strain {s} under a rigid motion");
+        assert!(
+            s.abs() < 1e-14,
+            "cell {cell}: strain {s} under a rigid motion"
+        );
     }
 
     // Uniaxial stretch by l along x: Green strain E = diag((l^2 - 1) / 2, 0, 0).
@@ -295,7 +326,11 @@ fn strain_is_zero_for_rigid_motions_and_matches_closed_forms_for_stretches() {
     let green = (l * l - 1.0) / 2.0;
     // Tolerance: a few ulps of the O(1) result.
     assert!((out[0] - green).abs() < 1e-14, "tet {} vs {green}", out[0]);
-    assert!((out[1] - green).abs() < 1e-14, "triangle {} vs {green}", out[1]);
+    assert!(
+        (out[1] - green).abs() < 1e-14,
+        "triangle {} vs {green}",
+        out[1]
+    );
     // Springs: edge 0-1 along x stretches by l; edge 2-3 is unchanged.
     assert!((out[2] - (l - 1.0)).abs() < 1e-14, "spring {}", out[2]);
     assert!(out[3].abs() < 1e-15, "spring {}", out[3]);
@@ -355,7 +390,12 @@ fn a_recorded_run_writes_a_pvd_series_and_frames_matching_the_state() {
     let datasets: Vec<(f64, String)> = pvd
         .lines()
         .filter(|l| l.trim_start().starts_with("<DataSet"))
-        .map(|l| (attribute(l, "timestep").parse().unwrap(), attribute(l, "file").to_string()))
+        .map(|l| {
+            (
+                attribute(l, "timestep").parse().unwrap(),
+                attribute(l, "file").to_string(),
+            )
+        })
         .collect();
     assert_eq!(datasets.len(), 3);
     for (k, (time, file)) in datasets.iter().enumerate() {
@@ -368,13 +408,22 @@ fn a_recorded_run_writes_a_pvd_series_and_frames_matching_the_state() {
     // The last frame holds the final state, bit for bit.
     let state = sim.state();
     let xml = std::fs::read_to_string(dir.join("frames/frame_00002.vtu")).unwrap();
-    same_bits(&numbers(data_array(&xml, "Points").unwrap().1), &flatten(&state.positions));
-    same_bits(&numbers(data_array(&xml, "velocity").unwrap().1), &flatten(&state.velocities));
+    same_bits(
+        &numbers(data_array(&xml, "Points").unwrap().1),
+        &flatten(&state.positions),
+    );
+    same_bits(
+        &numbers(data_array(&xml, "velocity").unwrap().1),
+        &flatten(&state.velocities),
+    );
     // One strain value per cell: 18 tets and 2 chain edges; the box bends
     // under gravity, so its strain is positive, and finite everywhere.
     let strain: Vec<f64> = numbers(data_array(&xml, "strain").unwrap().1);
     assert_eq!(strain.len(), 18 + 2);
-    assert!(strain[..18].iter().all(|s| s.is_finite() && *s > 0.0), "{strain:?}");
+    assert!(
+        strain[..18].iter().all(|s| s.is_finite() && *s > 0.0),
+        "{strain:?}"
+    );
     // Frame 0 is the rest state: zero strain up to round-off (D_m^{-1}
     // rounds, so D_m D_m^{-1} is I within a few ulps of O(1) entries).
     let xml0 = std::fs::read_to_string(dir.join("frames/frame_00000.vtu")).unwrap();
@@ -383,7 +432,10 @@ fn a_recorded_run_writes_a_pvd_series_and_frames_matching_the_state() {
 
     let ply = parse_ply(&std::fs::read_to_string(dir.join("frames/frame_00002.ply")).unwrap());
     same_bits(&flatten(&ply.vertices), &flatten(&state.positions));
-    assert_eq!(ply.faces.len(), sim.model().bodies()[0].mesh.surface_triangles().len());
+    assert_eq!(
+        ply.faces.len(),
+        sim.model().bodies()[0].mesh.surface_triangles().len()
+    );
     // The box has 4 x 2 x 2 = 16 vertices; the chain follows.
     assert_eq!(ply.edges, [[16, 17], [17, 18]]);
 }
