@@ -20,7 +20,7 @@
 //! one (`Dimension 3` or `Dimension` / `3`); each record (vertex, element)
 //! must be on one line. `#` starts a comment. Version 1 to 4 are accepted
 //! (they differ only in the binary form). `Edges`, `Corners`, `Ridges`,
-//! `Required...`, `Normals`, `Tangents` and their `...AtVertices` tables
+//! `Required...`, `Normals`, `Tangents`, their `...AtVertices` tables and `TangentAtEdges`
 //! are checked for their field count and skipped. Other element kinds
 //! (`Quadrilaterals`, `Hexahedra`, `Prisms`, ...) and unknown keywords are
 //! errors; binary `.meshb` files are not read. Reading stops at `End` (or at
@@ -28,10 +28,11 @@
 //!
 //! With tetrahedra, the mesh is made of them (triangles are checked and
 //! dropped); otherwise of the triangles. Vertex `i` of the mesh is vertex
-//! `i + 1` of the file. Tetrahedra must be positively oriented (the
-//! convention of [`pd_mesh::Mesh`], which TetGen and mmg follow); a flat or
-//! inverted one is an error naming its line and its index (from 0, in file
-//! order).
+//! `i + 1` of the file. Tetrahedra are taken in the file's vertex order and
+//! must be positively oriented (the convention of [`pd_mesh::Mesh`]); they
+//! are not reoriented, so a flat or inverted one (or a file written with
+//! the opposite convention) is an error naming its line and its index
+//! (from 0, in file order).
 
 use std::path::Path;
 
@@ -230,7 +231,7 @@ fn skipped_layout(keyword: &str) -> Option<usize> {
         "Corners" | "Ridges" | "RequiredVertices" | "RequiredEdges" | "RequiredTriangles"
         | "RequiredTetrahedra" => 1,
         "Normals" | "Tangents" => 3,
-        "NormalAtVertices" | "TangentAtVertices" => 2,
+        "NormalAtVertices" | "TangentAtVertices" | "TangentAtEdges" => 2,
         "NormalAtTriangleVertices" => 3,
         _ => return None,
     })
