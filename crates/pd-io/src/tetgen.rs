@@ -1,4 +1,5 @@
-//! Reader and writer for TetGen's `.node` / `.ele` tetrahedral meshes.
+//! Reader and writer for TetGen's `.node` / `.ele` tetrahedral meshes, and a
+//! reader for its `.face` surfaces ([`read_tetgen_surface`]).
 //!
 //! The format, as TetGen 1.5 writes it and as this module reads it:
 //!
