@@ -2,7 +2,8 @@
 //! ParaView collection file (`.pvd`) that lists the frames with their times,
 //! so that ParaView opens a run as one animated data set.
 //!
-//! The files are ASCII XML (no compression, no base64), with `Float64`
+//! The files are ASCII XML (no compression, no base64; data values one
+//! tuple per line, unindented), with `Float64`
 //! points and fields written so that they read back to the same bits, and
 //! are replaced atomically like every file of this crate (see
 //! [`crate::frames`]). Written by hand: no XML dependency.
@@ -115,7 +116,7 @@ pub fn write_vtu(
                 r#"        <DataArray type="Float64" Name="strain" format="ascii">"#
             )?;
             for s in strain {
-                writeln!(w, "          {}", Float(*s))?;
+                writeln!(w, "{}", Float(*s))?;
             }
             writeln!(w, "        </DataArray>")?;
             writeln!(w, "      </CellData>")?;
@@ -144,7 +145,7 @@ pub fn write_vtu(
         ] {
             for _ in 0..count {
                 offset += size;
-                writeln!(w, "          {offset}")?;
+                writeln!(w, "{offset}")?;
             }
         }
         writeln!(w, "        </DataArray>")?;
@@ -158,7 +159,7 @@ pub fn write_vtu(
             (cells.lines.len(), VTK_LINE),
         ] {
             for _ in 0..count {
-                writeln!(w, "          {cell_type}")?;
+                writeln!(w, "{cell_type}")?;
             }
         }
         writeln!(w, "        </DataArray>")?;
@@ -242,15 +243,18 @@ fn vectors(w: &mut impl Write, name: &str, values: &[Point]) -> io::Result<()> {
         r#"        <DataArray type="Float64" Name="{name}" NumberOfComponents="3" format="ascii">"#
     )?;
     for v in values {
-        writeln!(w, "          {} {} {}", Float(v.x), Float(v.y), Float(v.z))?;
+        writeln!(w, "{} {} {}", Float(v.x), Float(v.y), Float(v.z))?;
     }
     writeln!(w, "        </DataArray>")
 }
 
 fn connectivity<const K: usize>(w: &mut impl Write, cells: &[[usize; K]]) -> io::Result<()> {
     for cell in cells {
-        write!(w, "         ")?;
-        for index in cell {
+        let [first, rest @ ..] = cell.as_slice() else {
+            continue;
+        };
+        write!(w, "{first}")?;
+        for index in rest {
             write!(w, " {index}")?;
         }
         writeln!(w)?;
