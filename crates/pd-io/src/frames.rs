@@ -257,7 +257,7 @@ fn write_vtk_cells<const K: usize>(w: &mut impl Write, cells: &[[usize; K]]) -> 
 
 /// Rejects non-finite vectors: readers of VTK and OBJ do not agree on how to
 /// spell NaN or infinity, so such a file would not load.
-fn check_points(path: &Path, what: &str, points: &[Point]) -> Result<()> {
+pub(crate) fn check_points(path: &Path, what: &str, points: &[Point]) -> Result<()> {
     match points.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
         Some(vertex) => Err(Error::Content {
             path: path.to_path_buf(),
@@ -267,7 +267,7 @@ fn check_points(path: &Path, what: &str, points: &[Point]) -> Result<()> {
     }
 }
 
-fn check_cells<const K: usize>(
+pub(crate) fn check_cells<const K: usize>(
     path: &Path,
     kind: &str,
     cells: &[[usize; K]],

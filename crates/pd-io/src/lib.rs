@@ -1,7 +1,12 @@
 //! Files in and out of the pd simulator: scene files (TOML or JSON, the same
-//! structure), TetGen meshes, frame files (legacy VTK, OBJ), initial-state
-//! files, and the run recorder that writes `metrics.csv`, `probes.csv`,
-//! `summary.json` and frames.
+//! structure), meshes (TetGen `.node`/`.ele`/`.face`, Gmsh `.msh` 4.1,
+//! Wavefront OBJ, Medit `.mesh`), frame files (legacy VTK, VTK XML `.vtu`
+//! with a `.pvd` series, OBJ, PLY), initial-state files, and the run
+//! recorder that writes `metrics.csv`, `probes.csv`, `summary.json` and
+//! frames.
+//!
+//! Every reader and writer is hand-written, with no dependency beyond the
+//! workspace's (so none needs a cargo feature).
 //!
 //! Readers never panic on malformed input: every error names the file and
 //! the line or field. Writers write atomically (a temporary file, then a
@@ -35,9 +40,16 @@
 pub mod checkpoint;
 mod error;
 pub mod frames;
+pub mod gmsh;
+pub mod medit;
+pub mod obj;
+pub mod ply;
+mod readers;
 pub mod recorder;
 pub mod scene;
 pub mod state;
+pub mod strain;
 pub mod tetgen;
+pub mod vtu;
 
 pub use error::{Error, Result};

@@ -6,8 +6,10 @@
 //!   origin in kg m^2/s, times in ms);
 //! - `probes.csv`: `step,time` and `x_I,y_I,z_I,vx_I,vy_I,vz_I` per probed
 //!   vertex `I`, every step;
-//! - `frames/frame_NNNNN.vtk` / `.obj` every `output.every` steps (frame 0 is
-//!   the initial state);
+//! - `frames/frame_NNNNN.vtk` / `.vtu` / `.obj` / `.ply` every `output.every`
+//!   steps (frame 0 is the initial state), and with `.vtu` frames the series
+//!   `frames.pvd` (rewritten atomically after each frame) that ParaView
+//!   opens as an animation;
 //! - `summary.json`: sizes, timings (medians), and how the run ended;
 //! - `final_state.json`: the last state, an initial-state file another scene
 //!   can start from (`initial_state = ".../final_state.json"`).
@@ -23,8 +25,13 @@ use std::path::{Path, PathBuf};
 
 use pd_solver::{Simulation, StepStats};
 
+use pd_mesh::Point;
+
 use crate::frames::{Cells, write_obj, write_vtk};
+use crate::ply::write_ply;
 use crate::scene::{FrameFormat, OutputSpec, Scene};
+use crate::strain::StrainMeasure;
+use crate::vtu::{PvdEntry, write_pvd, write_vtu};
 use crate::{Error, Result};
 
 /// Merged output topology of every body, in the global vertex numbering.
@@ -37,6 +44,8 @@ struct Topology {
     surface_cells: Vec<[usize; 3]>,
     /// Edges of bodies that have neither tets nor triangles (chains).
     lines: Vec<[usize; 2]>,
+    /// Rest positions of every vertex (the meshes, translated), for strain.
+    rest: Vec<Point>,
 }
 
 impl Topology {
@@ -45,6 +54,10 @@ impl Topology {
         for body in sim.model().bodies() {
             let o = body.offset;
             let mesh = &body.mesh;
+            if t.rest.len() < o + mesh.num_vertices() {
+                t.rest.resize(o + mesh.num_vertices(), Point::zeros());
+            }
+            t.rest[o..o + mesh.num_vertices()].copy_from_slice(mesh.vertices());
             t.tets.extend(mesh.tets().iter().map(|e| e.map(|v| v + o)));
             t.surface
                 .extend(mesh.surface_triangles().iter().map(|e| e.map(|v| v + o)));
@@ -58,6 +71,16 @@ impl Topology {
             }
         }
         t
+    }
+
+    /// The cells of a volume frame (VTK, VTU): tetrahedra, the triangles of
+    /// cloth, the edges of chains.
+    fn vtk_cells(&self) -> Cells<'_> {
+        Cells {
+            tets: &self.tets,
+            triangles: &self.surface_cells,
+            lines: &self.lines,
+        }
     }
 }
 
@@ -83,6 +106,12 @@ pub struct Recorder {
     local_ms: Vec<f64>,
     global_ms: Vec<f64>,
     frames: usize,
+    /// Strain of the VTU cells, prepared when `.vtu` frames are written.
+    strain: Option<StrainMeasure>,
+    /// Scratch for one frame's strain values.
+    strain_values: Vec<f64>,
+    /// The `.vtu` frames written so far, for `frames.pvd`.
+    pvd: Vec<PvdEntry>,
 }
 
 impl Recorder {
@@ -116,10 +145,16 @@ impl Recorder {
             writeln!(file, "{header}").map_err(|e| Error::io(&path, e))?;
             Some((file, path))
         };
+        let topology = Topology::of(sim);
+        let strain = scene
+            .output
+            .formats
+            .contains(&FrameFormat::Vtu)
+            .then(|| StrainMeasure::new(&topology.rest, &topology.vtk_cells()));
         let mut recorder = Self {
             dir: dir.to_path_buf(),
             output: scene.output.clone(),
-            topology: Topology::of(sim),
+            topology,
             metrics,
             metrics_path,
             probes,
@@ -127,6 +162,9 @@ impl Recorder {
             local_ms: Vec::new(),
             global_ms: Vec::new(),
             frames: 0,
+            strain,
+            strain_values: Vec::new(),
+            pvd: Vec::new(),
         };
         recorder.write_rows(sim, None)?;
         if recorder.output.every > 0 {
@@ -272,17 +310,40 @@ impl Recorder {
         for format in &self.output.formats {
             match format {
                 FrameFormat::Vtk => {
-                    let cells = Cells {
-                        tets: &t.tets,
-                        triangles: &t.surface_cells,
-                        lines: &t.lines,
-                    };
                     let path = self.frame_path("vtk");
-                    write_vtk(&path, &state.positions, &cells, Some(&state.velocities))?;
+                    write_vtk(
+                        &path,
+                        &state.positions,
+                        &t.vtk_cells(),
+                        Some(&state.velocities),
+                    )?;
                 }
                 FrameFormat::Obj => {
                     let path = self.frame_path("obj");
                     write_obj(&path, &state.positions, &t.surface, &t.lines)?;
+                }
+                FrameFormat::Vtu => {
+                    let path = self.frame_path("vtu");
+                    let strain = self
+                        .strain
+                        .get_or_insert_with(|| StrainMeasure::new(&t.rest, &t.vtk_cells()));
+                    strain.measure_into(&state.positions, &mut self.strain_values);
+                    write_vtu(
+                        &path,
+                        &state.positions,
+                        &t.vtk_cells(),
+                        Some(&state.velocities),
+                        Some(&self.strain_values),
+                    )?;
+                    self.pvd.push(PvdEntry {
+                        time: sim.time(),
+                        file: format!("frames/frame_{:05}.vtu", self.frames),
+                    });
+                    write_pvd(&self.dir.join("frames.pvd"), &self.pvd)?;
+                }
+                FrameFormat::Ply => {
+                    let path = self.frame_path("ply");
+                    write_ply(&path, &state.positions, &t.surface, &t.lines)?;
                 }
             }
         }

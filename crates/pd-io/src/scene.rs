@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::{Error, Result, state, tetgen};
+use crate::{Error, Result, gmsh, medit, obj, state, tetgen};
 use pd_damping::{Damping, EtherDrag, LaplacianDamping, NoDamping, PbdDamping, RayleighLagged};
 use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
 use pd_mesh::{Mesh, Point, VertexSelection, generators};
@@ -269,6 +269,15 @@ pub enum MeshSource {
     /// `file = "..."`: a TetGen `.node`/`.ele` pair (path resolved against the
     /// scene file's folder).
     TetGen(PathBuf),
+    /// `file = "....face"`: a TetGen `.node`/`.face` pair read as a triangle
+    /// surface (cloth).
+    TetGenSurface(PathBuf),
+    /// `file = "....msh"`: a Gmsh 4.1 ASCII mesh (tetrahedra, else triangles).
+    Gmsh(PathBuf),
+    /// `file = "....obj"`: a Wavefront OBJ surface (faces) or line network.
+    Obj(PathBuf),
+    /// `file = "....mesh"`: a Medit mesh (tetrahedra, else triangles).
+    Medit(PathBuf),
 }
 
 /// How a body's masses are given.
@@ -337,6 +346,11 @@ pub enum FrameFormat {
     Vtk,
     /// Wavefront OBJ surface (`.obj`), for Blender.
     Obj,
+    /// VTK XML unstructured grid (`.vtu`) with velocity and strain fields,
+    /// plus the `frames.pvd` series, for ParaView.
+    Vtu,
+    /// PLY surface (`.ply`), for Blender, Houdini and MeshLab.
+    Ply,
 }
 
 /// The `[output]` section.
@@ -541,6 +555,10 @@ impl Scene {
             MeshSource::Chain { points, length } => generators::chain(*points, *length),
             MeshSource::Cloth { size, cells } => generators::cloth(*size, *cells),
             MeshSource::TetGen(path) => return tetgen::read_tetgen_base(path),
+            MeshSource::TetGenSurface(path) => return tetgen::read_tetgen_surface_base(path),
+            MeshSource::Gmsh(path) => return gmsh::read_gmsh(path),
+            MeshSource::Obj(path) => return obj::read_obj(path),
+            MeshSource::Medit(path) => return medit::read_medit(path),
         };
         generated.map_err(|e| self.field_error(field.to_string(), e))
     }
@@ -725,9 +743,13 @@ impl Validator<'_> {
                     .map(|(i, f)| match f.as_str() {
                         "vtk" => Ok(FrameFormat::Vtk),
                         "obj" => Ok(FrameFormat::Obj),
+                        "vtu" => Ok(FrameFormat::Vtu),
+                        "ply" => Ok(FrameFormat::Ply),
                         other => Err(self.error(
                             format!("output.formats[{i}]"),
-                            format!("unknown format \"{other}\"; expected \"vtk\" or \"obj\""),
+                            format!(
+                                "unknown format \"{other}\"; expected \"vtk\", \"vtu\", \"obj\" or \"ply\""
+                            ),
                         )),
                     })
                     .collect::<Result<Vec<_>>>()?,
@@ -923,10 +945,15 @@ impl Validator<'_> {
                     Some(e) if e.bytes().all(|b| b.is_ascii_digit()) => {
                         Ok(MeshSource::TetGen(path))
                     }
+                    Some("face") => Ok(MeshSource::TetGenSurface(path)),
+                    Some(e) if e.eq_ignore_ascii_case("msh") => Ok(MeshSource::Gmsh(path)),
+                    Some(e) if e.eq_ignore_ascii_case("obj") => Ok(MeshSource::Obj(path)),
+                    Some(e) if e.eq_ignore_ascii_case("mesh") => Ok(MeshSource::Medit(path)),
                     Some(other) => Err(self.error(
                         sub("file"),
                         format!(
-                            "unsupported mesh format \".{other}\"; supported: TetGen .node/.ele"
+                            "unsupported mesh format \".{other}\"; supported: TetGen .node/.ele \
+                             (or .face for a surface), Gmsh .msh, Wavefront .obj, Medit .mesh"
                         ),
                     )),
                 }

@@ -1,4 +1,5 @@
-//! Reader and writer for TetGen's `.node` / `.ele` tetrahedral meshes.
+//! Reader and writer for TetGen's `.node` / `.ele` tetrahedral meshes, and a
+//! reader for its `.face` surfaces ([`read_tetgen_surface`]).
 //!
 //! The format, as TetGen 1.5 writes it and as this module reads it:
 //!
@@ -116,6 +117,96 @@ pub fn write_tetgen(base: &Path, mesh: &Mesh) -> Result<()> {
         }
         Ok(())
     })
+}
+
+/// Reads a triangle surface from a TetGen `.node` file and its `.face` file
+/// (what `tetgen -f` writes: the boundary faces, or all faces), as a
+/// [`Mesh`] of triangles: a cloth or a spring network over its edges.
+///
+/// The `.face` format: a header `<#faces> <#boundary markers = 0 | 1>`, then
+/// `<index> <n0> <n1> <n2> [boundary marker]` per face, with the same
+/// comment, blank-line and index-base rules as the `.ele` file. The
+/// triangles keep the file's vertex order. Every node of the `.node` file
+/// becomes a vertex, used by a face or not (a vertex no triangle touches
+/// gets mass 0 from a density, which the solver rejects unless it is fixed).
+///
+/// # Errors
+/// - [`Error::Io`] if a file cannot be read;
+/// - [`Error::Parse`], naming the file and line, for the same faults as
+///   [`read_tetgen`] (header, fields, numbers, index sequence, a node that
+///   does not exist, a wrong count of lines) and for a face that repeats a
+///   node or has zero area (the message names the face by its file index).
+pub fn read_tetgen_surface(node: &Path, face: &Path) -> Result<Mesh> {
+    let nodes = read_nodes(node)?;
+    let text = read_text(face)?;
+    let mut lines = DataLines::new(face, &text);
+    let header = lines.header("<#faces> <#boundary markers>", 2)?;
+    let num_faces = header.unsigned(0, "number of faces")?;
+    let num_markers = header.unsigned(1, "number of boundary markers")?;
+    if num_markers > 1 {
+        return Err(header.error(format!(
+            "the number of boundary markers must be 0 or 1, found {num_markers}"
+        )));
+    }
+    if num_faces == 0 {
+        return Err(header.error("the header declares no faces".into()));
+    }
+    let num_points = nodes.points.len();
+    let first_node = nodes.first_index;
+    let layout = if num_markers == 1 {
+        "index, 3 nodes, boundary marker"
+    } else {
+        "index, 3 nodes"
+    };
+    let mut triangles = Vec::with_capacity(num_faces.min(1 << 20));
+    let mut face_lines = Vec::with_capacity(num_faces.min(1 << 20));
+    let mut first_index = 0;
+    for position in 0..num_faces {
+        let line = lines.data_line(header.line, position, num_faces, "face")?;
+        line.expect_fields(4 + num_markers, layout)?;
+        let index = line.sequence_index(position, &mut first_index, "face")?;
+        let mut triangle = [0; 3];
+        for (corner, vertex) in triangle.iter_mut().enumerate() {
+            let node_index = line.unsigned(1 + corner, "node index")?;
+            *vertex = node_index
+                .checked_sub(first_node)
+                .filter(|&v| v < num_points)
+                .ok_or_else(|| {
+                    line.error(format!(
+                        "face {index} refers to node {node_index}, but {} has {num_points} \
+                         nodes numbered {first_node} to {}",
+                        node.display(),
+                        first_node + num_points - 1
+                    ))
+                })?;
+        }
+        if num_markers == 1 {
+            line.signed(4, "boundary marker")?;
+        }
+        crate::readers::check_distinct(&line, &triangle, &format!("face {index}"), first_node)?;
+        triangles.push(triangle);
+        face_lines.push(line.line);
+    }
+    lines.expect_end(header.line, num_faces, "faces")?;
+    crate::readers::build_mesh(face, nodes.points, Vec::new(), triangles, None, &face_lines)
+}
+
+/// Reads `BASE.node` and `BASE.face` with [`read_tetgen_surface`]; `base`
+/// may end in `.node` or `.face`, or in neither (TetGen's `bar.1`).
+///
+/// # Errors
+/// As [`read_tetgen_surface`].
+pub fn read_tetgen_surface_base(base: &Path) -> Result<Mesh> {
+    let stem = match base.extension().and_then(|e| e.to_str()) {
+        Some("node" | "face") => base.with_extension(""),
+        _ => base.to_path_buf(),
+    };
+    let with_suffix = |suffix: &str| {
+        let mut name = OsString::from(stem.as_os_str());
+        name.push(suffix);
+        PathBuf::from(name)
+    };
+    read_tetgen_surface(&with_suffix(".node"), &with_suffix(".face"))
 }
 
 /// `(BASE.node, BASE.ele)` for a base with or without one of the two
@@ -287,7 +378,7 @@ fn read_elements(path: &Path, node_path: &Path, nodes: &Nodes) -> Result<Vec<[us
 }
 
 /// Reads a whole file as UTF-8, reporting invalid bytes at their line.
-fn read_text(path: &Path) -> Result<String> {
+pub(crate) fn read_text(path: &Path) -> Result<String> {
     let bytes = std::fs::read(path).map_err(|source| Error::io(path, source))?;
     String::from_utf8(bytes).map_err(|err| {
         let valid = &err.as_bytes()[..err.utf8_error().valid_up_to()];
@@ -300,7 +391,7 @@ fn read_text(path: &Path) -> Result<String> {
 }
 
 /// The non-blank lines of a file, comments stripped, split into fields.
-struct DataLines<'a> {
+pub(crate) struct DataLines<'a> {
     path: &'a Path,
     lines: std::iter::Enumerate<std::str::Lines<'a>>,
     /// Number of the last line of the file (1 for an empty file), where a
@@ -309,14 +400,14 @@ struct DataLines<'a> {
 }
 
 /// One non-blank line: its 1-based number and its fields.
-struct Line<'a> {
+pub(crate) struct Line<'a> {
     path: &'a Path,
-    line: usize,
-    fields: Vec<&'a str>,
+    pub(crate) line: usize,
+    pub(crate) fields: Vec<&'a str>,
 }
 
 impl<'a> DataLines<'a> {
-    fn new(path: &'a Path, text: &'a str) -> Self {
+    pub(crate) fn new(path: &'a Path, text: &'a str) -> Self {
         Self {
             path,
             lines: text.lines().enumerate(),
@@ -324,7 +415,7 @@ impl<'a> DataLines<'a> {
         }
     }
 
-    fn next_line(&mut self) -> Option<Line<'a>> {
+    pub(crate) fn next_line(&mut self) -> Option<Line<'a>> {
         for (number, text) in self.lines.by_ref() {
             let data = text.split_once('#').map_or(text, |(data, _comment)| data);
             let fields: Vec<&str> = data.split_whitespace().collect();
@@ -339,7 +430,7 @@ impl<'a> DataLines<'a> {
         None
     }
 
-    fn error_at_end(&self, message: String) -> Error {
+    pub(crate) fn error_at_end(&self, message: String) -> Error {
         Error::Parse {
             path: self.path.to_path_buf(),
             line: self.last_line,
@@ -391,7 +482,7 @@ impl<'a> DataLines<'a> {
 }
 
 impl Line<'_> {
-    fn error(&self, message: String) -> Error {
+    pub(crate) fn error(&self, message: String) -> Error {
         Error::Parse {
             path: self.path.to_path_buf(),
             line: self.line,
@@ -399,7 +490,7 @@ impl Line<'_> {
         }
     }
 
-    fn expect_fields(&self, count: usize, layout: &str) -> Result<()> {
+    pub(crate) fn expect_fields(&self, count: usize, layout: &str) -> Result<()> {
         if self.fields.len() == count {
             Ok(())
         } else {
@@ -439,7 +530,7 @@ impl Line<'_> {
 
     /// Field `index` as a count or an index. Integers must be written as
     /// integers (`3`, not `3.0`), as TetGen writes them.
-    fn unsigned(&self, index: usize, what: &str) -> Result<usize> {
+    pub(crate) fn unsigned(&self, index: usize, what: &str) -> Result<usize> {
         let value = self.parse(index, what, "a non-negative integer");
         let text = self.text(index);
         if value.is_err() && !text.is_empty() && text.bytes().all(|b| b.is_ascii_digit()) {
@@ -449,18 +540,18 @@ impl Line<'_> {
     }
 
     /// Field `index` as a signed integer (boundary markers may be negative).
-    fn signed(&self, index: usize, what: &str) -> Result<i64> {
+    pub(crate) fn signed(&self, index: usize, what: &str) -> Result<i64> {
         self.parse(index, what, "an integer")
     }
 
     /// Field `index` as a number; `inf` and `nan` parse, so callers that
     /// need finite values check them.
-    fn number(&self, index: usize, what: &str) -> Result<f64> {
+    pub(crate) fn number(&self, index: usize, what: &str) -> Result<f64> {
         self.parse(index, what, "a number")
     }
 
     /// The text of field `index`, empty if there is no such field.
-    fn text(&self, index: usize) -> &str {
+    pub(crate) fn text(&self, index: usize) -> &str {
         self.fields.get(index).copied().unwrap_or_default()
     }
 

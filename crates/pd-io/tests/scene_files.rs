@@ -232,12 +232,27 @@ fn documented_examples() -> Vec<(Syntax, String)> {
 #[test]
 fn the_examples_of_the_format_reference_parse_build_and_run() {
     let examples = documented_examples();
-    assert_eq!(examples.len(), 3, "TOML, JSON and the multi-body TOML");
+    assert_eq!(
+        examples.len(),
+        4,
+        "TOML, JSON, the multi-body TOML and the mesh-files TOML"
+    );
+    let bundled_meshes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/meshes");
     for (index, (syntax, text)) in examples.iter().enumerate() {
         // Beside this test's fixtures, so that `state.json` resolves; the
         // TetGen example's mesh is stood in for by the fixture mesh.
         let source = fixtures().join(format!("documented_example_{index}"));
         let text = text.replace("meshes/bar.1.node", "meshes/two_tets.1.node");
+        // The mesh-files example uses the bundled scenes' meshes.
+        let text = text
+            .replace(
+                "meshes/beam.msh",
+                &bundled_meshes.join("beam.msh").display().to_string(),
+            )
+            .replace(
+                "meshes/cloth.obj",
+                &bundled_meshes.join("cloth.obj").display().to_string(),
+            );
         let scene = Scene::parse(&text, *syntax, &source)
             .unwrap_or_else(|e| panic!("example {index}: {e}"));
         let mut sim = scene
