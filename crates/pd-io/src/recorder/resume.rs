@@ -8,7 +8,8 @@ use pd_solver::Simulation;
 
 use super::{Recorder, Topology};
 use crate::frames::write_atomically;
-use crate::scene::Scene;
+use crate::scene::{FrameFormat, Scene};
+use crate::vtu::{PvdEntry, write_pvd};
 use crate::{Error, Result};
 
 impl Recorder {
@@ -29,6 +30,20 @@ impl Recorder {
         let mut step_ms = Vec::new();
         let mut local_ms = Vec::new();
         let mut global_ms = Vec::new();
+        // Simulated time of every kept step (column 2, written with `{}` so
+        // it parses back exactly), for rebuilding `frames.pvd`.
+        let mut times = Vec::new();
+        for (row, line) in kept.lines().skip(1).enumerate() {
+            let time = line
+                .split(',')
+                .nth(1)
+                .and_then(|f| f.parse::<f64>().ok())
+                .ok_or_else(|| Error::Content {
+                    path: metrics_path.clone(),
+                    message: format!("row {row} has no time in column 2"),
+                })?;
+            times.push(time);
+        }
         // Rows after row 0 carry the timings of their step (columns 13-15).
         for (row, line) in kept.lines().skip(2).enumerate() {
             let fields: Vec<&str> = line.split(',').collect();
@@ -61,10 +76,27 @@ impl Recorder {
             }
             None => 0,
         };
+        // The `.vtu` series so far: frame i is step i * every.
+        let pvd: Vec<PvdEntry> = if scene.output.formats.contains(&FrameFormat::Vtu) {
+            (0..frames)
+                .map(|i| PvdEntry {
+                    time: times[i * scene.output.every],
+                    file: format!("frames/frame_{i:05}.vtu"),
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        if !pvd.is_empty() {
+            write_pvd(&dir.join("frames.pvd"), &pvd)?;
+        }
         Ok(Self {
             dir: dir.to_path_buf(),
             output: scene.output.clone(),
             topology: Topology::of(sim),
+            strain: None,
+            strain_values: Vec::new(),
+            pvd,
             metrics,
             metrics_path,
             probes,
