@@ -173,6 +173,27 @@ impl GlobalSystem {
         Ok((self.cache.len() - 1, true))
     }
 
+    /// Recomputes the numeric factorisation for `coefficients` into its
+    /// cache slot (factorising into a new slot on a cache miss). The values
+    /// are the same, so the cached factor stays valid bit for bit; used to
+    /// time a numeric factorisation on its own (`Simulation::profile_factorise`).
+    pub fn refactorise_cached(
+        &mut self,
+        coefficients: MatrixCoefficients,
+    ) -> Result<(), SolverError> {
+        let (index, factorised) = self.prepare_factor(coefficients)?;
+        if factorised {
+            return Ok(());
+        }
+        combine(
+            &mut self.values,
+            coefficients,
+            [&self.mass_part, &self.system_part, &self.damping_part],
+        );
+        let (_, factor) = &mut self.cache[index];
+        self.symbolic.refactorise(&self.values, factor)
+    }
+
     /// The global matrix for `coefficients` (free vertices, full symmetric).
     pub fn matrix(&self, coefficients: MatrixCoefficients) -> CsrMatrix {
         let mut values = vec![0.0; self.pattern.row_idx.len()];

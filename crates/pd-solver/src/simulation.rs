@@ -17,6 +17,11 @@ use crate::lagged::LaggedSystem;
 use crate::local::LocalStep;
 use crate::{Model, Settings, SolverError};
 
+// Phase-by-phase hooks for benchmarks; a child module so it can reach the
+// step's buffers without widening their visibility.
+#[path = "phases.rs"]
+mod phases;
+
 /// Positions (m) and velocities (m/s) of every vertex, global numbering.
 #[derive(Debug, Clone, PartialEq)]
 pub struct State {
