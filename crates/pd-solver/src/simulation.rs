@@ -196,7 +196,12 @@ impl Simulation {
         };
         let analysis_start = Instant::now();
         let local = LocalStep::new(model.constraint_blocks());
-        let global = GlobalSystem::new(&local, model.masses(), model.fixed())?;
+        let global = GlobalSystem::new(
+            &local,
+            model.masses(),
+            model.fixed(),
+            model.rest_positions(),
+        )?;
         let lagged = if d.is_lagged() {
             Some(LaggedSystem::new(&global, local.blocks())?)
         } else {
