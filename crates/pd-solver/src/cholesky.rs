@@ -337,7 +337,15 @@ mod tests {
                 }
             }
         }
-        (LowerPattern { n, col_ptr, row_idx }, values, coordinates)
+        (
+            LowerPattern {
+                n,
+                col_ptr,
+                row_idx,
+            },
+            values,
+            coordinates,
+        )
     }
 
     #[test]
