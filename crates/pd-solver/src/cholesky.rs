@@ -1,5 +1,5 @@
 //! Sparse Cholesky factorisation of the global matrix with faer: symbolic
-//! analysis (AMD ordering) once per sparsity pattern, numeric factorisation
+//! analysis (AMD or nested dissection, whichever fills less) once per sparsity pattern, numeric factorisation
 //! into a preallocated buffer, and in-place solves with a 3-column
 //! right-hand side.
 
