@@ -1,1 +1,272 @@
-//! Benchmarks live in `benches/`.
+//! Shared set-up of the benchmarks (`benches/*.rs`, run with `cargo bench
+//! -p pd-benches`) and of the `pd-probe` measurement binary that
+//! `cargo xtask bench-report` and `cargo xtask cpp-compare` run.
+//!
+//! The benchmark scene is a box cantilever `1 x 0.2 x 0.2` m, corotational
+//! strain (stiffness 1e5 Pa), density 1000 kg/m^3, gravity, clamped at
+//! `x = 0`, meshed by [`pd_mesh::generators::box_tets`] (the same Kuhn split
+//! and vertex numbering as the C++ reference's `gen-beam`).
+//!
+//! ```
+//! let sim = pd_benches::Beam { cells: [4, 1, 1], ..pd_benches::Beam::default() }
+//!     .simulation("laplacian", "be")
+//!     .unwrap();
+//! assert_eq!(sim.model().num_vertices(), 20);
+//! ```
+
+use pd_damping::{Damping, EtherDrag, LaplacianDamping, NoDamping, PbdDamping, RayleighLagged};
+use pd_integrators::{BackwardEuler, ImplicitMidpoint, Integrator};
+use pd_mesh::{Mesh, Point};
+use pd_solver::{Model, Settings, Simulation};
+
+/// The damping models every benchmark runs, by their scene names.
+pub const DAMPING_MODELS: [&str; 5] = ["none", "ether-drag", "pbd", "rayleigh-lagged", "laplacian"];
+
+/// The integrators the benchmarks run: backward Euler and implicit midpoint.
+pub const INTEGRATORS: [&str; 2] = ["be", "im"];
+
+/// The three benchmark sizes: cells of the beam and a label. They are the
+/// C++ reference's small / medium / large meshes (2,304, 19,456 and
+/// 95,499 vertices).
+pub const SIZES: [([usize; 3], &str); 3] = [
+    ([35, 7, 7], "2k"),
+    ([75, 15, 15], "20k"),
+    ([130, 26, 26], "100k"),
+];
+
+/// The damping model `name` with the coefficients of the benchmarks
+/// (`docs/performance.md`): ether drag at a rate of 1/s (explicit), PBD
+/// with factor 0.05, lagged Rayleigh and Laplacian damping with a stiffness
+/// coefficient of 0.003 s.
+///
+/// # Errors
+/// An unknown name.
+pub fn damping(name: &str) -> Result<Box<dyn Damping>, String> {
+    let model: Box<dyn Damping> = match name {
+        "none" => Box::new(NoDamping),
+        "ether-drag" => Box::new(EtherDrag::rate(1.0).map_err(|e| e.to_string())?),
+        "pbd" => Box::new(PbdDamping::new(0.05).map_err(|e| e.to_string())?),
+        "rayleigh-lagged" => Box::new(RayleighLagged::new(0.003, 0.0).map_err(|e| e.to_string())?),
+        "laplacian" => {
+            Box::new(LaplacianDamping::new(0.003, 0.0, false).map_err(|e| e.to_string())?)
+        }
+        other => {
+            return Err(format!(
+                "unknown damping model {other:?}; expected one of {DAMPING_MODELS:?}"
+            ));
+        }
+    };
+    Ok(model)
+}
+
+/// The integrator `name`: `be` (backward Euler) or `im` (implicit midpoint).
+///
+/// # Errors
+/// An unknown name.
+pub fn integrator(name: &str) -> Result<Box<dyn Integrator>, String> {
+    match name {
+        "be" => Ok(Box::new(BackwardEuler)),
+        "im" => Ok(Box::new(ImplicitMidpoint)),
+        other => Err(format!("unknown integrator {other:?}; expected be or im")),
+    }
+}
+
+/// How the beam is held at `x = 0`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Clamp {
+    /// The clamped vertices are removed from the unknowns (pd's own way).
+    Fixed,
+    /// Every vertex stays an unknown and the clamped ones are attached to
+    /// their rest positions with weight `1e6 mean(m) / h^2` (N/m): the C++
+    /// reference's formulation, for like-for-like comparisons.
+    SoftLikeReference,
+}
+
+/// The benchmark cantilever and its settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Beam {
+    /// Cells along x, y, z (6 tetrahedra each).
+    pub cells: [usize; 3],
+    /// Side lengths in m.
+    pub size: [f64; 3],
+    /// Strain stiffness in Pa (weight = stiffness x rest volume).
+    pub stiffness: f64,
+    /// Density in kg/m^3.
+    pub density: f64,
+    /// Time step in s.
+    pub dt: f64,
+    /// Local-global iterations per step (fixed: no tolerance).
+    pub iterations: usize,
+    /// Threads of the local step and right-hand side (0: rayon's default).
+    pub threads: usize,
+    /// How the end at `x = 0` is held.
+    pub clamp: Clamp,
+}
+
+impl Default for Beam {
+    fn default() -> Self {
+        Self {
+            cells: SIZES[0].0,
+            size: [1.0, 0.2, 0.2],
+            stiffness: 1e5,
+            density: 1000.0,
+            dt: 0.01,
+            iterations: 10,
+            threads: 1,
+            clamp: Clamp::Fixed,
+        }
+    }
+}
+
+impl Beam {
+    /// The beam's mesh.
+    ///
+    /// # Errors
+    /// Invalid cell counts or sizes.
+    pub fn mesh(&self) -> Result<Mesh, String> {
+        pd_mesh::generators::box_tets(self.size, self.cells).map_err(|e| e.to_string())
+    }
+
+    /// The model on a given mesh (for meshes read from TetGen files): strain
+    /// on every tetrahedron, lumped masses, the vertices at the smallest x
+    /// clamped as [`Beam::clamp`] says.
+    ///
+    /// # Errors
+    /// A mesh without tetrahedra or with degenerate ones.
+    pub fn model_on(&self, mesh: Mesh) -> Result<Model, String> {
+        let masses = mesh
+            .lumped_masses(self.density)
+            .map_err(|e| e.to_string())?;
+        let min_x = mesh
+            .vertices()
+            .iter()
+            .map(|p| p.x)
+            .fold(f64::INFINITY, f64::min);
+        let clamped: Vec<usize> = (0..mesh.num_vertices())
+            .filter(|&v| mesh.vertices()[v].x <= min_x + 1e-9)
+            .collect();
+        let mean_mass = masses.iter().sum::<f64>() / masses.len() as f64;
+        let mut model = Model::new();
+        let body = model.add_body(mesh, masses).map_err(|e| e.to_string())?;
+        model
+            .add_tet_strain(body, self.stiffness, None)
+            .map_err(|e| e.to_string())?;
+        match self.clamp {
+            Clamp::Fixed => model.fix_vertices(body, &clamped),
+            Clamp::SoftLikeReference => {
+                model.add_attachments(body, &clamped, 1e6 * mean_mass / (self.dt * self.dt))
+            }
+        }
+        .map_err(|e| e.to_string())?;
+        Ok(model)
+    }
+
+    /// The settings: gravity `(0, -9.81, 0)`, [`Beam::dt`],
+    /// [`Beam::iterations`] without early exit, [`Beam::threads`].
+    pub fn settings(&self) -> Settings {
+        Settings {
+            dt: self.dt,
+            iterations: self.iterations,
+            tolerance: 0.0,
+            gravity: Point::new(0.0, -9.81, 0.0),
+            threads: self.threads,
+            ..Settings::default()
+        }
+    }
+
+    /// A simulation of the generated beam with the named damping model and
+    /// integrator.
+    ///
+    /// # Errors
+    /// Unknown names, or a model the solver rejects.
+    pub fn simulation(
+        &self,
+        damping_name: &str,
+        integrator_name: &str,
+    ) -> Result<Simulation, String> {
+        self.simulation_on(self.mesh()?, damping_name, integrator_name)
+    }
+
+    /// As [`Beam::simulation`] on a given mesh.
+    ///
+    /// # Errors
+    /// Unknown names, or a model the solver rejects.
+    pub fn simulation_on(
+        &self,
+        mesh: Mesh,
+        damping_name: &str,
+        integrator_name: &str,
+    ) -> Result<Simulation, String> {
+        Simulation::new(
+            self.model_on(mesh)?,
+            integrator(integrator_name)?,
+            damping(damping_name)?,
+            self.settings(),
+        )
+        .map_err(|e| e.to_string())
+    }
+}
+
+/// Peak resident memory of this process so far (`VmHWM` in
+/// `/proc/self/status`), in bytes; `None` where that file does not exist.
+pub fn peak_memory_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// The median of `values` (the mean of the two middle ones for an even
+/// count); NaN for none.
+pub fn median(values: &[f64]) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let mid = sorted.len() / 2;
+    if sorted.len() % 2 == 1 {
+        sorted[mid]
+    } else {
+        0.5 * (sorted[mid - 1] + sorted[mid])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn median_of_odd_and_even_counts() {
+        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&[4.0, 1.0, 2.0, 3.0]), 2.5);
+        assert!(median(&[]).is_nan());
+    }
+
+    #[test]
+    fn every_model_and_integrator_builds() {
+        let beam = Beam {
+            cells: [3, 1, 1],
+            ..Beam::default()
+        };
+        for model in DAMPING_MODELS {
+            for integrator in INTEGRATORS {
+                let mut sim = beam.simulation(model, integrator).unwrap();
+                sim.step().unwrap();
+            }
+        }
+        assert!(damping("viscous").is_err());
+        assert!(integrator("rk4").is_err());
+    }
+
+    #[test]
+    fn soft_clamp_keeps_every_vertex_free() {
+        let beam = Beam {
+            cells: [3, 1, 1],
+            clamp: Clamp::SoftLikeReference,
+            ..Beam::default()
+        };
+        let sim = beam.simulation("none", "be").unwrap();
+        assert_eq!(sim.num_free_vertices(), sim.model().num_vertices());
+    }
+}

@@ -2,8 +2,16 @@
 //!
 //! - `ci`: what `.ci/run` runs (format check, clippy, tests);
 //! - `damping-table [--quick]`: measures every damping model with every
-//!   integrator on the bundled scenes and writes `docs/damping-table.md`.
+//!   integrator on the bundled scenes and writes `docs/damping-table.md`;
+//! - `bench-report [--quick]`: speed, accuracy, scaling and memory,
+//!   written to `docs/bench-report.md` (+ JSON and PNG figures);
+//! - `cpp-compare --reference PATH [--quick]`: pd against the C++ Eigen /
+//!   CHOLMOD reference on the same TetGen meshes, written to
+//!   `docs/cpp-comparison.md`.
 
+mod bench_cpp;
+mod bench_plot;
+mod bench_report;
 mod damping_table;
 
 use std::path::{Path, PathBuf};
@@ -37,11 +45,30 @@ fn main() -> ExitCode {
                 }
             }
         }
+        Some("bench-report") => report(bench_report::run(
+            &workspace_root(),
+            args.iter().any(|a| a == "--quick"),
+        )),
+        Some("cpp-compare") => report(bench_cpp::run(&workspace_root(), &args[1..])),
         _ => {
             eprintln!(
-                "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md"
+                "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md\n  bench-report [--quick]    speed/accuracy/scaling report: docs/bench-report.md\n  cpp-compare --reference PATH_TO_PDREF [--quick]\n                            pd vs the C++ reference: docs/cpp-comparison.md"
             );
             ExitCode::from(2)
+        }
+    }
+}
+
+/// Prints where a report went, or the error.
+fn report(result: Result<PathBuf, String>) -> ExitCode {
+    match result {
+        Ok(path) => {
+            eprintln!("wrote {}", path.display());
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
         }
     }
 }

@@ -2,7 +2,7 @@
 //! the global matrix `A = alpha M + beta L_sys + delta L_d` (DESIGN.md 3.2),
 //! and its cached factorisations.
 
-use crate::cholesky::{LowerPattern, NumericFactor, SymbolicFactor};
+use crate::cholesky::{LowerPattern, NumericFactor, SymbolicFactor, nested_dissection};
 use crate::{SolverError, local::LocalStep};
 use pd_constraints::{CsrMatrix, assembly, assembly::LaplacianKind};
 
@@ -51,6 +51,9 @@ pub(crate) struct GlobalSystem {
     pub system_part: Vec<f64>,
     /// Per pattern slot: the entry of `L_d`.
     pub damping_part: Vec<f64>,
+    /// The nested-dissection order tried for the scalar system (free
+    /// indices in pivot order), reused for the lagged 3n system.
+    pub dissection: Option<Vec<usize>>,
     symbolic: SymbolicFactor,
     cache: Vec<([u64; 3], NumericFactor)>,
     values: Vec<f64>,
@@ -58,7 +61,13 @@ pub(crate) struct GlobalSystem {
 
 impl GlobalSystem {
     /// Assembles the operators and analyses the pattern (once per model).
-    pub fn new(local: &LocalStep, masses: &[f64], fixed: &[bool]) -> Result<Self, SolverError> {
+    /// `rest` (the rest positions) steers the nested-dissection ordering.
+    pub fn new(
+        local: &LocalStep,
+        masses: &[f64],
+        fixed: &[bool],
+        rest: &[pd_mesh::Point],
+    ) -> Result<Self, SolverError> {
         let n = masses.len();
         let mut free_index = vec![FIXED; n];
         let mut free = Vec::with_capacity(n);
@@ -131,7 +140,10 @@ impl GlobalSystem {
                 }
             }
         }
-        let symbolic = SymbolicFactor::analyse(pattern.clone())?;
+        let free_rest: Vec<pd_mesh::Point> = free.iter().map(|&v| rest[v]).collect();
+        let dissection = nested_dissection(&pattern, &free_rest);
+        drop(free_rest);
+        let symbolic = SymbolicFactor::analyse(pattern.clone(), dissection.as_deref())?;
         Ok(Self {
             pattern,
             system_rows: system.select_rows(&free),
@@ -142,6 +154,7 @@ impl GlobalSystem {
             mass_part,
             system_part,
             damping_part,
+            dissection,
             symbolic,
             cache: Vec::new(),
             values: vec![0.0; len],
@@ -171,6 +184,27 @@ impl GlobalSystem {
         let factor = self.symbolic.factorise(&self.values)?;
         self.cache.push((key, factor));
         Ok((self.cache.len() - 1, true))
+    }
+
+    /// Recomputes the numeric factorisation for `coefficients` into its
+    /// cache slot (factorising into a new slot on a cache miss). The values
+    /// are the same, so the cached factor stays valid bit for bit; used to
+    /// time a numeric factorisation on its own (`Simulation::profile_factorise`).
+    pub fn refactorise_cached(
+        &mut self,
+        coefficients: MatrixCoefficients,
+    ) -> Result<(), SolverError> {
+        let (index, factorised) = self.prepare_factor(coefficients)?;
+        if factorised {
+            return Ok(());
+        }
+        combine(
+            &mut self.values,
+            coefficients,
+            [&self.mass_part, &self.system_part, &self.damping_part],
+        );
+        let (_, factor) = &mut self.cache[index];
+        self.symbolic.refactorise(&self.values, factor)
     }
 
     /// The global matrix for `coefficients` (free vertices, full symmetric).

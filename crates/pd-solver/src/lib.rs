@@ -4,7 +4,7 @@
 //! [`Simulation`] steps it with an integrator from `pd-integrators` and a
 //! damping model from `pd-damping`: a parallel local step (rayon) projects
 //! every constraint, and a global step solves the n x n system
-//! (DESIGN.md 3.2) with a sparse Cholesky factor (faer, AMD ordering) that is
+//! (DESIGN.md 3.2) with a sparse Cholesky factor (faer; AMD or nested-dissection ordering) that is
 //! computed once and cached per set of coefficients, for all three
 //! coordinate columns at once. The mathematics is in `docs/solver.md`.
 //!

@@ -23,6 +23,11 @@ use crate::{Model, Settings, SolverError};
 mod checkpoint;
 pub use checkpoint::Checkpoint;
 
+// Phase-by-phase hooks for benchmarks; a child module so it can reach the
+// step's buffers without widening their visibility.
+#[path = "phases.rs"]
+mod phases;
+
 /// Positions (m) and velocities (m/s) of every vertex, global numbering.
 #[derive(Debug, Clone, PartialEq)]
 pub struct State {
@@ -197,7 +202,12 @@ impl Simulation {
         };
         let analysis_start = Instant::now();
         let local = LocalStep::new(model.constraint_blocks());
-        let global = GlobalSystem::new(&local, model.masses(), model.fixed())?;
+        let global = GlobalSystem::new(
+            &local,
+            model.masses(),
+            model.fixed(),
+            model.rest_positions(),
+        )?;
         let lagged = if d.is_lagged() {
             Some(LaggedSystem::new(&global, local.blocks())?)
         } else {

@@ -1,0 +1,340 @@
+//! `pd-probe`: one measurement per process, one JSON line on stdout.
+//! `cargo xtask bench-report` and `cargo xtask cpp-compare` build it in
+//! release mode and run it once per measurement, so that each run's peak
+//! memory (`VmHWM`) is its own.
+//!
+//! ```text
+//! pd-probe step     [beam options] [--mesh BASE] [--model M] [--integrator be|im] [--steps N]
+//! pd-probe overhead [beam options] [--integrator be|im] [--rounds R] [--warmup W]
+//! pd-probe phases   [beam options] [--model M] [--reps R]
+//! pd-probe accuracy [beam options] [--integrator be|im] [--time T] [--iters-list 1,2,...]
+//! beam options: --cells NX,NY,NZ --iters K --threads T --dt H --stiffness PA --soft-clamp
+//! ```
+
+use std::process::ExitCode;
+use std::time::Instant;
+
+use pd_benches::{Beam, Clamp, DAMPING_MODELS, median, peak_memory_bytes};
+use pd_mesh::Point;
+use pd_solver::Simulation;
+use serde_json::{Value, json};
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    match run(&args) {
+        Ok(value) => {
+            println!("{value}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("pd-probe: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Options as `--name value` pairs, plus flags.
+struct Options<'a> {
+    args: &'a [String],
+}
+
+impl Options<'_> {
+    fn value(&self, name: &str) -> Option<&str> {
+        self.args
+            .iter()
+            .position(|a| a == name)
+            .and_then(|i| self.args.get(i + 1))
+            .map(String::as_str)
+    }
+
+    fn flag(&self, name: &str) -> bool {
+        self.args.iter().any(|a| a == name)
+    }
+
+    fn parse<T: std::str::FromStr>(&self, name: &str, default: T) -> Result<T, String> {
+        match self.value(name) {
+            None => Ok(default),
+            Some(text) => text
+                .parse()
+                .map_err(|_| format!("{name}: cannot parse {text:?}")),
+        }
+    }
+
+    fn list(&self, name: &str, default: &[usize]) -> Result<Vec<usize>, String> {
+        match self.value(name) {
+            None => Ok(default.to_vec()),
+            Some(text) => text
+                .split(',')
+                .map(|p| {
+                    p.trim()
+                        .parse()
+                        .map_err(|_| format!("{name}: cannot parse {p:?} in {text:?}"))
+                })
+                .collect(),
+        }
+    }
+
+    fn beam(&self) -> Result<Beam, String> {
+        let defaults = Beam::default();
+        let cells = self.list("--cells", &defaults.cells)?;
+        let cells: [usize; 3] = cells
+            .try_into()
+            .map_err(|_| "--cells needs three counts NX,NY,NZ".to_string())?;
+        Ok(Beam {
+            cells,
+            iterations: self.parse("--iters", defaults.iterations)?,
+            threads: self.parse("--threads", defaults.threads)?,
+            dt: self.parse("--dt", defaults.dt)?,
+            stiffness: self.parse("--stiffness", defaults.stiffness)?,
+            density: self.parse("--rho", defaults.density)?,
+            clamp: if self.flag("--soft-clamp") {
+                Clamp::SoftLikeReference
+            } else {
+                Clamp::Fixed
+            },
+            ..defaults
+        })
+    }
+}
+
+fn run(args: &[String]) -> Result<Value, String> {
+    let options = Options { args };
+    let beam = options.beam()?;
+    match args.first().map(String::as_str) {
+        Some("step") => step(&options, &beam),
+        Some("overhead") => overhead(&options, &beam),
+        Some("phases") => phases(&options, &beam),
+        Some("accuracy") => accuracy(&options, &beam),
+        _ => Err("usage: pd-probe step|overhead|phases|accuracy [options] (see the source)".into()),
+    }
+}
+
+fn ms(seconds: f64) -> f64 {
+    seconds * 1e3
+}
+
+/// `steps` steps from rest; medians of the step and of its phases, like the
+/// C++ reference's `run`.
+fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
+    let model = options.value("--model").unwrap_or("none");
+    let integrator = options.value("--integrator").unwrap_or("be");
+    let steps: usize = options.parse("--steps", 10)?;
+    let mesh = match options.value("--mesh") {
+        Some(base) => pd_io::tetgen::read_tetgen_base(std::path::Path::new(base))
+            .map_err(|e| e.to_string())?,
+        None => beam.mesh()?,
+    };
+    let (n_verts, n_tets) = (mesh.num_vertices(), mesh.tets().len());
+    let sim = beam.simulation_on(mesh, model, integrator)?;
+    let setup = sim.setup_stats();
+    let mut sim = sim;
+    let stats = sim.run(steps).map_err(|e| e.to_string())?;
+    let pick = |f: fn(&pd_solver::StepStats) -> f64| -> f64 {
+        ms(median(&stats.iter().map(f).collect::<Vec<_>>()))
+    };
+    let positions = &sim.state().positions;
+    let centroid = positions.iter().sum::<Point>() / positions.len() as f64;
+    let min_y = positions.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
+    Ok(json!({
+        "n_verts": n_verts,
+        "n_tets": n_tets,
+        "n_free": sim.num_free_vertices(),
+        "nnz_L_factor": sim.factor_len(),
+        "symbolic_ms": ms(setup.analysis_seconds),
+        "factor_ms": ms(setup.analysis_seconds + setup.factor_seconds),
+        "numeric_factor_ms": ms(setup.factor_seconds),
+        "step_ms_median": pick(|s| s.total_seconds),
+        "local_ms_median": pick(|s| s.local_seconds),
+        "global_ms_median": pick(|s| s.global_seconds),
+        "steps": steps,
+        "iters": beam.iterations,
+        "threads": beam.threads,
+        "model": model,
+        "integrator": integrator,
+        "centroid": [centroid.x, centroid.y, centroid.z],
+        "min_y": min_y,
+        "kinetic_energy": sim.energies().kinetic,
+        "peak_bytes": peak_memory_bytes(),
+    }))
+}
+
+/// Every damping model stepped from one common state, the models' steps
+/// interleaved round by round so that drift in the machine's speed hits all
+/// models alike; the median per model and its ratio to `none`.
+fn overhead(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
+    let integrator = options.value("--integrator").unwrap_or("be");
+    let rounds: usize = options.parse("--rounds", 15)?;
+    let warmup: usize = options.parse("--warmup", 10)?;
+    let mut sims: Vec<Simulation> = DAMPING_MODELS
+        .iter()
+        .map(|m| beam.simulation(m, integrator))
+        .collect::<Result<_, _>>()?;
+    // A deformed, moving state: the undamped beam after `warmup` steps.
+    sims[0].run(warmup).map_err(|e| e.to_string())?;
+    let start = sims[0].state().clone();
+    let mut samples = vec![Vec::with_capacity(rounds); sims.len()];
+    for _ in 0..rounds {
+        for (sim, samples) in sims.iter_mut().zip(&mut samples) {
+            sim.set_state(start.clone()).map_err(|e| e.to_string())?;
+            let t = Instant::now();
+            sim.step().map_err(|e| e.to_string())?;
+            samples.push(ms(t.elapsed().as_secs_f64()));
+        }
+    }
+    let none = median(&samples[0]);
+    let models: Vec<Value> = DAMPING_MODELS
+        .iter()
+        .zip(&samples)
+        .map(|(name, s)| {
+            json!({
+                "model": name,
+                "median_ms": median(s),
+                "ratio_to_none": median(s) / none,
+                "min_ms": s.iter().copied().fold(f64::INFINITY, f64::min),
+                "samples_ms": s,
+            })
+        })
+        .collect();
+    Ok(json!({
+        "integrator": integrator,
+        "n_verts": sims[0].model().num_vertices(),
+        "iters": beam.iterations,
+        "threads": beam.threads,
+        "rounds": rounds,
+        "models": models,
+    }))
+}
+
+/// The phases alone, each repeated `reps` times: local step, global solve
+/// (right-hand side and solve), numeric factorisation.
+fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
+    let model = options.value("--model").unwrap_or("none");
+    let reps: usize = options.parse("--reps", 10)?;
+    let factor_reps: usize = options.parse("--factor-reps", 3)?;
+    let mut sim = beam.simulation(model, "be")?;
+    sim.run(2).map_err(|e| e.to_string())?;
+    let time = |reps: usize, f: &mut dyn FnMut() -> Result<(), String>| {
+        let mut samples = Vec::with_capacity(reps);
+        for _ in 0..reps {
+            let t = Instant::now();
+            f()?;
+            samples.push(ms(t.elapsed().as_secs_f64()));
+        }
+        Ok::<f64, String>(median(&samples))
+    };
+    let local = time(reps, &mut || {
+        sim.profile_local_step();
+        Ok(())
+    })?;
+    let global = time(reps, &mut || {
+        sim.profile_global_solve().map_err(|e| e.to_string())
+    })?;
+    let factor = time(factor_reps, &mut || {
+        sim.profile_factorise().map_err(|e| e.to_string())
+    })?;
+    Ok(json!({
+        "n_verts": sim.model().num_vertices(),
+        "n_tets": sim.model().bodies()[0].mesh.tets().len(),
+        "threads": beam.threads,
+        "model": model,
+        "local_ms_median": local,
+        "global_solve_ms_median": global,
+        "numeric_factor_ms_median": factor,
+        "nnz_L_factor": sim.factor_len(),
+        "peak_bytes": peak_memory_bytes(),
+    }))
+}
+
+/// Total energy (kinetic + elastic + gravitational), J.
+fn total_energy(sim: &Simulation) -> f64 {
+    sim.energies().total()
+}
+
+/// For each iteration count: the state after simulated time `--time`
+/// against a reference solved to a tight tolerance with the same integrator
+/// and step; position error relative to the body's diagonal, energy error
+/// relative to `m g L` (total weight times the body's diagonal); the median
+/// time per step.
+fn accuracy(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
+    let integrator = options.value("--integrator").unwrap_or("be");
+    let model = options.value("--model").unwrap_or("none");
+    let time: f64 = options.parse("--time", 0.5)?;
+    let reference_tolerance: f64 = options.parse("--reference-tolerance", 1e-9)?;
+    let reference_max: usize = options.parse("--reference-max-iters", 2000)?;
+    let counts = options.list("--iters-list", &[1, 2, 3, 5, 10, 20, 50])?;
+    let steps = (time / beam.dt).round() as usize;
+    let mesh = beam.mesh()?;
+    let diagonal = beam.size.iter().map(|s| s * s).sum::<f64>().sqrt();
+
+    let mut reference = Simulation::new(
+        beam.model_on(mesh.clone())?,
+        pd_benches::integrator(integrator)?,
+        pd_benches::damping(model)?,
+        pd_solver::Settings {
+            iterations: reference_max,
+            tolerance: reference_tolerance,
+            ..beam.settings()
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    let t = Instant::now();
+    let reference_stats = reference.run(steps).map_err(|e| e.to_string())?;
+    let reference_seconds = t.elapsed().as_secs_f64();
+    let unconverged = reference_stats.iter().filter(|s| !s.converged).count();
+    let mean_reference_iterations =
+        reference_stats.iter().map(|s| s.iterations).sum::<usize>() as f64 / steps.max(1) as f64;
+    let weight: f64 = reference.model().masses().iter().sum::<f64>() * 9.81;
+    let energy_scale = weight * diagonal;
+    let reference_energy = total_energy(&reference);
+
+    let mut rows = Vec::new();
+    for &iterations in &counts {
+        let run_beam = Beam {
+            iterations,
+            ..beam.clone()
+        };
+        let mut sim = run_beam.simulation_on(mesh.clone(), model, integrator)?;
+        let (error, energy_error, step_ms, diverged) = match sim.run(steps) {
+            Ok(stats) => {
+                let error = sim
+                    .state()
+                    .positions
+                    .iter()
+                    .zip(&reference.state().positions)
+                    .map(|(a, b)| (a - b).norm())
+                    .fold(0.0, f64::max);
+                let step_ms = ms(median(
+                    &stats.iter().map(|s| s.total_seconds).collect::<Vec<_>>(),
+                ));
+                (
+                    error / diagonal,
+                    (total_energy(&sim) - reference_energy).abs() / energy_scale,
+                    step_ms,
+                    false,
+                )
+            }
+            Err(_) => (f64::NAN, f64::NAN, f64::NAN, true),
+        };
+        rows.push(json!({
+            "iters": iterations,
+            "position_error_rel": error,
+            "energy_error_rel": energy_error,
+            "step_ms_median": step_ms,
+            "diverged": diverged,
+        }));
+    }
+    Ok(json!({
+        "integrator": integrator,
+        "model": model,
+        "n_verts": reference.model().num_vertices(),
+        "time": time,
+        "dt": beam.dt,
+        "steps": steps,
+        "reference_tolerance": reference_tolerance,
+        "reference_unconverged_steps": unconverged,
+        "reference_mean_iterations": mean_reference_iterations,
+        "reference_seconds": reference_seconds,
+        "energy_scale_joule": energy_scale,
+        "rows": rows,
+    }))
+}

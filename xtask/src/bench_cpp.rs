@@ -1,0 +1,269 @@
+//! `cargo xtask cpp-compare --reference PATH [--quick]`: runs pd
+//! (`pd-probe step`, release build) and the C++ reference `pdref` (Eigen
+//! SimplicialLLT and CHOLMOD supernodal back ends; built outside this
+//! repository, see docs/performance.md) on the same TetGen meshes with the
+//! same settings, 1 and 2 threads, and writes `docs/cpp-comparison.md` plus
+//! the raw numbers in `docs/bench-report/cpp-comparison.json`.
+//!
+//! Same settings means the reference's formulation: every vertex is an
+//! unknown and the clamped end is held by stiff attachments
+//! (`--soft-clamp`), strain weight `1e5 x volume`, density 1000, gravity,
+//! h = 0.01 s, 10 iterations, backward Euler, no damping, `steps` steps
+//! from rest and the median step time. Peak memory of each process is its
+//! `VmHWM`, polled from `/proc/PID/status` while it runs.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use serde_json::{Value, json};
+
+use crate::bench_report::{build_probe, machine, provenance};
+
+/// The meshes: label, cells, steps timed.
+fn meshes(quick: bool) -> Vec<(&'static str, [usize; 3], usize)> {
+    let mut list = vec![("small", [35, 7, 7], 20), ("medium", [75, 15, 15], 5)];
+    if !quick {
+        list.push(("large", [130, 26, 26], 3));
+    }
+    list
+}
+
+/// Runs a command to completion, polling its `VmHWM`; returns stdout and
+/// the peak resident memory in bytes.
+fn run_measured(program: &Path, args: &[String]) -> Result<(String, Option<u64>), String> {
+    eprintln!("  {} {}", program.display(), args.join(" "));
+    let mut child = Command::new(program)
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .map_err(|e| format!("cannot run {}: {e}", program.display()))?;
+    let status_path = format!("/proc/{}/status", child.id());
+    let mut peak: Option<u64> = None;
+    let read_hwm = || -> Option<u64> {
+        let status = std::fs::read_to_string(&status_path).ok()?;
+        let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+        Some(line.split_whitespace().nth(1)?.parse::<u64>().ok()? * 1024)
+    };
+    // The pipes are drained after exit; the outputs are one short line.
+    loop {
+        if let Some(hwm) = read_hwm() {
+            peak = Some(peak.map_or(hwm, |p| p.max(hwm)));
+        }
+        match child.try_wait().map_err(|e| e.to_string())? {
+            Some(_) => break,
+            None => std::thread::sleep(Duration::from_millis(5)),
+        }
+    }
+    let output = child.wait_with_output().map_err(|e| e.to_string())?;
+    if !output.status.success() {
+        return Err(format!(
+            "{} {} failed: {}",
+            program.display(),
+            args.join(" "),
+            String::from_utf8_lossy(&output.stderr).trim()
+        ));
+    }
+    Ok((
+        String::from_utf8_lossy(&output.stdout).trim().to_string(),
+        peak,
+    ))
+}
+
+fn parse(line: &str) -> Result<Value, String> {
+    let last = line.lines().last().unwrap_or("");
+    serde_json::from_str(last).map_err(|e| format!("bad JSON ({e}): {last}"))
+}
+
+fn f(value: &Value) -> f64 {
+    value.as_f64().unwrap_or(f64::NAN)
+}
+
+/// Runs the comparison and writes the table; returns the Markdown path.
+pub fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
+    let quick = args.iter().any(|a| a == "--quick");
+    let reference = args
+        .iter()
+        .position(|a| a == "--reference")
+        .and_then(|i| args.get(i + 1))
+        .map(PathBuf::from)
+        .ok_or("usage: cargo xtask cpp-compare --reference PATH_TO_PDREF [--quick]")?;
+    if !reference.is_file() {
+        return Err(format!(
+            "--reference {}: no such file (build it with the reference's build.sh)",
+            reference.display()
+        ));
+    }
+    let probe = build_probe(root)?;
+    let work = root.join("target").join("cpp-compare");
+    std::fs::create_dir_all(&work).map_err(|e| format!("{}: {e}", work.display()))?;
+    let (commit, date) = provenance(root);
+    let machine_before = machine();
+
+    let mut rows = Vec::new();
+    for (label, cells, steps) in meshes(quick) {
+        let base = work.join(label);
+        let mesh =
+            pd_mesh::generators::box_tets([1.0, 0.2, 0.2], cells).map_err(|e| e.to_string())?;
+        pd_io::tetgen::write_tetgen(&base, &mesh).map_err(|e| e.to_string())?;
+        let base_arg = base.display().to_string();
+        for threads in [1, 2] {
+            let common = |extra: &[&str]| -> Vec<String> {
+                let mut v: Vec<String> = extra.iter().map(|s| s.to_string()).collect();
+                v.extend(
+                    [
+                        "--mesh",
+                        &base_arg,
+                        "--steps",
+                        &steps.to_string(),
+                        "--iters",
+                        "10",
+                        "--threads",
+                        &threads.to_string(),
+                    ]
+                    .iter()
+                    .map(|s| s.to_string()),
+                );
+                v
+            };
+            let mut entry = json!({ "mesh": label, "threads": threads, "steps": steps });
+            for solver in ["eigen", "cholmod"] {
+                let (out, peak) = run_measured(
+                    &reference,
+                    &common(&[
+                        "run",
+                        "--h",
+                        "0.01",
+                        "--stiffness",
+                        "1e5",
+                        "--rho",
+                        "1000",
+                        "--integrator",
+                        "be",
+                        "--damp",
+                        "0",
+                        "--solver",
+                        solver,
+                    ]),
+                )?;
+                let mut value = parse(&out)?;
+                value["peak_bytes"] = json!(peak);
+                entry[solver] = value;
+            }
+            let (out, peak) = run_measured(
+                &probe,
+                &common(&[
+                    "step",
+                    "--dt",
+                    "0.01",
+                    "--soft-clamp",
+                    "--model",
+                    "none",
+                    "--integrator",
+                    "be",
+                ]),
+            )?;
+            let mut value = parse(&out)?;
+            value["peak_bytes_polled"] = json!(peak);
+            entry["pd"] = value;
+            rows.push(entry);
+        }
+    }
+
+    let report = json!({
+        "commit": commit,
+        "date": date,
+        "machine": machine_before,
+        "machine_after": machine(),
+        "reference": reference.display().to_string(),
+        "rows": rows,
+    });
+    let dir = root.join("docs").join("bench-report");
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let json_path = dir.join("cpp-comparison.json");
+    let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+    std::fs::write(&json_path, text + "\n").map_err(|e| format!("{}: {e}", json_path.display()))?;
+    let md_path = root.join("docs").join("cpp-comparison.md");
+    std::fs::write(&md_path, markdown(&report))
+        .map_err(|e| format!("{}: {e}", md_path.display()))?;
+    Ok(md_path)
+}
+
+fn markdown(r: &Value) -> String {
+    let empty = Vec::new();
+    let m = &r["machine"];
+    let mut md = String::new();
+    let _ = writeln!(md, "# pd against the C++ reference (Eigen, CHOLMOD)\n");
+    let _ = writeln!(
+        md,
+        "Generated by `cargo xtask cpp-compare --reference PATH`; do not edit by hand. Raw \
+         numbers: [`bench-report/cpp-comparison.json`](bench-report/cpp-comparison.json). \
+         Discussion: [performance.md](performance.md).\n"
+    );
+    let _ = writeln!(
+        md,
+        "Machine: {}, {} logical cores, {:.1} GiB. Commit `{}`, {}. CPU pressure before / after: \
+         `{}` / `{}`.\n",
+        m["cpu"].as_str().unwrap_or("?"),
+        m["logical_cores"],
+        f(&m["memory_gib"]),
+        r["commit"].as_str().unwrap_or("?"),
+        r["date"].as_str().unwrap_or("?"),
+        m["cpu_pressure"].as_str().unwrap_or("n/a"),
+        r["machine_after"]["cpu_pressure"].as_str().unwrap_or("n/a"),
+    );
+    let _ = writeln!(
+        md,
+        "Same TetGen mesh (written by pd-io), same formulation (every vertex free, the clamped \
+         end attached with weight 1e6 mean(m)/h^2), stiffness 1e5, rho 1000, h = 0.01 s, 10 \
+         iterations, backward Euler, no damping; median step time over the steps run from \
+         rest. Factor: symbolic + numeric factorisation. Ratio: pd / reference (below 1: pd is \
+         faster). Memory: peak resident set (`VmHWM`) of each process.\n"
+    );
+    let _ = writeln!(
+        md,
+        "| mesh | vertices | threads | steps | pd step [ms] (local + global) | Eigen step [ms] | CHOLMOD step [ms] | pd/Eigen | pd/CHOLMOD | factor pd / Eigen / CHOLMOD [ms] | nnz(L) pd / Eigen / CHOLMOD [M] | peak memory pd / Eigen / CHOLMOD [MB] | pd/CHOLMOD memory | max centroid difference pd - Eigen [m] |"
+    );
+    let _ = writeln!(
+        md,
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    );
+    for row in r["rows"].as_array().unwrap_or(&empty) {
+        let (pd, eigen, cholmod) = (&row["pd"], &row["eigen"], &row["cholmod"]);
+        let centroid_difference = (0..3)
+            .map(|k| {
+                let key = ["centroid_x", "centroid_y", "centroid_z"][k];
+                (f(&pd["centroid"][k]) - f(&eigen[key])).abs()
+            })
+            .fold(0.0, f64::max);
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {:.1} ({:.1} + {:.1}) | {:.1} | {:.1} | {:.2} | {:.2} | {:.0} / {:.0} / {:.0} | {:.2} / {:.2} / {:.2} | {:.0} / {:.0} / {:.0} | {:.2} | {:.1e} |",
+            row["mesh"].as_str().unwrap_or("?"),
+            pd["n_verts"],
+            row["threads"],
+            row["steps"],
+            f(&pd["step_ms_median"]),
+            f(&pd["local_ms_median"]),
+            f(&pd["global_ms_median"]),
+            f(&eigen["step_ms_median"]),
+            f(&cholmod["step_ms_median"]),
+            f(&pd["step_ms_median"]) / f(&eigen["step_ms_median"]),
+            f(&pd["step_ms_median"]) / f(&cholmod["step_ms_median"]),
+            f(&pd["factor_ms"]),
+            f(&eigen["factor_ms"]),
+            f(&cholmod["factor_ms"]),
+            f(&pd["nnz_L_factor"]) / 1e6,
+            f(&eigen["nnz_L_factor"]) / 1e6,
+            f(&cholmod["nnz_L_factor"]) / 1e6,
+            f(&pd["peak_bytes"]) / 1e6,
+            f(&eigen["peak_bytes"]) / 1e6,
+            f(&cholmod["peak_bytes"]) / 1e6,
+            f(&pd["peak_bytes"]) / f(&cholmod["peak_bytes"]),
+            centroid_difference,
+        );
+    }
+    md
+}

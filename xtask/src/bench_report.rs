@@ -1,0 +1,590 @@
+//! `cargo xtask bench-report [--quick]`: measures the speed/accuracy trade
+//! and writes `docs/bench-report.md`, the raw numbers
+//! (`docs/bench-report/report.json`) and the figures
+//! (`docs/bench-report/*.png`).
+//!
+//! Every measurement runs in a fresh process of the release-built
+//! `pd-probe` (benches/src/bin/pd-probe.rs), so that each one's peak memory
+//! (`VmHWM`) is its own and a crash cannot take the report down with it.
+//! The sizes, iteration counts and repetitions below are fixed, so the
+//! command is deterministic to run; only the timings vary with the machine.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+use serde_json::{Value, json};
+
+use crate::bench_plot::{self, Series};
+
+/// What one mode (full or quick) measures.
+struct Plan {
+    overhead_cells: [usize; 3],
+    overhead_rounds: usize,
+    accuracy_cells: [usize; 3],
+    accuracy_time: f64,
+    scaling_cells: Vec<[usize; 3]>,
+    scaling_steps: usize,
+    speedup_cells: [usize; 3],
+    speedup_pairs: usize,
+}
+
+impl Plan {
+    fn new(quick: bool) -> Self {
+        if quick {
+            Self {
+                overhead_cells: [35, 7, 7],
+                overhead_rounds: 5,
+                accuracy_cells: [20, 4, 4],
+                accuracy_time: 0.3,
+                scaling_cells: vec![[20, 4, 4], [35, 7, 7], [50, 10, 10], [75, 15, 15]],
+                scaling_steps: 2,
+                speedup_cells: [75, 15, 15],
+                speedup_pairs: 1,
+            }
+        } else {
+            Self {
+                overhead_cells: [35, 7, 7],
+                overhead_rounds: 21,
+                accuracy_cells: [35, 7, 7],
+                accuracy_time: 0.5,
+                scaling_cells: vec![
+                    [20, 4, 4],
+                    [35, 7, 7],
+                    [50, 10, 10],
+                    [75, 15, 15],
+                    [100, 20, 20],
+                    [130, 26, 26],
+                ],
+                scaling_steps: 3,
+                speedup_cells: [75, 15, 15],
+                speedup_pairs: 3,
+            }
+        }
+    }
+}
+
+fn cells_arg(cells: [usize; 3]) -> String {
+    format!("{},{},{}", cells[0], cells[1], cells[2])
+}
+
+/// Builds `pd-probe` in release mode and returns its path.
+pub fn build_probe(root: &Path) -> Result<PathBuf, String> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    eprintln!("building pd-probe (release)...");
+    let status = Command::new(&cargo)
+        .current_dir(root)
+        .args([
+            "build",
+            "--release",
+            "--quiet",
+            "-p",
+            "pd-benches",
+            "--bin",
+            "pd-probe",
+        ])
+        .status()
+        .map_err(|e| format!("cannot run {cargo}: {e}"))?;
+    if !status.success() {
+        return Err("building pd-probe failed".into());
+    }
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root.join("target"));
+    Ok(target.join("release").join("pd-probe"))
+}
+
+/// Runs `pd-probe ARGS` and parses its JSON line.
+pub fn probe(binary: &Path, args: &[String]) -> Result<Value, String> {
+    eprintln!("  pd-probe {}", args.join(" "));
+    let output = Command::new(binary)
+        .args(args)
+        .output()
+        .map_err(|e| format!("cannot run {}: {e}", binary.display()))?;
+    if !output.status.success() {
+        return Err(format!(
+            "pd-probe {} failed: {}",
+            args.join(" "),
+            String::from_utf8_lossy(&output.stderr).trim()
+        ));
+    }
+    let text = String::from_utf8_lossy(&output.stdout);
+    serde_json::from_str(text.trim())
+        .map_err(|e| format!("pd-probe printed bad JSON ({e}): {text}"))
+}
+
+fn args(list: &[&str]) -> Vec<String> {
+    list.iter().map(|s| s.to_string()).collect()
+}
+
+/// The machine: CPU model, logical cores, memory.
+pub fn machine() -> Value {
+    let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let cpu = cpuinfo
+        .lines()
+        .find(|l| l.starts_with("model name"))
+        .and_then(|l| l.split(':').nth(1))
+        .map(|s| s.trim().to_string())
+        .unwrap_or_else(|| "unknown".into());
+    let meminfo = std::fs::read_to_string("/proc/meminfo").unwrap_or_default();
+    let memory_gib = meminfo
+        .lines()
+        .find(|l| l.starts_with("MemTotal:"))
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|kb| kb.parse::<f64>().ok())
+        .map(|kb| kb / (1024.0 * 1024.0));
+    let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
+    let pressure = std::fs::read_to_string("/proc/pressure/cpu")
+        .ok()
+        .and_then(|t| t.lines().next().map(str::to_string));
+    json!({ "cpu": cpu, "logical_cores": cores, "memory_gib": memory_gib, "cpu_pressure": pressure })
+}
+
+fn command_output(program: &str, arguments: &[&str], root: &Path) -> Option<String> {
+    let out = Command::new(program)
+        .current_dir(root)
+        .args(arguments)
+        .output()
+        .ok()?;
+    out.status
+        .success()
+        .then(|| String::from_utf8_lossy(&out.stdout).trim().to_string())
+}
+
+/// The commit (with `-dirty` for uncommitted changes) and the UTC date.
+pub fn provenance(root: &Path) -> (String, String) {
+    let commit = command_output("git", &["rev-parse", "--short=12", "HEAD"], root)
+        .unwrap_or_else(|| "unknown".into());
+    let dirty = command_output(
+        "git",
+        &["status", "--porcelain", "--untracked-files=no"],
+        root,
+    )
+    .is_some_and(|s| !s.is_empty());
+    let date = command_output("date", &["-u", "+%Y-%m-%d %H:%M UTC"], root)
+        .unwrap_or_else(|| "unknown".into());
+    (
+        if dirty {
+            format!("{commit}-dirty")
+        } else {
+            commit
+        },
+        date,
+    )
+}
+
+/// Least-squares slope of `ln y` against `ln x`: the exponent `p` of
+/// `y ~ x^p`. `None` with fewer than two usable points.
+pub fn fitted_exponent(points: &[(f64, f64)]) -> Option<f64> {
+    let logs: Vec<(f64, f64)> = points
+        .iter()
+        .filter(|(x, y)| *x > 0.0 && *y > 0.0 && x.is_finite() && y.is_finite())
+        .map(|(x, y)| (x.ln(), y.ln()))
+        .collect();
+    if logs.len() < 2 {
+        return None;
+    }
+    let n = logs.len() as f64;
+    let (mx, my) = (
+        logs.iter().map(|p| p.0).sum::<f64>() / n,
+        logs.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let sxx: f64 = logs.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let sxy: f64 = logs.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    (sxx > 0.0).then(|| sxy / sxx)
+}
+
+fn f(value: &Value) -> f64 {
+    value.as_f64().unwrap_or(f64::NAN)
+}
+
+/// Runs every measurement and writes the report; returns the Markdown path.
+pub fn run(root: &Path, quick: bool) -> Result<PathBuf, String> {
+    let started = Instant::now();
+    let plan = Plan::new(quick);
+    let probe_path = build_probe(root)?;
+    let p = |a: Vec<String>| probe(&probe_path, &a);
+    let (commit, date) = provenance(root);
+    let machine_before = machine();
+
+    eprintln!("damping overhead...");
+    let mut overhead = Vec::new();
+    for integrator in ["be", "im"] {
+        overhead.push(p(args(&[
+            "overhead",
+            "--cells",
+            &cells_arg(plan.overhead_cells),
+            "--integrator",
+            integrator,
+            "--rounds",
+            &plan.overhead_rounds.to_string(),
+            "--warmup",
+            "5",
+            "--threads",
+            "1",
+        ]))?);
+    }
+
+    eprintln!("speed against accuracy...");
+    let mut accuracy = Vec::new();
+    for integrator in ["be", "im"] {
+        accuracy.push(p(args(&[
+            "accuracy",
+            "--cells",
+            &cells_arg(plan.accuracy_cells),
+            "--integrator",
+            integrator,
+            "--time",
+            &plan.accuracy_time.to_string(),
+            "--threads",
+            "1",
+        ]))?);
+    }
+
+    eprintln!("scaling...");
+    let mut scaling = Vec::new();
+    for &cells in &plan.scaling_cells {
+        scaling.push(p(args(&[
+            "step",
+            "--cells",
+            &cells_arg(cells),
+            "--steps",
+            &plan.scaling_steps.to_string(),
+            "--threads",
+            "1",
+        ]))?);
+    }
+
+    eprintln!("local-step speed-up...");
+    let mut speedup = Vec::new();
+    for _ in 0..plan.speedup_pairs {
+        let mut pair = Vec::new();
+        for threads in ["1", "2"] {
+            pair.push(p(args(&[
+                "phases",
+                "--cells",
+                &cells_arg(plan.speedup_cells),
+                "--threads",
+                threads,
+                "--reps",
+                "10",
+                "--factor-reps",
+                "1",
+            ]))?);
+        }
+        speedup.push(json!({ "one": pair[0], "two": pair[1],
+            "speedup": f(&pair[0]["local_ms_median"]) / f(&pair[1]["local_ms_median"]) }));
+    }
+
+    let report = json!({
+        "mode": if quick { "quick" } else { "full" },
+        "commit": commit,
+        "date": date,
+        "machine": machine_before,
+        "machine_after": machine(),
+        "wall_seconds": started.elapsed().as_secs_f64(),
+        "overhead": overhead,
+        "accuracy": accuracy,
+        "scaling": scaling,
+        "local_speedup": speedup,
+    });
+    write_report(root, &report)
+}
+
+fn write_report(root: &Path, report: &Value) -> Result<PathBuf, String> {
+    let dir = root.join("docs").join("bench-report");
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let json_path = dir.join("report.json");
+    let text = serde_json::to_string_pretty(report).map_err(|e| e.to_string())?;
+    std::fs::write(&json_path, text + "\n").map_err(|e| format!("{}: {e}", json_path.display()))?;
+
+    // Figures.
+    let empty = Vec::new();
+    let accuracy = report["accuracy"].as_array().unwrap_or(&empty);
+    let mut position = Vec::new();
+    let mut energy = Vec::new();
+    for run in accuracy {
+        let name = run["integrator"].as_str().unwrap_or("?").to_uppercase();
+        let rows = run["rows"].as_array().unwrap_or(&empty);
+        let pick = |key: &str| -> Vec<(f64, f64)> {
+            rows.iter()
+                .map(|r| (f(&r["step_ms_median"]), f(&r[key])))
+                .collect()
+        };
+        position.push(Series {
+            name: name.clone(),
+            points: pick("position_error_rel"),
+        });
+        energy.push(Series {
+            name,
+            points: pick("energy_error_rel"),
+        });
+    }
+    bench_plot::log_log(
+        &dir.join("accuracy.png"),
+        "Error after a fixed simulated time vs time per step (iterations 1..50)",
+        "time per step [ms]",
+        &[
+            ("position error / body diagonal", &position),
+            ("energy error / (m g L)", &energy),
+        ],
+    )?;
+    let scaling = report["scaling"].as_array().unwrap_or(&empty);
+    let by_size = |key: &str| -> Vec<(f64, f64)> {
+        scaling
+            .iter()
+            .map(|r| (f(&r["n_verts"]), f(&r[key])))
+            .collect()
+    };
+    let memory: Vec<(f64, f64)> = scaling
+        .iter()
+        .map(|r| (f(&r["n_verts"]), f(&r["peak_bytes"]) / 1e6))
+        .collect();
+    bench_plot::log_log(
+        &dir.join("scaling.png"),
+        "Scaling with the vertex count (1 thread, 10 iterations, BE)",
+        "vertices",
+        &[
+            (
+                "time [ms]",
+                &[
+                    Series {
+                        name: "numeric factorisation".into(),
+                        points: by_size("numeric_factor_ms"),
+                    },
+                    Series {
+                        name: "step".into(),
+                        points: by_size("step_ms_median"),
+                    },
+                ],
+            ),
+            (
+                "peak memory [MB]",
+                &[Series {
+                    name: "VmHWM".into(),
+                    points: memory,
+                }],
+            ),
+        ],
+    )?;
+
+    let md = markdown(report);
+    let md_path = root.join("docs").join("bench-report.md");
+    std::fs::write(&md_path, md).map_err(|e| format!("{}: {e}", md_path.display()))?;
+    Ok(md_path)
+}
+
+fn markdown(r: &Value) -> String {
+    let empty = Vec::new();
+    let mut md = String::new();
+    let m = &r["machine"];
+    let _ = writeln!(md, "# Benchmark report\n");
+    let _ = writeln!(
+        md,
+        "Generated by `cargo xtask bench-report{}` ({} mode); do not edit by hand. \
+         Raw numbers: [`bench-report/report.json`](bench-report/report.json). \
+         How to read it and what was found: [performance.md](performance.md).\n",
+        if r["mode"] == "quick" { " --quick" } else { "" },
+        r["mode"].as_str().unwrap_or("?")
+    );
+    let _ = writeln!(md, "| | |\n| --- | --- |");
+    let _ = writeln!(md, "| CPU | {} |", m["cpu"].as_str().unwrap_or("?"));
+    let _ = writeln!(md, "| logical cores | {} |", m["logical_cores"]);
+    let _ = writeln!(md, "| memory | {:.1} GiB |", f(&m["memory_gib"]));
+    let _ = writeln!(md, "| commit | `{}` |", r["commit"].as_str().unwrap_or("?"));
+    let _ = writeln!(md, "| date | {} |", r["date"].as_str().unwrap_or("?"));
+    let _ = writeln!(
+        md,
+        "| CPU pressure before / after | `{}` / `{}` |",
+        m["cpu_pressure"].as_str().unwrap_or("n/a"),
+        r["machine_after"]["cpu_pressure"].as_str().unwrap_or("n/a")
+    );
+    let _ = writeln!(
+        md,
+        "| wall time of the report | {:.0} s |\n",
+        f(&r["wall_seconds"])
+    );
+    let _ = writeln!(
+        md,
+        "Scene: box cantilever 1 x 0.2 x 0.2 m clamped at x = 0, corotational strain \
+         1e5 Pa, 1000 kg/m^3, gravity, h = 0.01 s, fixed iteration count (no tolerance), \
+         release build, timings with `std::time::Instant`. Damping coefficients: ether drag \
+         1/s (explicit), PBD 0.05, lagged Rayleigh 0.003 s, Laplacian 0.003 s.\n"
+    );
+
+    let _ = writeln!(md, "## Overhead of each damping model\n");
+    let overhead = r["overhead"].as_array().unwrap_or(&empty);
+    if let Some(first) = overhead.first() {
+        let _ = writeln!(
+            md,
+            "{} vertices, {} iterations, 1 thread. Every model steps from the same state (the \
+             undamped beam after 5 steps); the models' steps are interleaved, {} rounds, so drift \
+             in the machine's speed hits all alike. Median time per step and its ratio to `none` \
+             of the same integrator, same run.\n",
+            first["n_verts"], first["iters"], first["rounds"]
+        );
+    }
+    let _ = writeln!(
+        md,
+        "| integrator | model | median step [ms] | fastest [ms] | ratio to none |"
+    );
+    let _ = writeln!(md, "| --- | --- | --- | --- | --- |");
+    for run in overhead {
+        for model in run["models"].as_array().unwrap_or(&empty) {
+            let _ = writeln!(
+                md,
+                "| {} | {} | {:.2} | {:.2} | {:.3} |",
+                run["integrator"].as_str().unwrap_or("?"),
+                model["model"].as_str().unwrap_or("?"),
+                f(&model["median_ms"]),
+                f(&model["min_ms"]),
+                f(&model["ratio_to_none"])
+            );
+        }
+    }
+
+    let _ = writeln!(md, "\n## Speed against accuracy\n");
+    let accuracy = r["accuracy"].as_array().unwrap_or(&empty);
+    if let Some(first) = accuracy.first() {
+        let _ = writeln!(
+            md,
+            "{} vertices, no damping, {} steps of {} s ({} s simulated), 1 thread. Reference: the \
+             same integrator and step solved to a relative tolerance of {:e} (at most 2000 \
+             iterations). Position error: the largest vertex distance to the reference divided by \
+             the body's diagonal (1.04 m). Energy error: |E - E_ref| (kinetic + elastic + \
+             gravitational) divided by m g L, the total weight times the diagonal ({:.1} J).\n",
+            first["n_verts"],
+            first["steps"],
+            first["dt"],
+            first["time"],
+            f(&first["reference_tolerance"]),
+            f(&first["energy_scale_joule"])
+        );
+    }
+    let _ = writeln!(
+        md,
+        "| integrator | iterations | position error | energy error | step [ms] |"
+    );
+    let _ = writeln!(md, "| --- | --- | --- | --- | --- |");
+    for run in accuracy {
+        for row in run["rows"].as_array().unwrap_or(&empty) {
+            let _ = writeln!(
+                md,
+                "| {} | {} | {:.2e} | {:.2e} | {:.2} |{}",
+                run["integrator"].as_str().unwrap_or("?"),
+                row["iters"],
+                f(&row["position_error_rel"]),
+                f(&row["energy_error_rel"]),
+                f(&row["step_ms_median"]),
+                if row["diverged"] == true {
+                    " diverged"
+                } else {
+                    ""
+                }
+            );
+        }
+    }
+    for run in accuracy {
+        let _ = writeln!(
+            md,
+            "\nReference ({}): {:.1} iterations per step on average, {} steps not converged.",
+            run["integrator"].as_str().unwrap_or("?"),
+            f(&run["reference_mean_iterations"]),
+            run["reference_unconverged_steps"]
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\n![error against time per step](bench-report/accuracy.png)\n\n\
+         Left: position error, right: energy error, both against the median time per step; \
+         each curve's points are the iteration counts 1, 2, 3, 5, 10, 20, 50 from left to right.\n"
+    );
+
+    let _ = writeln!(md, "## Scaling\n");
+    let scaling = r["scaling"].as_array().unwrap_or(&empty);
+    let _ = writeln!(
+        md,
+        "Backward Euler, no damping, 10 iterations, 1 thread; each size in its own process. \
+         Factorisation: the numeric Cholesky factorisation (faer; AMD or nested-dissection ordering, whichever fills less); analysis: \
+         assembly, ordering and symbolic factorisation. Peak memory: the process's `VmHWM`.\n"
+    );
+    let _ = writeln!(
+        md,
+        "| vertices | tets | nnz(L) [M] | analysis [ms] | numeric factorisation [ms] | step [ms] | local / global per step [ms] | peak memory [MB] |"
+    );
+    let _ = writeln!(md, "| --- | --- | --- | --- | --- | --- | --- | --- |");
+    for row in scaling {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:.2} | {:.0} | {:.1} | {:.1} | {:.1} / {:.1} | {:.0} |",
+            row["n_verts"],
+            row["n_tets"],
+            f(&row["nnz_L_factor"]) / 1e6,
+            f(&row["symbolic_ms"]),
+            f(&row["numeric_factor_ms"]),
+            f(&row["step_ms_median"]),
+            f(&row["local_ms_median"]),
+            f(&row["global_ms_median"]),
+            f(&row["peak_bytes"]) / 1e6
+        );
+    }
+    let fit = |key: &str, scale: f64| {
+        fitted_exponent(
+            &scaling
+                .iter()
+                .map(|r| (f(&r["n_verts"]), f(&r[key]) * scale))
+                .collect::<Vec<_>>(),
+        )
+    };
+    let show = |e: Option<f64>| e.map_or("n/a".into(), |e| format!("{e:.2}"));
+    let _ = writeln!(
+        md,
+        "\nFitted exponents p of `y ~ n^p` (least squares in log-log over all sizes): \
+         numeric factorisation {}, step {}, nnz(L) {}, peak memory {}.\n",
+        show(fit("numeric_factor_ms", 1.0)),
+        show(fit("step_ms_median", 1.0)),
+        show(fit("nnz_L_factor", 1.0)),
+        show(fit("peak_bytes", 1.0))
+    );
+    let _ = writeln!(md, "![scaling](bench-report/scaling.png)\n");
+
+    let _ = writeln!(md, "## Parallel speed-up of the local step\n");
+    let speedup = r["local_speedup"].as_array().unwrap_or(&empty);
+    if let Some(first) = speedup.first() {
+        let _ = writeln!(
+            md,
+            "{} tets, median of 10 local steps (every constraint projected once) per run; \
+             1 and 2 threads run alternately in separate processes.\n",
+            first["one"]["n_tets"]
+        );
+    }
+    let _ = writeln!(md, "| pair | 1 thread [ms] | 2 threads [ms] | speed-up |");
+    let _ = writeln!(md, "| --- | --- | --- | --- |");
+    for (i, pair) in speedup.iter().enumerate() {
+        let _ = writeln!(
+            md,
+            "| {} | {:.2} | {:.2} | {:.2} |",
+            i + 1,
+            f(&pair["one"]["local_ms_median"]),
+            f(&pair["two"]["local_ms_median"]),
+            f(&pair["speedup"])
+        );
+    }
+    md
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exponent_of_a_power_law_is_recovered() {
+        let points: Vec<(f64, f64)> = [1.0, 10.0, 100.0]
+            .iter()
+            .map(|&x: &f64| (x, 3.0 * x.powf(1.5)))
+            .collect();
+        assert!((fitted_exponent(&points).unwrap() - 1.5).abs() < 1e-12);
+        assert_eq!(fitted_exponent(&points[..1]), None);
+    }
+}
