@@ -2,9 +2,12 @@
 //!
 //! - `ci`: what `.ci/run` runs (format check, clippy, tests);
 //! - `damping-table [--quick]`: measures every damping model with every
-//!   integrator on the bundled scenes and writes `docs/damping-table.md`.
+//!   integrator on the bundled scenes and writes `docs/damping-table.md`;
+//! - `stability [--quick]`: runs every integrator and damping model over a
+//!   matrix of extreme parameters and writes `docs/stability.md`.
 
 mod damping_table;
+mod stability;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
@@ -37,9 +40,10 @@ fn main() -> ExitCode {
                 }
             }
         }
+        Some("stability") => stability::main(&workspace_root(), &args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md"
+                "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md\n  stability [--quick]       run the matrix of extreme parameters, write docs/stability.md (use --release)"
             );
             ExitCode::from(2)
         }
