@@ -890,8 +890,9 @@ fn restore_spin(
 /// `g(x) = 1/(2h^2) |x - y|_M^2 + c1 E(c2 x + z)
 ///   + 1/2 c1 c2 gamma (x - x_hat)^T D (x - x_hat)`, with
 /// `D = a1 M + a2 L_d + a3 K(x_n)`. Fixed vertices sit at `x_n`, where
-/// `x - x_hat` vanishes, so `L_d`'s rows of the free vertices suffice. The
-/// three buffers (q, x - x_hat, K (x - x_hat)) are scratch.
+/// `x - x_hat` vanishes, so `L_d`'s rows of the free vertices suffice; their
+/// inertia term is a constant of the step. The three buffers (q,
+/// x - x_hat, K (x - x_hat)) are scratch.
 #[allow(clippy::too_many_arguments)]
 fn step_objective(
     local: &LocalStep,
@@ -921,10 +922,15 @@ fn step_objective(
     if let Some(lagged) = lagged {
         product.iter_mut().for_each(|p| *p = Point::zeros());
         lagged.add_stiffness_product(local.blocks(), offset, 1.0, product);
-        lagged_form = offset.iter().zip(product.iter()).map(|(a, b)| a.dot(b)).sum();
+        lagged_form = offset
+            .iter()
+            .zip(product.iter())
+            .map(|(a, b)| a.dot(b))
+            .sum();
     }
-    let damping_form =
-        d.mass * mass_form + d.damping_laplacian * laplacian_form + d.lagged_stiffness * lagged_form;
+    let damping_form = d.mass * mass_form
+        + d.damping_laplacian * laplacian_form
+        + d.lagged_stiffness * lagged_form;
     inertia / (2.0 * h * h) + c.c1 * local.energy(q) + 0.5 * c.c1 * c.c2 * c.gamma * damping_form
 }
 

@@ -74,7 +74,10 @@ fn one_step(
         velocities: scene.initial_velocities(n),
     })
     .unwrap();
-    let (x0, v0) = (sim.state().positions.clone(), sim.state().velocities.clone());
+    let (x0, v0) = (
+        sim.state().positions.clone(),
+        sim.state().velocities.clone(),
+    );
     let j0 = sim.angular_momentum();
     sim.step().map_err(|e| TestCaseError::fail(e.to_string()))?;
     let (x1, v1) = (&sim.state().positions, &sim.state().velocities);

@@ -95,7 +95,18 @@ fn case() -> impl Strategy<Value = Case> {
         1usize..=12,
     )
         .prop_map(
-            |(cells, seed, stiffness, density, velocities, choice, pinned, tolerance, dt, iterations)| {
+            |(
+                cells,
+                seed,
+                stiffness,
+                density,
+                velocities,
+                choice,
+                pinned,
+                tolerance,
+                dt,
+                iterations,
+            )| {
                 Case {
                     cells: [cells.0, cells.1, cells.2],
                     seed,

@@ -60,7 +60,12 @@ fn spring_quadratic_form(model: &Model, stiffness: f64, v: &[Point]) -> f64 {
     model
         .bodies()
         .iter()
-        .flat_map(|b| b.mesh.edges().iter().map(move |e| (e[0] + b.offset, e[1] + b.offset)))
+        .flat_map(|b| {
+            b.mesh
+                .edges()
+                .iter()
+                .map(move |e| (e[0] + b.offset, e[1] + b.offset))
+        })
         .map(|(i, j)| stiffness * (v[j] - v[i]).norm_squared())
         .sum()
 }
@@ -88,8 +93,13 @@ fn run(
     let d = damping.implicit_matrix();
     let matrix_bound = max_mass * (1.0 / (dt * dt) + d.mass / dt)
         + laplacian * (1.0 + (d.damping_laplacian + d.lagged_stiffness) / dt);
-    let mut sim =
-        Simulation::new(model, integrator, damping, settings(dt, iterations, gravity)).unwrap();
+    let mut sim = Simulation::new(
+        model,
+        integrator,
+        damping,
+        settings(dt, iterations, gravity),
+    )
+    .unwrap();
     let positions = sim.state().positions.clone();
     sim.set_state(State {
         positions,
@@ -218,7 +228,16 @@ fn controls_fail_the_same_checks() {
     // must pass for implicit midpoint on the same scene.
     let scene = control_scene();
     let balance_error = |integrator: Box<dyn Integrator>| -> f64 {
-        let records = run(&scene, integrator, DampingChoice::None, false, true, 0.02, 1).unwrap();
+        let records = run(
+            &scene,
+            integrator,
+            DampingChoice::None,
+            false,
+            true,
+            0.02,
+            1,
+        )
+        .unwrap();
         records
             .iter()
             .map(|r| (r.after - r.before).abs() / r.tolerance)
@@ -232,7 +251,16 @@ fn controls_fail_the_same_checks() {
         mass: 0.0,
         preserve_rotation: false,
     };
-    let records = run(&scene, Box::new(ImplicitMidpoint), damped, false, true, 0.02, 1).unwrap();
+    let records = run(
+        &scene,
+        Box::new(ImplicitMidpoint),
+        damped,
+        false,
+        true,
+        0.02,
+        1,
+    )
+    .unwrap();
     assert!(
         records
             .iter()

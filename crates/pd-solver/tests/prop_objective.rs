@@ -55,9 +55,13 @@ fn worst_increase(
     let laplacian = laplacian_norm(&model);
     let damping = choice.create();
     let d = damping.implicit_matrix();
-    let mut sim =
-        Simulation::new(model, scheme.integrator(), damping, settings(dt, iterations, gravity))
-            .unwrap();
+    let mut sim = Simulation::new(
+        model,
+        scheme.integrator(),
+        damping,
+        settings(dt, iterations, gravity),
+    )
+    .unwrap();
     let positions = sim.state().positions.clone();
     sim.set_state(State {
         positions,

@@ -50,8 +50,18 @@ enum Spread {
 }
 
 fn layout() -> impl Strategy<Value = Layout> {
-    let spread = prop_oneof![Just(Spread::Cloud), Just(Spread::Line), Just(Spread::Single)];
-    let component = (spread, 2usize..=9, points(9, 2.0), points(9, 5.0), points(1, 10.0));
+    let spread = prop_oneof![
+        Just(Spread::Cloud),
+        Just(Spread::Line),
+        Just(Spread::Single)
+    ];
+    let component = (
+        spread,
+        2usize..=9,
+        points(9, 2.0),
+        points(9, 5.0),
+        points(1, 10.0),
+    );
     (
         proptest::collection::vec(component, 1..=3),
         proptest::collection::vec(1e-3..10.0f64, 30),
@@ -66,7 +76,11 @@ fn layout() -> impl Strategy<Value = Layout> {
                 components: Vec::new(),
             };
             for (spread, count, shape, velocities, offset) in parts {
-                let count = if matches!(spread, Spread::Single) { 1 } else { count };
+                let count = if matches!(spread, Spread::Single) {
+                    1
+                } else {
+                    count
+                };
                 let mut component = Vec::new();
                 for k in 0..count {
                     let v = layout.positions.len();
@@ -239,6 +253,9 @@ fn controls_fail_the_same_checks() {
         .collect();
     let before = kinetic(&layout.masses, &layout.velocities);
     assert!(kinetic(&layout.masses, &overshoot) > before * 1.01);
-    let pbd = kinetic(&layout.masses, &filtered(&PbdDamping::new(1.0).unwrap(), &layout, 0.01));
+    let pbd = kinetic(
+        &layout.masses,
+        &filtered(&PbdDamping::new(1.0).unwrap(), &layout, 0.01),
+    );
     assert!(pbd < before * 0.99, "the rigid part alone has less energy");
 }

@@ -145,10 +145,7 @@ pub fn shape() -> impl Strategy<Value = Shape> {
 
 /// Random scenes with stiffness in `stiffness` and velocities up to
 /// `speed` m/s per coordinate; masses from 0.01 to 10 kg.
-pub fn scene(
-    stiffness: std::ops::Range<f64>,
-    speed: f64,
-) -> impl Strategy<Value = Scene> {
+pub fn scene(stiffness: std::ops::Range<f64>, speed: f64) -> impl Strategy<Value = Scene> {
     (
         shape(),
         0u64..1000,
