@@ -891,8 +891,8 @@ fn restore_spin(
 ///   + 1/2 c1 c2 gamma (x - x_hat)^T D (x - x_hat)`, with
 /// `D = a1 M + a2 L_d + a3 K(x_n)`. Fixed vertices sit at `x_n`, where
 /// `x - x_hat` vanishes, so `L_d`'s rows of the free vertices suffice; their
-/// inertia term is a constant of the step. The three buffers (q,
-/// x - x_hat, K (x - x_hat)) are scratch.
+/// inertia term is a constant of the step. The three buffers (`q`,
+/// `x - x_hat`, `K (x - x_hat)`) are scratch.
 #[allow(clippy::too_many_arguments)]
 fn step_objective(
     local: &LocalStep,

@@ -8,9 +8,9 @@
 //! energy (kinetic + springs + gravity) and `f = -grad E_pot`, linear in `x`.
 //!
 //! - **Backward Euler** (`M (v1 - v0)/h = f(x1) - D v1`, `x1 = x0 + h v1`):
-//!   for a quadratic potential `E_pot(x1) - E_pot(x0) = -f(x1).(x1 - x0)
-//!   - 1/2 |x1 - x0|_L^2`, and `1/2|v1|_M^2 - 1/2|v0|_M^2 = v1^T M (v1 - v0)
-//!   - 1/2 |v1 - v0|_M^2`, so
+//!   for a quadratic potential
+//!   `E_pot(x1) - E_pot(x0) = -f(x1).(x1 - x0) - 1/2 |x1 - x0|_L^2`, and
+//!   `1/2|v1|_M^2 - 1/2|v0|_M^2 = v1^T M (v1 - v0) - 1/2 |v1 - v0|_M^2`, so
 //!   `E1 - E0 = -h v1^T D v1 - 1/2 |v1 - v0|_M^2 - 1/2 |x1 - x0|_L^2 <= 0`
 //!   for every PSD `D`. The explicit filters (ether drag, PBD) only lower
 //!   the kinetic energy afterwards (`prop_velocity_filters.rs`), so energy

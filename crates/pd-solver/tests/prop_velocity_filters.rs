@@ -120,11 +120,12 @@ fn kinetic(masses: &[f64], velocities: &[Point]) -> f64 {
 
 /// Applies `damping`'s filter to the layout; returns the new velocities.
 fn filtered(damping: &dyn Damping, layout: &Layout, h: f64) -> Vec<Point> {
-    let bodies = [0..layout.positions.len()];
+    // One body holding every vertex.
+    let body = 0..layout.positions.len();
     let context = DampingContext {
         h,
         masses: &layout.masses,
-        bodies: &bodies,
+        bodies: std::slice::from_ref(&body),
         components: &layout.components,
         fixed: &layout.fixed,
     };
