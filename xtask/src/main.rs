@@ -7,12 +7,15 @@
 //!   written to `docs/bench-report.md` (+ JSON and PNG figures);
 //! - `cpp-compare --reference PATH [--quick]`: pd against the C++ Eigen /
 //!   CHOLMOD reference on the same TetGen meshes, written to
-//!   `docs/cpp-comparison.md`.
+//!   `docs/cpp-comparison.md`;
+//! - `stability [--quick]`: runs every integrator and damping model over a
+//!   matrix of extreme parameters and writes `docs/stability.md`.
 
 mod bench_cpp;
 mod bench_plot;
 mod bench_report;
 mod damping_table;
+mod stability;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
@@ -50,9 +53,10 @@ fn main() -> ExitCode {
             args.iter().any(|a| a == "--quick"),
         )),
         Some("cpp-compare") => report(bench_cpp::run(&workspace_root(), &args[1..])),
+        Some("stability") => stability::main(&workspace_root(), &args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md\n  bench-report [--quick]    speed/accuracy/scaling report: docs/bench-report.md\n  cpp-compare --reference PATH_TO_PDREF [--quick]\n                            pd vs the C++ reference: docs/cpp-comparison.md"
+                "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md\n  bench-report [--quick]    speed/accuracy/scaling report: docs/bench-report.md\n  cpp-compare --reference PATH_TO_PDREF [--quick]\n                            pd vs the C++ reference: docs/cpp-comparison.md\n  stability [--quick]       run the matrix of extreme parameters, write docs/stability.md (use --release)"
             );
             ExitCode::from(2)
         }

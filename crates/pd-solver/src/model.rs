@@ -129,6 +129,21 @@ impl Model {
     /// # Errors
     /// A body without edges, or invalid parameters.
     pub fn add_springs(&mut self, body: BodyId, stiffness: f64) -> Result<usize, SolverError> {
+        self.add_springs_with_rest_length(body, stiffness, None)
+    }
+
+    /// Like [`Model::add_springs`] with one rest length in m for every edge
+    /// (`Some(0.0)`: zero-rest-length springs, whose energy is quadratic and
+    /// convex); `None` takes each edge's rest distance. Returns how many.
+    ///
+    /// # Errors
+    /// A body without edges, or invalid parameters.
+    pub fn add_springs_with_rest_length(
+        &mut self,
+        body: BodyId,
+        stiffness: f64,
+        rest_length: Option<f64>,
+    ) -> Result<usize, SolverError> {
         let b = self.body(body)?;
         if b.mesh.edges().is_empty() {
             return Err(SolverError::InvalidModel {
@@ -141,7 +156,7 @@ impl Model {
             .mesh
             .edges()
             .iter()
-            .map(|e| Spring::new(rest, e.map(|v| v + offset), stiffness))
+            .map(|e| Spring::with_rest_length(rest, e.map(|v| v + offset), stiffness, rest_length))
             .collect::<Result<Vec<_>, _>>();
         Self::append(body, new, &mut self.springs)
     }

@@ -7,8 +7,8 @@ use std::time::Instant;
 use faer::Mat;
 use pd_constraints::CsrMatrix;
 use pd_damping::rigid::RigidFit;
-use pd_damping::{Damping, DampingContext};
-use pd_integrators::{Integrator, StepTargets};
+use pd_damping::{Damping, DampingContext, DampingMatrix};
+use pd_integrators::{Integrator, StepCoefficients, StepTargets};
 use pd_mesh::Point;
 use rayon::prelude::*;
 
@@ -158,6 +158,9 @@ pub struct Simulation {
     energy_scale: f64,
     setup: SetupStats,
     scratch: Scratch,
+    /// The step objective after each iteration of the last step, when
+    /// recording was asked for ([`Simulation::record_objective`]).
+    objective_trace: Option<Vec<f64>>,
 }
 
 impl Simulation {
@@ -258,6 +261,7 @@ impl Simulation {
             energy_scale: 0.0,
             setup,
             scratch,
+            objective_trace: None,
         };
         if sim.lagged.is_none() {
             sim.factor_for_next_step()?;
@@ -344,6 +348,24 @@ impl Simulation {
             }
             None => self.step_inner(),
         }
+    }
+
+    /// Turns on (or off) recording the step objective `g(x)` of DESIGN.md
+    /// 3.1-3.2 (the function each step minimises, in J) at the start iterate
+    /// and after every local-global iteration, for
+    /// [`Simulation::objective_trace`]. Off by default: it costs one energy
+    /// evaluation per iteration and allocates, so it is for tests and
+    /// diagnostics, not production runs.
+    pub fn record_objective(&mut self, enabled: bool) {
+        self.objective_trace = enabled.then(Vec::new);
+    }
+
+    /// The step objective recorded over the last step (`iterations + 1`
+    /// values, J), or `None` unless [`Simulation::record_objective`] is on.
+    /// Each local step and each global step lowers it, so it never
+    /// increases from one value to the next (up to round-off).
+    pub fn objective_trace(&self) -> Option<&[f64]> {
+        self.objective_trace.as_deref()
     }
 
     /// Advances `steps` time steps; stops at the first error.
@@ -516,6 +538,19 @@ impl Simulation {
             factor_seconds,
             ..StepStats::default()
         };
+        if let Some(trace) = &mut self.objective_trace {
+            trace.clear();
+            trace.push(step_objective(
+                &self.local,
+                &self.global,
+                self.lagged.as_ref(),
+                masses,
+                &s.targets,
+                (c, d, h),
+                &s.iterate,
+                [&mut s.q, &mut s.velocities, &mut s.forces],
+            ));
+        }
         for _ in 0..self.settings.iterations {
             let t0 = Instant::now();
             let (c2, iterate, offset) = (c.c2, &s.iterate, &s.targets.offset);
@@ -575,6 +610,18 @@ impl Simulation {
                     displacement2 += masses[v] * (new - x_n[v]).norm_squared();
                 }
                 s.iterate[v] = new;
+            }
+            if let Some(trace) = &mut self.objective_trace {
+                trace.push(step_objective(
+                    &self.local,
+                    &self.global,
+                    self.lagged.as_ref(),
+                    masses,
+                    &s.targets,
+                    (c, d, h),
+                    &s.iterate,
+                    [&mut s.q, &mut s.velocities, &mut s.forces],
+                ));
             }
             stats.iterations += 1;
             stats.local_seconds += (t1 - t0).as_secs_f64();
@@ -853,6 +900,54 @@ fn restore_spin(
             velocities[i] += restore.cross(&(positions[i] - fit.centre));
         }
     }
+}
+
+/// The step objective (DESIGN.md 3.1-3.2) at `x`, in J:
+/// `g(x) = 1/(2h^2) |x - y|_M^2 + c1 E(c2 x + z)
+///   + 1/2 c1 c2 gamma (x - x_hat)^T D (x - x_hat)`, with
+/// `D = a1 M + a2 L_d + a3 K(x_n)`. Fixed vertices sit at `x_n`, where
+/// `x - x_hat` vanishes, so `L_d`'s rows of the free vertices suffice; their
+/// inertia term is a constant of the step. The three buffers (`q`,
+/// `x - x_hat`, `K (x - x_hat)`) are scratch.
+#[allow(clippy::too_many_arguments)]
+fn step_objective(
+    local: &LocalStep,
+    global: &GlobalSystem,
+    lagged: Option<&LaggedSystem>,
+    masses: &[f64],
+    targets: &StepTargets,
+    (c, d, h): (StepCoefficients, DampingMatrix, f64),
+    x: &[Point],
+    [q, offset, product]: [&mut [Point]; 3],
+) -> f64 {
+    let mut inertia = 0.0;
+    let mut mass_form = 0.0;
+    for v in 0..x.len() {
+        q[v] = x[v] * c.c2 + targets.offset[v];
+        offset[v] = x[v] - targets.damping_anchor[v];
+        inertia += masses[v] * (x[v] - targets.inertial[v]).norm_squared();
+        mass_form += masses[v] * offset[v].norm_squared();
+    }
+    let mut laplacian_form = 0.0;
+    if d.damping_laplacian != 0.0 {
+        for (f, &v) in global.free.iter().enumerate() {
+            laplacian_form += offset[v].dot(&global.damping_rows.row_dot(f, offset));
+        }
+    }
+    let mut lagged_form = 0.0;
+    if let Some(lagged) = lagged {
+        product.iter_mut().for_each(|p| *p = Point::zeros());
+        lagged.add_stiffness_product(local.blocks(), offset, 1.0, product);
+        lagged_form = offset
+            .iter()
+            .zip(product.iter())
+            .map(|(a, b)| a.dot(b))
+            .sum();
+    }
+    let damping_form = d.mass * mass_form
+        + d.damping_laplacian * laplacian_form
+        + d.lagged_stiffness * lagged_form;
+    inertia / (2.0 * h * h) + c.c1 * local.energy(q) + 0.5 * c.c1 * c.c2 * c.gamma * damping_form
 }
 
 /// Index of the first point with a non-finite coordinate.

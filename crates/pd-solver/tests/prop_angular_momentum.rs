@@ -1,0 +1,320 @@
+//! Angular momentum `J = sum x x m v` (about the origin) over random free
+//! scenes (tet boxes with corotational strain, spring chains, both), random
+//! masses, velocities, stiffnesses, time steps and iteration counts, no
+//! gravity and no pins.
+//!
+//! - **Implicit midpoint, undamped**: `x1 - x0 = h v_mid` and
+//!   `v1 - v0 = 2 (v_mid - v0)` give exactly
+//!   `J1 - J0 = sum x_mid x m (v1 - v0)`. With the step's force residual
+//!   `r = M (v1 - v0)/h - f(x_mid)` this is `h sum x_mid x r`, because the
+//!   internal forces of a rotation-invariant energy exert no torque
+//!   (`sum x x f(x) = 0`). So the error is bounded by `h sum |x_mid| |r|`,
+//!   which vanishes as the local-global iterations converge. PBD damping
+//!   keeps `J` exactly (`prop_velocity_filters.rs`: the filter keeps each
+//!   component's momenta, and it runs after the positions are final).
+//! - **Rotation-preserving Laplacian damping** (any integrator, any
+//!   iteration count): the solver gives each free body back the spin it had
+//!   at the start of the step, and `L_d`'s zero column sums keep each body's
+//!   momentum `P_b`; each integrator moves the body's centre of mass along
+//!   `P_b` (`sum m x1 = sum m x0 + h P_b`, for BDF-2 from its recurrence), so
+//!   the orbital part `x_cm x P_b` is constant too: `J` is kept to round-off.
+//! - **Plain Laplacian damping** loses spin: `v^T L_d v > 0` for a rigid
+//!   rotation (DESIGN.md 3.4), so the damping torque opposes the rotation.
+//!   Theory gives the sign of `omega . dJ/dt`, not of `d|J|/dt` (`J` and
+//!   `omega` are parallel only for an isotropic inertia, and deformation
+//!   velocities add torque of either sign), so the test asserts that `|J|`
+//!   never rises above its initial value on converged implicit-midpoint
+//!   runs (where nothing else changes `J`), and that it is lost by the end.
+
+mod common;
+mod prop_common;
+
+use common::{SCHEMES, U, laplacian_norm};
+use nalgebra::SymmetricEigen;
+use pd_damping::rigid::RigidFit;
+use pd_damping::{LaplacianDamping, NoDamping};
+use pd_integrators::{BackwardEuler, ImplicitMidpoint, Integrator};
+use pd_mesh::Point;
+use pd_solver::{Settings, Simulation, State};
+use prop_common::{Material, Scene, Shape, config, scene, settings};
+use proptest::prelude::*;
+
+/// What one step did to `J`, with the residual bound and round-off scale.
+#[derive(Debug)]
+struct SpinStep {
+    /// `|J1 - J0|` in kg m^2/s.
+    change: f64,
+    /// `h sum |x_mid| |r|`: the bound from the unconverged residual.
+    residual_bound: f64,
+    /// Round-off scale of the comparison.
+    roundoff: f64,
+}
+
+/// One step of `scene` from its random velocities with `integrator`,
+/// `iterations` local-global iterations and a relative `tolerance`.
+fn one_step(
+    scene: &Scene,
+    integrator: Box<dyn Integrator>,
+    dt: f64,
+    iterations: usize,
+    tolerance: f64,
+) -> Result<SpinStep, TestCaseError> {
+    let model = scene.model(Material::Elastic, false);
+    let n = model.num_vertices();
+    let laplacian = laplacian_norm(&model);
+    let blocks = model.constraint_blocks();
+    let settings = Settings {
+        tolerance,
+        ..settings(dt, iterations, false)
+    };
+    let mut sim = Simulation::new(model, integrator, Box::new(NoDamping), settings).unwrap();
+    let positions = sim.state().positions.clone();
+    sim.set_state(State {
+        positions,
+        velocities: scene.initial_velocities(n),
+    })
+    .unwrap();
+    let (x0, v0) = (
+        sim.state().positions.clone(),
+        sim.state().velocities.clone(),
+    );
+    let j0 = sim.angular_momentum();
+    sim.step().map_err(|e| TestCaseError::fail(e.to_string()))?;
+    let (x1, v1) = (&sim.state().positions, &sim.state().velocities);
+    let masses = sim.model().masses();
+    let x_mid: Vec<Point> = x0.iter().zip(x1).map(|(a, b)| (a + b) * 0.5).collect();
+    let mut gradient = vec![Point::zeros(); n];
+    for block in &blocks {
+        block.add_gradient(&x_mid, &mut gradient);
+    }
+    let mut residual_bound = 0.0;
+    let mut roundoff = 0.0;
+    for i in 0..n {
+        let r = (v1[i] - v0[i]) * (masses[i] / dt) + gradient[i];
+        residual_bound += dt * x_mid[i].norm() * r.norm();
+        let x = x0[i].norm().max(x1[i].norm());
+        // J's sums, the velocity update's cancellation `2 (x1 - x0)/h`, and
+        // the solve's residual `u |A| |x|` with `|A| <= m/h^2 + |L|`.
+        roundoff += x
+            * (masses[i] * (v0[i].norm() + v1[i].norm())
+                + 4.0 * masses[i] * x / dt
+                + dt * laplacian * x);
+    }
+    Ok(SpinStep {
+        change: (sim.angular_momentum() - j0).norm(),
+        residual_bound,
+        roundoff: 32.0 * U * n as f64 * roundoff,
+    })
+}
+
+/// Largest condition number of the non-zero part of a body's inertia over
+/// the current state (1 for none).
+fn worst_inertia_condition(sim: &Simulation) -> f64 {
+    let masses = sim.model().masses();
+    let state = sim.state();
+    sim.model()
+        .bodies()
+        .iter()
+        .map(|b| {
+            let vertices: Vec<usize> = b.vertices().collect();
+            let fit = RigidFit::of(&vertices, masses, &state.positions, &state.velocities);
+            let eigen = SymmetricEigen::new(fit.inertia);
+            let largest = eigen.eigenvalues.max();
+            let cutoff = pd_damping::rigid::INERTIA_RELATIVE_CUTOFF * largest;
+            let smallest = eigen
+                .eigenvalues
+                .iter()
+                .copied()
+                .filter(|&e| e > cutoff)
+                .fold(f64::INFINITY, f64::min);
+            largest / smallest
+        })
+        .fold(1.0, f64::max)
+}
+
+/// `sum m |x| |v|`: the scale of `J`'s round-off.
+fn moment_scale(sim: &Simulation) -> f64 {
+    let s = sim.state();
+    sim.model()
+        .masses()
+        .iter()
+        .zip(&s.positions)
+        .zip(&s.velocities)
+        .map(|((m, x), v)| m * x.norm() * v.norm())
+        .sum()
+}
+
+proptest! {
+    #![proptest_config(config(24))]
+
+    #[test]
+    fn implicit_midpoint_keeps_angular_momentum_up_to_the_residual(
+        scene in scene(1e1..1e4, 2.0),
+        dt in 1e-3..0.02f64,
+    ) {
+        let mut bounds = Vec::new();
+        for iterations in [1, 4, 16] {
+            let s = one_step(&scene, Box::new(ImplicitMidpoint), dt, iterations, 0.0)?;
+            prop_assert!(
+                s.change <= s.residual_bound + s.roundoff,
+                "{iterations} iterations: |dJ| {:e} > {:e} + {:e}", s.change, s.residual_bound, s.roundoff
+            );
+            bounds.push(s.residual_bound);
+        }
+        // Solved to convergence, the change is round-off, and the residual
+        // bound has shrunk from one iteration's.
+        let s = one_step(&scene, Box::new(ImplicitMidpoint), dt, 5000, 1e-13)?;
+        prop_assert!(
+            s.change <= s.residual_bound + s.roundoff,
+            "converged: |dJ| {:e} > {:e} + {:e}", s.change, s.residual_bound, s.roundoff
+        );
+        prop_assert!(s.residual_bound <= bounds[0].max(s.roundoff), "{bounds:?} then {}", s.residual_bound);
+    }
+
+    #[test]
+    fn rotation_preserving_laplacian_damping_keeps_angular_momentum(
+        scene in scene(1e1..1e4, 2.0),
+        spin in prop_common::points(1, 3.0),
+        damping_stiffness in 0.0..0.1f64,
+        dt in 1e-3..0.02f64,
+        iterations in 1usize..=10,
+    ) {
+        for scheme in SCHEMES {
+            let ratio = spin_error_ratio(&scene, scheme, spin[0], damping_stiffness, true, dt, iterations)?;
+            prop_assert!(ratio <= 1.0, "{scheme:?}: |J - J0| is {ratio} times its tolerance");
+        }
+    }
+
+    #[test]
+    fn plain_laplacian_damping_never_adds_angular_momentum(
+        cells in (1usize..=2, 1usize..=2, 1usize..=2),
+        seed in 0u64..1000,
+        stiffness in 1e2..1e4f64,
+        masses in proptest::collection::vec(0.1..10.0f64, 27),
+        spin in prop_common::points(1, 3.0),
+        damping_stiffness in 1e-3..0.1f64,
+        dt in 1e-3..0.02f64,
+    ) {
+        let scene = Scene {
+            shape: Shape::Box { cells: [cells.0, cells.1, cells.2] },
+            seed,
+            stiffness,
+            masses,
+            velocities: vec![Point::zeros(); 27],
+        };
+        let model = scene.model(Material::Elastic, false);
+        let n = model.num_vertices();
+        let damping = Box::new(LaplacianDamping::new(damping_stiffness, 0.0, false).unwrap());
+        let converged = Settings { tolerance: 1e-12, ..settings(dt, 5000, false) };
+        let mut sim = Simulation::new(model, Box::new(ImplicitMidpoint), damping, converged).unwrap();
+        sim.add_rigid_velocity(0, Point::zeros(), spin[0]);
+        let j0 = sim.angular_momentum().norm();
+        let mut last = j0;
+        for step in 1..=20 {
+            let stats = sim.step().map_err(|e| TestCaseError::fail(format!("step {step}: {e}")))?;
+            prop_assert!(stats.converged);
+            last = sim.angular_momentum().norm();
+            let tolerance = 64.0 * U * n as f64 * moment_scale(&sim);
+            prop_assert!(last <= j0 + tolerance, "step {step}: |J| {last:e} > {j0:e}");
+        }
+        prop_assert!(last < j0, "no spin lost: {last:e} vs {j0:e}");
+    }
+}
+
+#[test]
+fn converged_midpoint_bound_is_far_below_backward_euler_loss() {
+    // The control: backward Euler's `J1 - J0 = h sum x0 x f(x1)` does not
+    // vanish as the solve converges. On the same scene its change exceeds
+    // the converged implicit-midpoint bound by orders of magnitude, so the
+    // bound is tight enough to tell a conserving step from one that is not.
+    let scene = Scene {
+        shape: Shape::Box { cells: [2, 1, 1] },
+        seed: 3,
+        stiffness: 1e3,
+        masses: (0..27).map(|i| 0.3 + 0.1 * i as f64).collect(),
+        velocities: (0..27)
+            .map(|i| {
+                let t = i as f64;
+                Point::new((1.1 * t).sin(), (0.7 * t).cos(), 0.4 - 0.05 * t)
+            })
+            .collect(),
+    };
+    let midpoint = one_step(&scene, Box::new(ImplicitMidpoint), 0.01, 5000, 1e-13).unwrap();
+    assert!(midpoint.change <= midpoint.residual_bound + midpoint.roundoff);
+    let euler = one_step(&scene, Box::new(BackwardEuler), 0.01, 5000, 1e-13).unwrap();
+    assert!(
+        euler.change > 1e3 * (midpoint.residual_bound + midpoint.roundoff),
+        "{euler:?} vs {midpoint:?}"
+    );
+}
+
+/// Runs 6 steps of `scene` plus a rigid `spin` (rad/s) with Laplacian
+/// damping and returns the largest `|J - J0|` over its round-off tolerance.
+fn spin_error_ratio(
+    scene: &Scene,
+    scheme: common::Scheme,
+    spin: Point,
+    damping_stiffness: f64,
+    preserve_rotation: bool,
+    dt: f64,
+    iterations: usize,
+) -> Result<f64, TestCaseError> {
+    let model = scene.model(Material::Elastic, false);
+    let n = model.num_vertices();
+    let bodies = model.bodies().len();
+    let damping =
+        Box::new(LaplacianDamping::new(damping_stiffness, 0.0, preserve_rotation).unwrap());
+    let mut sim = Simulation::new(
+        model,
+        scheme.integrator(),
+        damping,
+        settings(dt, iterations, false),
+    )
+    .unwrap();
+    let positions = sim.state().positions.clone();
+    sim.set_state(State {
+        positions,
+        velocities: scene.initial_velocities(n),
+    })
+    .unwrap();
+    for body in 0..bodies {
+        sim.add_rigid_velocity(body, Point::zeros(), spin);
+    }
+    let j0 = sim.angular_momentum();
+    let mut worst = 0.0f64;
+    for step in 1..=6 {
+        let kappa = worst_inertia_condition(&sim);
+        let scale_before = moment_scale(&sim);
+        sim.step()
+            .map_err(|e| TestCaseError::fail(format!("{scheme:?} step {step}: {e}")))?;
+        // J's sums and the spin restoration `I^+ (S0 - S)`, whose solve
+        // rounds by `kappa u` relatively, accumulated over the steps.
+        let tolerance = 64.0
+            * U
+            * n as f64
+            * (1.0 + kappa)
+            * scale_before.max(moment_scale(&sim))
+            * step as f64;
+        worst = worst.max((sim.angular_momentum() - j0).norm() / tolerance);
+    }
+    Ok(worst)
+}
+
+#[test]
+fn plain_laplacian_damping_fails_the_rotation_preserving_check() {
+    // The control: without the restoration the same check fails by far.
+    let scene = Scene {
+        shape: Shape::Box { cells: [2, 1, 1] },
+        seed: 8,
+        stiffness: 1e3,
+        masses: vec![1.0; 27],
+        velocities: vec![Point::zeros(); 27],
+    };
+    let spin = Point::new(0.3, 1.0, -0.5);
+    for scheme in SCHEMES {
+        let kept = spin_error_ratio(&scene, scheme, spin, 0.01, true, 0.01, 5).unwrap();
+        assert!(kept <= 1.0, "{scheme:?}: {kept}");
+        let lost = spin_error_ratio(&scene, scheme, spin, 0.01, false, 0.01, 5).unwrap();
+        assert!(lost > 1e3, "{scheme:?}: {lost}");
+    }
+}

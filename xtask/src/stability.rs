@@ -1,0 +1,624 @@
+//! `cargo xtask stability [--quick]`: runs every integrator with every
+//! damping model over a matrix of extreme parameters and starting states,
+//! and writes `docs/stability.md`.
+//!
+//! The rule checked for every run: it either completes with a finite state
+//! and finite energies, or stops with `SolverError::Diverged`. Anything else
+//! (a panic, a non-finite value in the state or the energies after a step
+//! that returned `Ok`, another error) is a bug and is listed in the report;
+//! the command then fails.
+//!
+//! The matrix (full / `--quick`):
+//! - stiffness (tet strain, Pa): 1e0, 1e3, 1e6, 1e9 / 1e0, 1e9;
+//! - time step (s): 1e-5, 1e-3, 0.1 / 1e-5, 0.1;
+//! - density (kg/m^3): 1, 1e3, 1e5 / 1, 1e5;
+//! - damping coefficient `c`: 1e-3, 1, 1e3 / 1e3 (the model's own unit:
+//!   a rate in 1/s for ether drag, `a2` in s for Laplacian and lagged
+//!   Rayleigh damping; PBD uses the factor `min(c, 1)`);
+//! - local-global iterations: 1, 10, 200 / 1, 200;
+//! - starting state: at rest; inverted (every x mirrored, so every tet is
+//!   inside out); compressed (x scaled by 0.01); fast (100 m/s per vertex in
+//!   varied directions);
+//! - body: a clamped 1 x 0.25 x 0.25 m beam (2 x 1 x 1 cells, 12 tets) and a
+//!   free 0.3 m cube (6 tets) / the beam only. Gravity on, 10 steps.
+
+use std::fmt::Write as _;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::{Path, PathBuf};
+use std::process::{Command, ExitCode};
+use std::sync::Mutex;
+
+use pd_io::scene::{ConstraintSpec, DampingSpec, IntegratorKind, MassSpec, Scene, Syntax};
+use pd_solver::{SolverError, State};
+
+const STEPS: usize = 10;
+
+/// `cargo xtask stability [--quick]`: in a dev build, re-runs itself as a
+/// release build (the matrix is tens of thousands of runs); in a release
+/// build, runs the matrix and writes `docs/stability.md`.
+pub fn main(root: &Path, args: &[String]) -> ExitCode {
+    let quick = args.iter().any(|a| a == "--quick");
+    if cfg!(debug_assertions) {
+        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+        let mut command = Command::new(&cargo);
+        command.args(["run", "--release", "--package", "xtask", "--", "stability"]);
+        if quick {
+            command.arg("--quick");
+        }
+        eprintln!("re-running as a release build");
+        return match command.status() {
+            Ok(status) if status.success() => ExitCode::SUCCESS,
+            Ok(_) => ExitCode::FAILURE,
+            Err(e) => {
+                eprintln!("cannot run {cargo}: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
+    match run(root, quick) {
+        Ok(path) => {
+            eprintln!("wrote {}", path.display());
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+const BEAM: &str = r#"
+[simulation]
+dt = 0.01
+steps = 10
+[[body]]
+mesh = { generator = "box", size = [1.0, 0.25, 0.25], cells = [2, 1, 1] }
+density = 1000.0
+constraints = [ { kind = "tet-strain", stiffness = 1.0e5 } ]
+fixed = { box = { min = [-1.0, -1.0, -1.0], max = [0.001, 1.0, 1.0] } }
+"#;
+
+const CUBE: &str = r#"
+[simulation]
+dt = 0.01
+steps = 10
+[[body]]
+mesh = { generator = "box", size = [0.3, 0.3, 0.3], cells = [1, 1, 1] }
+density = 1000.0
+constraints = [ { kind = "tet-strain", stiffness = 1.0e5 } ]
+"#;
+
+/// How a run starts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Start {
+    Rest,
+    Inverted,
+    Compressed,
+    Fast,
+}
+
+impl Start {
+    const ALL: [Self; 4] = [Self::Rest, Self::Inverted, Self::Compressed, Self::Fast];
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::Rest => "rest",
+            Self::Inverted => "inverted",
+            Self::Compressed => "compressed",
+            Self::Fast => "fast",
+        }
+    }
+
+    /// The starting state from the rest state.
+    fn apply(self, rest: &State) -> State {
+        let mut state = rest.clone();
+        for (i, (x, v)) in state
+            .positions
+            .iter_mut()
+            .zip(&mut state.velocities)
+            .enumerate()
+        {
+            match self {
+                Self::Rest => {}
+                Self::Inverted => x.x = -x.x,
+                Self::Compressed => x.x *= 0.01,
+                Self::Fast => {
+                    // Directions spread over the sphere (golden-angle spiral).
+                    let t = i as f64 * 2.399_963_229_728_653;
+                    let z = 1.0 - 2.0 * ((i % 7) as f64 + 0.5) / 7.0;
+                    let r = (1.0 - z * z).sqrt();
+                    v.x = 100.0 * r * t.cos();
+                    v.y = 100.0 * r * t.sin();
+                    v.z = 100.0 * z;
+                }
+            }
+        }
+        state
+    }
+}
+
+/// The damping models of the matrix, named as the report names them.
+const MODELS: [&str; 7] = [
+    "none",
+    "ether-drag (rate)",
+    "ether-drag (implicit)",
+    "pbd",
+    "rayleigh-lagged",
+    "laplacian",
+    "laplacian, preserve_rotation",
+];
+
+fn damping(model: &str, c: f64) -> DampingSpec {
+    match model {
+        "none" => DampingSpec::None,
+        "ether-drag (rate)" => DampingSpec::EtherRate {
+            rate: c,
+            implicit: false,
+        },
+        "ether-drag (implicit)" => DampingSpec::EtherRate {
+            rate: c,
+            implicit: true,
+        },
+        "pbd" => DampingSpec::Pbd { factor: c.min(1.0) },
+        "rayleigh-lagged" => DampingSpec::RayleighLagged {
+            mass: 0.0,
+            stiffness: c,
+        },
+        "laplacian" => DampingSpec::Laplacian {
+            stiffness: c,
+            mass: 0.0,
+            preserve_rotation: false,
+        },
+        _ => DampingSpec::Laplacian {
+            stiffness: c,
+            mass: 0.0,
+            preserve_rotation: true,
+        },
+    }
+}
+
+/// One run of the matrix.
+#[derive(Debug, Clone, Copy)]
+struct Case {
+    integrator: IntegratorKind,
+    model: usize,
+    stiffness: f64,
+    dt: f64,
+    density: f64,
+    coefficient: f64,
+    iterations: usize,
+    start: Start,
+    free: bool,
+}
+
+/// How a run ended.
+#[derive(Debug, Clone, PartialEq)]
+enum Ending {
+    /// Every step ran; the state and energies are finite. `grew`: the total
+    /// energy ended above its start (by more than 1e-9 relative).
+    Completed { grew: bool },
+    /// Stopped with `SolverError::Diverged`.
+    Diverged,
+    /// A panic, a non-finite value after an `Ok` step, or another error.
+    Bug(String),
+}
+
+fn finite(state: &State) -> bool {
+    state
+        .positions
+        .iter()
+        .chain(&state.velocities)
+        .all(|p| p.iter().all(|c| c.is_finite()))
+}
+
+fn run_case(case: &Case) -> Ending {
+    let outcome = catch_unwind(AssertUnwindSafe(|| -> Result<Ending, String> {
+        let text = if case.free { CUBE } else { BEAM };
+        let mut scene = Scene::parse(text, Syntax::Toml, Path::new("stability.toml"))
+            .map_err(|e| e.to_string())?;
+        scene.settings.dt = case.dt;
+        scene.settings.iterations = case.iterations;
+        scene.settings.threads = 1;
+        scene.integrator = case.integrator;
+        scene.damping = damping(MODELS[case.model], case.coefficient);
+        scene.bodies[0].mass = MassSpec::Density(case.density);
+        scene.bodies[0].constraints = vec![ConstraintSpec::TetStrain {
+            stiffness: case.stiffness,
+            limits: None,
+        }];
+        let mut sim = scene.build().map_err(|e| e.to_string())?;
+        let start = case.start.apply(sim.state());
+        sim.set_state(start).map_err(|e| e.to_string())?;
+        let initial = sim.energies().total();
+        if !initial.is_finite() {
+            return Ok(Ending::Bug(format!("initial energy {initial}")));
+        }
+        for _ in 0..STEPS {
+            match sim.step() {
+                Ok(stats) => {
+                    let energy = sim.energies();
+                    if !finite(sim.state())
+                        || !energy.total().is_finite()
+                        || !stats.total_seconds.is_finite()
+                    {
+                        return Ok(Ending::Bug(format!(
+                            "non-finite output after step {}: energies {energy:?}",
+                            sim.steps()
+                        )));
+                    }
+                }
+                Err(SolverError::Diverged { .. }) => {
+                    if !finite(sim.state()) {
+                        return Ok(Ending::Bug("diverged with a non-finite state".into()));
+                    }
+                    return Ok(Ending::Diverged);
+                }
+                Err(e) => return Ok(Ending::Bug(e.to_string())),
+            }
+        }
+        let last = sim.energies().total();
+        Ok(Ending::Completed {
+            grew: last > initial + 1e-9 * initial.abs().max(f64::MIN_POSITIVE),
+        })
+    }));
+    match outcome {
+        Ok(Ok(ending)) => ending,
+        Ok(Err(setup)) => Ending::Bug(format!("setup failed: {setup}")),
+        Err(panic) => Ending::Bug(format!(
+            "panic: {}",
+            panic
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_default()
+        )),
+    }
+}
+
+/// The axes of the matrix.
+struct Axes {
+    stiffness: Vec<f64>,
+    dt: Vec<f64>,
+    density: Vec<f64>,
+    coefficient: Vec<f64>,
+    iterations: Vec<usize>,
+    free: Vec<bool>,
+}
+
+impl Axes {
+    fn new(quick: bool) -> Self {
+        if quick {
+            Self {
+                stiffness: vec![1e0, 1e9],
+                dt: vec![1e-5, 0.1],
+                density: vec![1.0, 1e5],
+                coefficient: vec![1e3],
+                iterations: vec![1, 200],
+                free: vec![false],
+            }
+        } else {
+            Self {
+                stiffness: vec![1e0, 1e3, 1e6, 1e9],
+                dt: vec![1e-5, 1e-3, 0.1],
+                density: vec![1.0, 1e3, 1e5],
+                coefficient: vec![1e-3, 1.0, 1e3],
+                iterations: vec![1, 10, 200],
+                free: vec![false, true],
+            }
+        }
+    }
+
+    fn cases(&self) -> Vec<Case> {
+        let mut cases = Vec::new();
+        for integrator in IntegratorKind::ALL {
+            for model in 0..MODELS.len() {
+                // The coefficient does not apply to `none`: one value.
+                let coefficients = if model == 0 {
+                    &self.coefficient[..1]
+                } else {
+                    &self.coefficient[..]
+                };
+                for &stiffness in &self.stiffness {
+                    for &dt in &self.dt {
+                        for &density in &self.density {
+                            for &coefficient in coefficients {
+                                for &iterations in &self.iterations {
+                                    for start in Start::ALL {
+                                        for &free in &self.free {
+                                            cases.push(Case {
+                                                integrator,
+                                                model,
+                                                stiffness,
+                                                dt,
+                                                density,
+                                                coefficient,
+                                                iterations,
+                                                start,
+                                                free,
+                                            });
+                                        }
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        cases
+    }
+}
+
+/// Counts of a set of runs.
+#[derive(Debug, Clone, Copy, Default)]
+struct Tally {
+    runs: usize,
+    completed: usize,
+    grew: usize,
+    diverged: usize,
+    bugs: usize,
+}
+
+impl Tally {
+    fn add(&mut self, ending: &Ending) {
+        self.runs += 1;
+        match ending {
+            Ending::Completed { grew } => {
+                self.completed += 1;
+                self.grew += usize::from(*grew);
+            }
+            Ending::Diverged => self.diverged += 1,
+            Ending::Bug(_) => self.bugs += 1,
+        }
+    }
+
+    /// `completed% (grew%)`, or `-` without runs; bugs are flagged.
+    fn cell(&self) -> String {
+        if self.runs == 0 {
+            return "-".into();
+        }
+        let pct = |k: usize| 100.0 * k as f64 / self.runs as f64;
+        let mut text = format!("{:.0}", pct(self.completed));
+        if self.grew > 0 {
+            write!(text, " ({:.1})", pct(self.grew)).expect("infallible");
+        }
+        if self.bugs > 0 {
+            write!(text, " **{} bug**", self.bugs).expect("infallible");
+        }
+        text
+    }
+}
+
+fn row_label(integrator: IntegratorKind, model: usize) -> String {
+    format!("{} | {}", integrator.name(), MODELS[model])
+}
+
+/// Writes one table: rows integrator x model, a column per value of an axis.
+fn axis_table(
+    out: &mut String,
+    title: &str,
+    labels: &[String],
+    results: &[(Case, Ending)],
+    column_of: impl Fn(&Case) -> usize,
+) {
+    writeln!(out, "\n### By {title}\n").expect("infallible");
+    writeln!(out, "| integrator | model | {} |", labels.join(" | ")).expect("infallible");
+    writeln!(out, "|---|---|{}", "---|".repeat(labels.len())).expect("infallible");
+    for integrator in IntegratorKind::ALL {
+        for model in 0..MODELS.len() {
+            let mut tallies = vec![Tally::default(); labels.len()];
+            for (case, ending) in results {
+                if case.integrator == integrator && case.model == model {
+                    tallies[column_of(case)].add(ending);
+                }
+            }
+            let cells: Vec<String> = tallies.iter().map(Tally::cell).collect();
+            writeln!(
+                out,
+                "| {} | {} |",
+                row_label(integrator, model),
+                cells.join(" | ")
+            )
+            .expect("infallible");
+        }
+    }
+}
+
+fn position<T: PartialEq>(values: &[T], value: &T) -> usize {
+    values
+        .iter()
+        .position(|v| v == value)
+        .expect("a case's value is on its axis")
+}
+
+fn labels<T: std::fmt::LowerExp>(values: &[T]) -> Vec<String> {
+    values.iter().map(|v| format!("{v:e}")).collect()
+}
+
+/// Runs the matrix on every core and writes the report; returns its path,
+/// or an error naming the number of bugs found.
+fn run(root: &Path, quick: bool) -> Result<PathBuf, String> {
+    let axes = Axes::new(quick);
+    let cases = axes.cases();
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    eprintln!("{} runs on {threads} threads", cases.len());
+    let started = std::time::Instant::now();
+    let next = Mutex::new(0usize);
+    let results = Mutex::new(Vec::with_capacity(cases.len()));
+    std::thread::scope(|scope| {
+        for _ in 0..threads {
+            scope.spawn(|| {
+                loop {
+                    let index = {
+                        let mut next = next.lock().expect("no thread panics holding it");
+                        let index = *next;
+                        *next += 1;
+                        index
+                    };
+                    let Some(case) = cases.get(index) else { break };
+                    let ending = run_case(case);
+                    results
+                        .lock()
+                        .expect("no thread panics holding it")
+                        .push((index, ending));
+                }
+            });
+        }
+    });
+    let mut results = results.into_inner().expect("threads joined");
+    results.sort_by_key(|(index, _)| *index);
+    let results: Vec<(Case, Ending)> = results
+        .into_iter()
+        .map(|(index, ending)| (cases[index], ending))
+        .collect();
+    let seconds = started.elapsed().as_secs_f64();
+
+    let mut out = String::new();
+    writeln!(
+        out,
+        "# Stability at the extremes\n\n\
+         Generated by `cargo xtask stability{}` ({} runs of {STEPS} steps, {seconds:.0} s on\n\
+         {threads} threads, {} build). Do not edit by hand: the matrix and the rules are in\n\
+         `xtask/src/stability.rs`; `docs/properties.md` explains how this relates to the tests.\n\n\
+         Every run must either complete with a finite state and finite energies, or stop with\n\
+         the solver's divergence error (`SolverError::Diverged`, which also bounds the energy:\n\
+         a step fails when the kinetic plus gravitational energy exceeds the initial energy by\n\
+         more than 1000 times the system's energy scale, `docs/solver.md`). A panic, a NaN or\n\
+         infinity after a step that returned `Ok`, or any other error is a bug.\n\n\
+         Matrix: stiffness {} Pa; time step {} s; density {} kg/m^3; damping\n\
+         coefficient `c` {} (a rate in 1/s for ether drag, `a2` in s for Laplacian and\n\
+         lagged Rayleigh, PBD factor `min(c, 1)`; `none` runs once per cell); iterations {};\n\
+         starting state at rest, inverted (x mirrored: every tet inside out), compressed (x\n\
+         scaled by 0.01), fast (100 m/s per vertex); bodies: {}. Gravity on.\n\n\
+         Each cell: the percentage of its runs that completed (the rest stopped with the\n\
+         divergence error), and in parentheses the percentage that completed with more total\n\
+         energy than they started with (by more than 1e-9 relative), when there are any. Theory\n\
+         promises no energy bound for these nonconvex (corotational) energies and unconverged\n\
+         solves; the guarantees that do hold are property tests (`docs/properties.md`).\n",
+        if quick { " --quick" } else { "" },
+        results.len(),
+        if cfg!(debug_assertions) {
+            "dev"
+        } else {
+            "release"
+        },
+        labels(&axes.stiffness).join(", "),
+        labels(&axes.dt).join(", "),
+        labels(&axes.density).join(", "),
+        labels(&axes.coefficient).join(", "),
+        axes.iterations
+            .iter()
+            .map(usize::to_string)
+            .collect::<Vec<_>>()
+            .join(", "),
+        if quick {
+            "a clamped 1 x 0.25 x 0.25 m beam (12 tets)"
+        } else {
+            "a clamped 1 x 0.25 x 0.25 m beam (12 tets) and a free 0.3 m cube (6 tets)"
+        },
+    )
+    .expect("infallible");
+
+    let bugs: Vec<&(Case, Ending)> = results
+        .iter()
+        .filter(|(_, e)| matches!(e, Ending::Bug(_)))
+        .collect();
+    writeln!(out, "\n## Summary\n").expect("infallible");
+    writeln!(
+        out,
+        "| integrator | model | runs | completed | energy grew | diverged | bugs |\n|---|---|---|---|---|---|---|"
+    )
+    .expect("infallible");
+    for integrator in IntegratorKind::ALL {
+        for model in 0..MODELS.len() {
+            let mut t = Tally::default();
+            for (case, ending) in &results {
+                if case.integrator == integrator && case.model == model {
+                    t.add(ending);
+                }
+            }
+            writeln!(
+                out,
+                "| {} | {} | {} | {} | {} | {} |",
+                row_label(integrator, model),
+                t.runs,
+                t.completed,
+                t.grew,
+                t.diverged,
+                t.bugs
+            )
+            .expect("infallible");
+        }
+    }
+    if bugs.is_empty() {
+        writeln!(
+            out,
+            "\nNo run broke the rule: no panic, no NaN or infinity reached the state or the\nenergies, and every failure was the divergence error."
+        )
+        .expect("infallible");
+    } else {
+        writeln!(out, "\n## Bugs\n").expect("infallible");
+        for (case, ending) in &bugs {
+            writeln!(out, "- `{case:?}`: {ending:?}").expect("infallible");
+        }
+    }
+
+    writeln!(out, "\n## Where each combination is stable").expect("infallible");
+    axis_table(
+        &mut out,
+        "stiffness (Pa)",
+        &labels(&axes.stiffness),
+        &results,
+        |c| position(&axes.stiffness, &c.stiffness),
+    );
+    axis_table(
+        &mut out,
+        "time step (s)",
+        &labels(&axes.dt),
+        &results,
+        |c| position(&axes.dt, &c.dt),
+    );
+    axis_table(
+        &mut out,
+        "density (kg/m^3)",
+        &labels(&axes.density),
+        &results,
+        |c| position(&axes.density, &c.density),
+    );
+    axis_table(
+        &mut out,
+        "damping coefficient",
+        &labels(&axes.coefficient),
+        &results,
+        |c| position(&axes.coefficient, &c.coefficient),
+    );
+    let iteration_labels: Vec<String> = axes.iterations.iter().map(|i| i.to_string()).collect();
+    axis_table(&mut out, "iterations", &iteration_labels, &results, |c| {
+        position(&axes.iterations, &c.iterations)
+    });
+    let start_labels: Vec<String> = Start::ALL.iter().map(|s| s.name().to_string()).collect();
+    axis_table(&mut out, "starting state", &start_labels, &results, |c| {
+        position(&Start::ALL, &c.start)
+    });
+    if axes.free.len() > 1 {
+        axis_table(
+            &mut out,
+            "body",
+            &["clamped beam".into(), "free cube".into()],
+            &results,
+            |c| usize::from(c.free),
+        );
+    }
+
+    let path = root.join("docs/stability.md");
+    std::fs::write(&path, out).map_err(|e| format!("{}: {e}", path.display()))?;
+    if bugs.is_empty() {
+        Ok(path)
+    } else {
+        Err(format!(
+            "{} runs broke the rule; see {}",
+            bugs.len(),
+            path.display()
+        ))
+    }
+}
