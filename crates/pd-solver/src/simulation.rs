@@ -193,15 +193,23 @@ impl Simulation {
         }
         let pool = match settings.threads {
             0 => None,
-            t => Some(
-                rayon::ThreadPoolBuilder::new()
+            t => {
+                let pool = rayon::ThreadPoolBuilder::new()
                     .num_threads(t)
                     .build()
                     .map_err(|e| SolverError::InvalidSetting {
                         field: "threads",
                         reason: e.to_string(),
-                    })?,
-            ),
+                    })?;
+                // Workers start asynchronously, and a starting thread
+                // allocates (its name, thread-local registrations). Running
+                // one job on every worker now makes that happen here rather
+                // than inside some later step, whose time it would inflate
+                // and whose "no allocation after the first step" promise it
+                // would break on a loaded machine.
+                pool.broadcast(|_| ());
+                Some(pool)
+            }
         };
         let analysis_start = Instant::now();
         let local = LocalStep::new(model.constraint_blocks());
