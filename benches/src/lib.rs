@@ -15,7 +15,7 @@
 //! ```
 
 use pd_damping::{Damping, EtherDrag, LaplacianDamping, NoDamping, PbdDamping, RayleighLagged};
-use pd_integrators::{BackwardEuler, ImplicitMidpoint, Integrator};
+use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
 use pd_mesh::{Mesh, Point};
 use pd_solver::{Model, Settings, Simulation};
 
@@ -59,7 +59,8 @@ pub fn damping(name: &str) -> Result<Box<dyn Damping>, String> {
     Ok(model)
 }
 
-/// The integrator `name`: `be` (backward Euler) or `im` (implicit midpoint).
+/// The integrator `name`: `be` (backward Euler), `im` (implicit midpoint)
+/// or `bdf2` (used by the speed-against-accuracy report only).
 ///
 /// # Errors
 /// An unknown name.
@@ -67,7 +68,10 @@ pub fn integrator(name: &str) -> Result<Box<dyn Integrator>, String> {
     match name {
         "be" => Ok(Box::new(BackwardEuler)),
         "im" => Ok(Box::new(ImplicitMidpoint)),
-        other => Err(format!("unknown integrator {other:?}; expected be or im")),
+        "bdf2" => Ok(Box::new(Bdf2::new())),
+        other => Err(format!(
+            "unknown integrator {other:?}; expected be, im or bdf2"
+        )),
     }
 }
 

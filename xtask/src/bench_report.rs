@@ -228,7 +228,7 @@ pub fn run(root: &Path, quick: bool) -> Result<PathBuf, String> {
 
     eprintln!("speed against accuracy...");
     let mut accuracy = Vec::new();
-    for integrator in ["be", "im"] {
+    for integrator in ["be", "im", "bdf2"] {
         accuracy.push(p(args(&[
             "accuracy",
             "--cells",
