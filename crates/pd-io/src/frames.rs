@@ -31,11 +31,40 @@ pub struct Cells<'a> {
 }
 
 /// VTK cell type of a linear tetrahedron (`VTK_TETRA`).
-const VTK_TETRA: u8 = 10;
+pub(crate) const VTK_TETRA: u8 = 10;
 /// VTK cell type of a triangle (`VTK_TRIANGLE`).
-const VTK_TRIANGLE: u8 = 5;
+pub(crate) const VTK_TRIANGLE: u8 = 5;
 /// VTK cell type of a line segment (`VTK_LINE`).
-const VTK_LINE: u8 = 3;
+pub(crate) const VTK_LINE: u8 = 3;
+
+/// The checks every VTK-family frame writer makes before it writes:
+/// finite positions and velocities, one velocity per position, and cells
+/// that refer to existing vertices.
+pub(crate) fn check_frame(
+    path: &Path,
+    positions: &[Point],
+    cells: &Cells<'_>,
+    velocities: Option<&[Point]>,
+) -> Result<()> {
+    check_points(path, "position", positions)?;
+    if let Some(velocities) = velocities {
+        check_points(path, "velocity", velocities)?;
+        if velocities.len() != positions.len() {
+            return Err(Error::Content {
+                path: path.to_path_buf(),
+                message: format!(
+                    "{} velocities given for {} positions; a frame needs one velocity per vertex",
+                    velocities.len(),
+                    positions.len()
+                ),
+            });
+        }
+    }
+    check_cells(path, "tetrahedron", cells.tets, positions.len())?;
+    check_cells(path, "triangle", cells.triangles, positions.len())?;
+    check_cells(path, "line", cells.lines, positions.len())?;
+    Ok(())
+}
 
 /// Writes one frame as a legacy ASCII VTK unstructured grid: the positions
 /// (in metres) as `POINTS`, the cells, and, when `velocities` is given, a
@@ -73,23 +102,7 @@ pub fn write_vtk(
     cells: &Cells<'_>,
     velocities: Option<&[Point]>,
 ) -> Result<()> {
-    check_points(path, "position", positions)?;
-    if let Some(velocities) = velocities {
-        check_points(path, "velocity", velocities)?;
-        if velocities.len() != positions.len() {
-            return Err(Error::Content {
-                path: path.to_path_buf(),
-                message: format!(
-                    "{} velocities given for {} positions; a frame needs one velocity per vertex",
-                    velocities.len(),
-                    positions.len()
-                ),
-            });
-        }
-    }
-    check_cells(path, "tetrahedron", cells.tets, positions.len())?;
-    check_cells(path, "triangle", cells.triangles, positions.len())?;
-    check_cells(path, "line", cells.lines, positions.len())?;
+    check_frame(path, positions, cells, velocities)?;
 
     write_atomically(path, |w| {
         writeln!(w, "# vtk DataFile Version 3.0")?;

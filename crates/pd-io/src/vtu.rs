@@ -14,14 +14,9 @@ use std::path::Path;
 use pd_mesh::Point;
 
 use crate::error::{Error, Result};
-use crate::frames::{Cells, Float, check_cells, check_points, write_atomically};
-
-/// VTK cell type of a linear tetrahedron (`VTK_TETRA`).
-const VTK_TETRA: u8 = 10;
-/// VTK cell type of a triangle (`VTK_TRIANGLE`).
-const VTK_TRIANGLE: u8 = 5;
-/// VTK cell type of a line segment (`VTK_LINE`).
-const VTK_LINE: u8 = 3;
+use crate::frames::{
+    Cells, Float, VTK_LINE, VTK_TETRA, VTK_TRIANGLE, check_frame, write_atomically,
+};
 
 /// Writes one frame as a VTK XML unstructured grid: `Points` (m), the cells
 /// (tetrahedra, then triangles, then lines, as VTK types 10, 5 and 3), and,
@@ -56,23 +51,7 @@ pub fn write_vtu(
     velocities: Option<&[Point]>,
     strain: Option<&[f64]>,
 ) -> Result<()> {
-    check_points(path, "position", positions)?;
-    if let Some(velocities) = velocities {
-        check_points(path, "velocity", velocities)?;
-        if velocities.len() != positions.len() {
-            return Err(content(
-                path,
-                format!(
-                    "{} velocities given for {} positions; a frame needs one velocity per vertex",
-                    velocities.len(),
-                    positions.len()
-                ),
-            ));
-        }
-    }
-    check_cells(path, "tetrahedron", cells.tets, positions.len())?;
-    check_cells(path, "triangle", cells.triangles, positions.len())?;
-    check_cells(path, "line", cells.lines, positions.len())?;
+    check_frame(path, positions, cells, velocities)?;
     let num_cells = cells.tets.len() + cells.triangles.len() + cells.lines.len();
     if let Some(strain) = strain {
         if strain.len() != num_cells {
