@@ -8,23 +8,8 @@ use std::time::Duration;
 use criterion::{Criterion, SamplingMode, criterion_group, criterion_main};
 use pd_benches::Beam;
 
-fn selected_sizes() -> Vec<([usize; 3], &'static str)> {
-    if std::env::args().any(|a| a == "--test") {
-        return vec![pd_benches::SIZES[0]];
-    }
-    let wanted = std::env::var("PD_BENCH_SIZES").ok();
-    pd_benches::SIZES
-        .into_iter()
-        .filter(|(_, label)| {
-            wanted
-                .as_deref()
-                .is_none_or(|w| w.split(',').any(|s| s.trim() == *label))
-        })
-        .collect()
-}
-
 fn phases(c: &mut Criterion) {
-    for (cells, label) in selected_sizes() {
+    for (cells, label) in pd_benches::selected_sizes() {
         let mut group = c.benchmark_group(format!("phases/{label}"));
         group.sample_size(10);
         group.warm_up_time(Duration::from_millis(200));

@@ -15,25 +15,8 @@ use std::time::{Duration, Instant};
 use criterion::{Criterion, SamplingMode, criterion_group, criterion_main};
 use pd_benches::{Beam, DAMPING_MODELS, INTEGRATORS};
 
-/// The sizes to run: all, or those named in `PD_BENCH_SIZES`; only the
-/// smallest in criterion's `--test` smoke mode.
-fn selected_sizes() -> Vec<([usize; 3], &'static str)> {
-    if std::env::args().any(|a| a == "--test") {
-        return vec![pd_benches::SIZES[0]];
-    }
-    let wanted = std::env::var("PD_BENCH_SIZES").ok();
-    pd_benches::SIZES
-        .into_iter()
-        .filter(|(_, label)| {
-            wanted
-                .as_deref()
-                .is_none_or(|w| w.split(',').any(|s| s.trim() == *label))
-        })
-        .collect()
-}
-
 fn step(c: &mut Criterion) {
-    for (cells, label) in selected_sizes() {
+    for (cells, label) in pd_benches::selected_sizes() {
         let mut group = c.benchmark_group(format!("step/{label}"));
         if label != "2k" {
             group.sampling_mode(SamplingMode::Flat);

@@ -34,6 +34,24 @@ pub const SIZES: [([usize; 3], &str); 3] = [
     ([130, 26, 26], "100k"),
 ];
 
+/// The sizes a criterion run measures: only the smallest under
+/// `cargo bench -- --test` (the smoke run), else those named in the
+/// comma-separated `PD_BENCH_SIZES` (e.g. `2k,20k`), else all of [`SIZES`].
+pub fn selected_sizes() -> Vec<([usize; 3], &'static str)> {
+    if std::env::args().any(|a| a == "--test") {
+        return vec![SIZES[0]];
+    }
+    let wanted = std::env::var("PD_BENCH_SIZES").ok();
+    SIZES
+        .into_iter()
+        .filter(|(_, label)| {
+            wanted
+                .as_deref()
+                .is_none_or(|w| w.split(',').any(|s| s.trim() == *label))
+        })
+        .collect()
+}
+
 /// The damping model `name` with the coefficients of the benchmarks
 /// (`docs/performance.md`): ether drag at a rate of 1/s (explicit), PBD
 /// with factor 0.05, lagged Rayleigh and Laplacian damping with a stiffness
