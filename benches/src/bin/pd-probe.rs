@@ -14,7 +14,8 @@
 use std::process::ExitCode;
 use std::time::Instant;
 
-use pd_benches::{Beam, Clamp, DAMPING_MODELS, median, peak_memory_bytes};
+use pd_benches::{Beam, Clamp, DAMPING_MODELS, peak_memory_bytes};
+use pd_io::recorder::median;
 use pd_mesh::Point;
 use pd_solver::Simulation;
 use serde_json::{Value, json};

@@ -6,6 +6,7 @@
 //! `laplacian` = stiffness 0.003 s, mass 0; `laplacian-rot` = the same with
 //! `preserve_rotation`. Integrators keep the scene's damping model.
 
+use pd_io::recorder::median;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -70,20 +71,6 @@ fn norm(x: f64, y: f64, z: f64) -> f64 {
 /// starting at rest), and the ratio would only measure round-off growth.
 fn kept(initial: f64, last: f64, largest: f64) -> Option<f64> {
     (initial > 0.0 && initial >= 1e-3 * largest).then(|| last / initial)
-}
-
-fn median(values: &[f64]) -> f64 {
-    if values.is_empty() {
-        return f64::NAN;
-    }
-    let mut v = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    let m = v.len() / 2;
-    if v.len() % 2 == 1 {
-        v[m]
-    } else {
-        0.5 * (v[m - 1] + v[m])
-    }
 }
 
 fn row_of(name: &str, status: String, dir: &Path) -> Result<Row, Failure> {

@@ -364,7 +364,10 @@ fn create(path: &Path) -> Result<BufWriter<File>> {
         .map_err(|e| Error::io(path, e))
 }
 
-fn median(values: &[f64]) -> f64 {
+/// The median of `values` (the mean of the two middle ones for an even
+/// count); NaN for none. Used for the step-time medians of `summary.json`,
+/// `pd compare` and the benchmarks.
+pub fn median(values: &[f64]) -> f64 {
     if values.is_empty() {
         return f64::NAN;
     }
@@ -380,4 +383,16 @@ fn median(values: &[f64]) -> f64 {
 
 fn json_number(value: f64) -> serde_json::Value {
     serde_json::Number::from_f64(value).map_or(serde_json::Value::Null, serde_json::Value::Number)
+}
+
+#[cfg(test)]
+mod median_tests {
+    use super::median;
+
+    #[test]
+    fn median_of_odd_and_even_counts() {
+        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&[4.0, 1.0, 2.0, 3.0]), 2.5);
+        assert!(median(&[]).is_nan());
+    }
 }
