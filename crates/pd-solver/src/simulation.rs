@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use faer::Mat;
 use pd_constraints::CsrMatrix;
-use pd_damping::rigid::RigidFit;
+use pd_damping::rigid::{RigidFit, SpinAtStart};
 use pd_damping::{Damping, DampingContext, DampingMatrix};
 use pd_integrators::{Integrator, StepCoefficients, StepTargets};
 use pd_mesh::Point;
@@ -56,6 +56,11 @@ pub struct StepStats {
     pub factor_seconds: f64,
     /// Wall time of the whole step, s.
     pub total_seconds: f64,
+    /// Principal axes (summed over the bodies) about which the
+    /// rotation-preserving Laplacian damping left the spin alone instead of
+    /// restoring it, because restoring it would have turned the body far
+    /// faster than it turns (docs/damping.md). Always 0 with other models.
+    pub spin_axes_left: usize,
 }
 
 /// What building the simulation cost.
@@ -103,8 +108,9 @@ struct Scratch {
     rhs: Mat<f64>,
     velocities: Vec<Point>,
     forces: Vec<Point>,
-    /// Spin of each rotating body at the start of the step.
-    spins: Vec<Point>,
+    /// Spin, angular speed and kinetic energy of each rotating body at the
+    /// start of the step.
+    spins: Vec<SpinAtStart>,
 }
 
 /// A Projective Dynamics simulation.
@@ -243,7 +249,7 @@ impl Simulation {
             rhs: Mat::zeros(nf, 3),
             velocities: vec![Point::zeros(); n],
             forces: vec![Point::zeros(); n],
-            spins: vec![Point::zeros(); rotating_bodies.len()],
+            spins: vec![SpinAtStart::ZERO; rotating_bodies.len()],
         };
         let bodies = model.bodies().iter().map(|b| b.vertices()).collect();
         let state = State {
@@ -464,11 +470,22 @@ impl Simulation {
             // unchanged; L_d's zero column sums keep linear momentum exact.
             for (spin, body) in s.spins.iter_mut().zip(&self.rotating_bodies) {
                 let fit = RigidFit::of(body, masses, x_n, v_n);
-                *spin = fit.angular_momentum;
+                let omega = fit.angular_velocity();
+                *spin = SpinAtStart {
+                    angular_momentum: fit.angular_momentum,
+                    angular_speed: omega.norm(),
+                    kinetic_energy: body
+                        .iter()
+                        .map(|&i| 0.5 * masses[i] * v_n[i].norm_squared())
+                        .sum(),
+                };
                 // The rigid rotation's displacement over 1/gamma (one step for
                 // backward Euler and implicit midpoint): exact, not linearised,
-                // so a rigidly spinning body feels no damping at all.
-                let rotation = nalgebra::Rotation3::new(fit.angular_velocity() / c.gamma);
+                // so a rigidly spinning body feels no damping at all. (A
+                // linear shift `omega x r / gamma` lies on the tangent, and
+                // the damping then stretches a spinning body: on a stiff
+                // spinning chain it raised the total energy by 67% in 8 steps.)
+                let rotation = nalgebra::Rotation3::new(omega / c.gamma);
                 for &i in body {
                     let r = x_n[i] - fit.centre;
                     s.targets.damping_anchor[i] += rotation * r - r;
@@ -657,7 +674,7 @@ impl Simulation {
             .finish(h, x_n, v_n, &s.iterate, &mut s.velocities);
         zero_fixed(&mut s.velocities, fixed);
         if self.damping.preserves_rotation() {
-            restore_spin(
+            stats.spin_axes_left = restore_spin(
                 &self.rotating_bodies,
                 &s.spins,
                 masses,
@@ -894,20 +911,32 @@ fn connected_components(model: &Model) -> (Vec<Vec<usize>>, Vec<Vec<usize>>) {
 /// conserved physically (uniform gravity exerts no torque about the centre
 /// of mass), so this removes exactly the remaining loss, which the anchor
 /// shift has made small.
+///
+/// About a principal axis where giving the spin back would turn the body
+/// far faster than it turns and cost more than a small fraction of its
+/// kinetic energy, nothing is restored
+/// ([`RigidFit::spin_restoring_velocity`]): that spin was not lost by the
+/// body's rotation but moved onto an axis where the body has almost no
+/// inertia, and restoring it would take unbounded energy (docs/damping.md).
+/// Returns how many axes were left alone.
 fn restore_spin(
     rotating_bodies: &[Vec<usize>],
-    spins: &[Point],
+    spins: &[SpinAtStart],
     masses: &[f64],
     positions: &[Point],
     velocities: &mut [Point],
-) {
-    for (body, spin) in rotating_bodies.iter().zip(spins) {
+) -> usize {
+    let mut axes_left = 0;
+    for (body, start) in rotating_bodies.iter().zip(spins) {
         let fit = RigidFit::of(body, masses, positions, velocities);
-        let restore = fit.solve_inertia(&(spin - fit.angular_momentum));
+        let restoration = fit.spin_restoring_velocity(start);
+        axes_left += restoration.axes_left;
+        let restore = restoration.angular_velocity;
         for &i in body {
             velocities[i] += restore.cross(&(positions[i] - fit.centre));
         }
     }
+    axes_left
 }
 
 /// The step objective (DESIGN.md 3.1-3.2) at `x`, in J:
