@@ -29,7 +29,9 @@
 pub mod assembly;
 mod attachment;
 mod constraint;
+pub mod polar;
 mod set;
+pub mod signed_svd;
 mod sparse;
 mod spring;
 mod tet_hessian;

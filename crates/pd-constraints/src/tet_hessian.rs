@@ -56,7 +56,7 @@
 use nalgebra::Matrix3;
 use pd_mesh::Point;
 
-use crate::{Constraint, TetStrain, tet_strain::signed_svd};
+use crate::{Constraint, TetStrain, signed_svd::signed_svd};
 
 /// Writes the 9 x 9 Hessian of `w/2 |F - P(F)|^2` with respect to the rows of
 /// `G x` (the columns of `F`), index `3 r + a` for `F[(a, r)]` (row-major,

@@ -2,9 +2,11 @@
 //! proper rotation to the deformation gradient `F`, optionally relaxed to a
 //! strain limit on its singular values.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Matrix3;
 use pd_mesh::Point;
 
+use crate::polar::closest_rotation;
+use crate::signed_svd::signed_svd;
 use crate::{Constraint, ConstraintError};
 
 /// A tetrahedral strain constraint.
@@ -13,8 +15,9 @@ use crate::{Constraint, ConstraintError};
 /// the deformation gradient is `F = Ds B`, and `F^T = G [x0; x1; x2; x3]`
 /// with the 3 x 4 operator `G = B^T [-1 | I]`: the rows of `G x` are the
 /// columns of `F`. The projection is the closest proper rotation `R = U V^T`
-/// from a signed SVD (so an inverted element projects to a rotation, not a
-/// reflection), or with strain limits `[min, max]` the matrix
+/// from the signed SVD of [`signed_svd`](crate::signed_svd::signed_svd) (so
+/// an inverted element projects to a rotation, not a reflection), or with
+/// strain limits `[min, max]` the matrix
 /// `U clamp(S, min, max) V^T`. The weight is `stiffness * rest volume`; with
 /// Poisson ratio 0 the stiffness plays the part of Young's modulus (Pa).
 #[derive(Debug, Clone, PartialEq)]
@@ -120,39 +123,6 @@ impl Constraint for TetStrain {
     }
 }
 
-/// Signed SVD `F = U diag(s) V^T` with `U`, `V` proper rotations; the sign of
-/// `det F` goes to the smallest singular value. Falls back to the identity
-/// factors for a non-finite `F` so that the caller's divergence check, not a
-/// panic, reports it.
-pub fn signed_svd(f: &Matrix3<f64>) -> (Matrix3<f64>, Vector3<f64>, Matrix3<f64>) {
-    let svd = f.svd(true, true);
-    let (Some(mut u), Some(v_t)) = (svd.u, svd.v_t) else {
-        return (
-            Matrix3::identity(),
-            Vector3::from_element(f64::NAN),
-            Matrix3::identity(),
-        );
-    };
-    let mut s = svd.singular_values;
-    let mut v = v_t.transpose();
-    let smallest = s.imin();
-    if u.determinant() < 0.0 {
-        u.column_mut(smallest).neg_mut();
-        s[smallest] = -s[smallest];
-    }
-    if v.determinant() < 0.0 {
-        v.column_mut(smallest).neg_mut();
-        s[smallest] = -s[smallest];
-    }
-    (u, s, v)
-}
-
-/// The proper rotation closest to `f` in the Frobenius norm.
-pub fn closest_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
-    let (u, _, v) = signed_svd(f);
-    u * v.transpose()
-}
-
 fn clamp_singular_values(f: &Matrix3<f64>, min: f64, max: f64) -> Matrix3<f64> {
     let (u, s, v) = signed_svd(f);
     let clamped = s.map(|sigma| sigma.clamp(min, max));
@@ -169,6 +139,8 @@ pub(crate) fn check_stiffness(stiffness: f64) -> Result<(), ConstraintError> {
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::Vector3;
+
     use super::*;
 
     fn is_proper_rotation(r: &Matrix3<f64>) -> bool {
