@@ -5,7 +5,7 @@
 //!   integrator on the bundled scenes and writes `docs/damping-table.md`;
 //! - `bench-report [--quick]`: speed, accuracy, scaling and memory,
 //!   written to `docs/bench-report.md` (+ JSON and PNG figures);
-//! - `cpp-compare --reference PATH [--quick]`: pd against the C++ Eigen /
+//! - `cpp-compare --reference PATH [--quick] [--repeat N]`: pd against the C++ Eigen /
 //!   CHOLMOD reference on the same TetGen meshes, written to
 //!   `docs/cpp-comparison.md`;
 //! - `stability [--quick]`: runs every integrator and damping model over a
@@ -56,7 +56,7 @@ fn main() -> ExitCode {
         Some("stability") => stability::main(&workspace_root(), &args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md\n  bench-report [--quick]    speed/accuracy/scaling report: docs/bench-report.md\n  cpp-compare --reference PATH_TO_PDREF [--quick]\n                            pd vs the C++ reference: docs/cpp-comparison.md\n  stability [--quick]       run the matrix of extreme parameters, write docs/stability.md (use --release)"
+                "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md\n  bench-report [--quick]    speed/accuracy/scaling report: docs/bench-report.md\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N]\n                            pd vs the C++ reference: docs/cpp-comparison.md\n  stability [--quick]       run the matrix of extreme parameters, write docs/stability.md (use --release)"
             );
             ExitCode::from(2)
         }
