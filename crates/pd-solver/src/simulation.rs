@@ -799,6 +799,16 @@ impl Simulation {
         self.time
     }
 
+    /// The energy scale of the divergence check (J, docs/solver.md): at the
+    /// start (or the last `set_state`), the kinetic plus elastic energy, the
+    /// work gravity does over the body's size, and the kinetic energy of
+    /// moving the whole mass by its size in one second. A step diverges when
+    /// the kinetic plus gravitational energy exceeds the initial total by
+    /// `Settings::divergence_energy_factor` times this.
+    pub fn energy_scale(&self) -> f64 {
+        self.energy_scale
+    }
+
     /// Steps taken.
     pub fn steps(&self) -> usize {
         self.steps
