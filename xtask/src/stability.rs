@@ -209,8 +209,8 @@ enum Ending {
     /// largest `(E(t) - E(0)) / scale` over the run (0 if the energy never
     /// rose above its start).
     Completed { rise: f64 },
-    /// Stopped with `SolverError::Diverged`.
-    Diverged,
+    /// Stopped with `SolverError::Diverged` at `step`, for `reason`.
+    Diverged { step: usize, reason: String },
     /// A panic, a non-finite value after an `Ok` step, or another error.
     Bug(String),
 }
@@ -264,11 +264,11 @@ fn run_case(case: &Case) -> Ending {
                     }
                     rise = rise.max((energy.total() - initial) / scale);
                 }
-                Err(SolverError::Diverged { .. }) => {
+                Err(SolverError::Diverged { step, reason, .. }) => {
                     if !finite(sim.state()) {
                         return Ok(Ending::Bug("diverged with a non-finite state".into()));
                     }
-                    return Ok(Ending::Diverged);
+                    return Ok(Ending::Diverged { step, reason });
                 }
                 Err(e) => return Ok(Ending::Bug(e.to_string())),
             }
@@ -385,7 +385,7 @@ impl Tally {
                 self.rose += usize::from(*rise > RISE_REPORTED);
                 self.largest_rise = self.largest_rise.max(*rise);
             }
-            Ending::Diverged => self.diverged += 1,
+            Ending::Diverged { .. } => self.diverged += 1,
             Ending::Bug(_) => self.bugs += 1,
         }
     }
@@ -396,7 +396,12 @@ impl Tally {
             return "-".into();
         }
         let pct = |k: usize| 100.0 * k as f64 / self.runs as f64;
-        let mut text = format!("{:.0}", pct(self.completed));
+        // Truncated, not rounded: 3 failures in 2592 runs must not read 100.
+        let mut text = if self.completed == self.runs {
+            "100".to_string()
+        } else {
+            format!("{:.1}", (pct(self.completed) * 10.0).floor() / 10.0)
+        };
         if self.rose > 0 {
             write!(text, " ({:.1})", pct(self.rose)).expect("infallible");
         }
@@ -619,6 +624,44 @@ fn run(root: &Path, quick: bool) -> Result<PathBuf, String> {
                 } else {
                     "clamped beam"
                 },
+            )
+            .expect("infallible");
+        }
+    }
+
+    let diverged: Vec<(&Case, usize, &str)> = results
+        .iter()
+        .filter_map(|(case, ending)| match ending {
+            Ending::Diverged { step, reason } => Some((case, *step, reason.as_str())),
+            _ => None,
+        })
+        .collect();
+    if !diverged.is_empty() {
+        writeln!(
+            out,
+            "\n## The runs that diverged\n\n\
+             | integrator | model | c | stiffness | dt | density | iterations | start | body | step | reason |\n\
+             |---|---|---|---|---|---|---|---|---|---|---|"
+        )
+        .expect("infallible");
+        for (case, step, reason) in &diverged {
+            writeln!(
+                out,
+                "| {} | {} | {:e} | {:e} | {:e} | {:e} | {} | {} | {} | {step} | {} |",
+                case.integrator.name(),
+                MODELS[case.model],
+                case.coefficient,
+                case.stiffness,
+                case.dt,
+                case.density,
+                case.iterations,
+                case.start.name(),
+                if case.free {
+                    "free cube"
+                } else {
+                    "clamped beam"
+                },
+                reason.replace('|', "/"),
             )
             .expect("infallible");
         }
