@@ -13,9 +13,20 @@ pub enum LaplacianKind {
     /// Only translation-invariant (elastic) constraints: the damping
     /// Laplacian `L_d`, for which `L_d 1 = 0`.
     Damping,
+    /// Only the constraints that are not translation-invariant
+    /// (attachments): `L_sys - L_d`.
+    Anchoring,
 }
 
 /// Assembles the n x n Laplacian of `blocks` over `num_vertices` vertices.
+///
+/// The result is symmetric bit for bit: each off-diagonal value is summed
+/// once, over the lower triangle, and mirrored. (Summing the triplets of
+/// `(i, j)` and of `(j, i)` separately can round differently.) The step
+/// relies on it: for a symmetric `L` with zero row sums in exact arithmetic,
+/// `sum_i sum_j L_ij (x_j - x_i)` is exactly `sum_j (colsum_j - rowsum_j) x_j
+/// = 0`, so the difference form of `L x` moves no momentum whatever `|x|`;
+/// an asymmetry of `eps |L|` would move it by `eps |L| |x|`.
 pub fn laplacian(
     blocks: &[Box<dyn ConstraintBlock>],
     num_vertices: usize,
@@ -23,11 +34,25 @@ pub fn laplacian(
 ) -> CsrMatrix {
     let mut triplets: Vec<Triplet> = Vec::new();
     for block in blocks {
-        if kind == LaplacianKind::System || block.translation_invariant() {
+        let wanted = match kind {
+            LaplacianKind::System => true,
+            LaplacianKind::Damping => block.translation_invariant(),
+            LaplacianKind::Anchoring => !block.translation_invariant(),
+        };
+        if wanted {
             block.add_laplacian(&mut triplets);
         }
     }
-    CsrMatrix::from_triplets(num_vertices, num_vertices, &triplets)
+    triplets.retain(|t| t.row >= t.column);
+    let lower = CsrMatrix::from_triplets(num_vertices, num_vertices, &triplets);
+    let mut mirrored = Vec::with_capacity(2 * triplets.len());
+    for t in lower.triplets() {
+        mirrored.push(t);
+        if t.row != t.column {
+            mirrored.push(Triplet::new(t.column, t.row, t.value));
+        }
+    }
+    CsrMatrix::from_triplets(num_vertices, num_vertices, &mirrored)
 }
 
 /// First projection row of each block and the total number of rows, for a

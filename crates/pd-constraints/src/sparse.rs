@@ -103,6 +103,19 @@ impl CsrMatrix {
             .fold(Point::zeros(), |acc, (c, v)| acc + x[c] * v)
     }
 
+    /// `sum_j A[row][j] (x_j - centre)`: `(A x)[row]` for a row whose
+    /// entries sum to zero in exact arithmetic (a Laplacian of
+    /// translation-invariant constraints), evaluated on differences. A
+    /// uniform `x` then gives exactly zero, and round-off scales with the
+    /// spread of `x` over the row's stencil rather than with `|x|` (the
+    /// assembled entries' own rounding, which makes the stored row sum a few
+    /// ulps off zero, is not multiplied by `|x|`).
+    #[inline]
+    pub fn row_dot_relative(&self, row: usize, centre: Point, x: &[Point]) -> Point {
+        self.row(row)
+            .fold(Point::zeros(), |acc, (c, v)| acc + (x[c] - centre) * v)
+    }
+
     /// `y = A x`, sequentially.
     pub fn mul_points(&self, x: &[Point], y: &mut [Point]) {
         for (row, out) in y.iter_mut().enumerate() {

@@ -34,23 +34,19 @@ impl Integrator for BackwardEuler {
     fn prepare(
         &self,
         h: f64,
-        positions: &[Point],
+        _positions: &[Point],
         velocities: &[Point],
         acceleration: Point,
         targets: &mut StepTargets,
     ) {
         let h2a = acceleration * (h * h);
-        for (((y, z), anchor), (x, v)) in targets
-            .inertial
-            .iter_mut()
-            .zip(targets.offset.iter_mut())
-            .zip(targets.damping_anchor.iter_mut())
-            .zip(positions.iter().zip(velocities))
-        {
-            *y = x + v * h + h2a;
-            *z = Point::zeros();
-            *anchor = *x;
+        for (y, v) in targets.inertial_displacement.iter_mut().zip(velocities) {
+            *y = v * h + h2a;
         }
+        targets
+            .anchor_displacement
+            .iter_mut()
+            .for_each(|a| *a = Point::zeros());
     }
 
     fn finish(

@@ -69,11 +69,10 @@ impl Integrator for Bdf2 {
             return;
         }
         let accel_term = acceleration * (4.0 * h * h / 9.0);
-        for ((((y, z), anchor), (x, v)), (x_old, v_old)) in targets
-            .inertial
+        for (((y, anchor), (x, v)), (x_old, v_old)) in targets
+            .inertial_displacement
             .iter_mut()
-            .zip(targets.offset.iter_mut())
-            .zip(targets.damping_anchor.iter_mut())
+            .zip(targets.anchor_displacement.iter_mut())
             .zip(positions.iter().zip(velocities))
             .zip(
                 self.previous_positions
@@ -81,10 +80,11 @@ impl Integrator for Bdf2 {
                     .zip(&self.previous_velocities),
             )
         {
-            let x_hat = (x * 4.0 - x_old) / 3.0;
-            *y = x_hat + (v * 8.0 - v_old * 2.0) * (h / 9.0) + accel_term;
-            *z = Point::zeros();
-            *anchor = x_hat;
+            // x_hat - x_n = (4 x_n - x_{n-1})/3 - x_n, from the difference of
+            // the two positions (exact for nearby floats), not from x_hat.
+            let anchor_step = (x - x_old) / 3.0;
+            *y = anchor_step + (v * 8.0 - v_old * 2.0) * (h / 9.0) + accel_term;
+            *anchor = anchor_step;
         }
     }
 
@@ -172,10 +172,12 @@ mod tests {
         let c = bdf.coefficients(h);
         assert_eq!((c.c1, c.c2), (4.0 / 9.0, 1.0));
         // Uniform motion is reproduced exactly by the BDF-2 targets:
-        // x_hat = (4 * 0.1 - 0) / 3, y = x_hat + h (8 - 2) / 9 = 0.2.
+        // x_hat = (4 * 0.1 - 0) / 3, y = x_hat + h (8 - 2) / 9 = 0.2, so
+        // y - x_n = 0.1 and x_hat - x_n = 0.1 / 3.
         let mut t = StepTargets::with_len(1);
         bdf.prepare(h, &x1, &v1, Point::zeros(), &mut t);
-        assert!((t.inertial[0].x - 0.2).abs() < 1e-15);
+        assert!((t.inertial_displacement[0].x - 0.1).abs() < 1e-15);
+        assert!((t.anchor_displacement[0].x - 0.1 / 3.0).abs() < 1e-15);
     }
 
     #[test]

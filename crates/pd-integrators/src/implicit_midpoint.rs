@@ -39,23 +39,19 @@ impl Integrator for ImplicitMidpoint {
     fn prepare(
         &self,
         h: f64,
-        positions: &[Point],
+        _positions: &[Point],
         velocities: &[Point],
         acceleration: Point,
         targets: &mut StepTargets,
     ) {
         let half_h2a = acceleration * (0.5 * h * h);
-        for (((y, z), anchor), (x, v)) in targets
-            .inertial
-            .iter_mut()
-            .zip(targets.offset.iter_mut())
-            .zip(targets.damping_anchor.iter_mut())
-            .zip(positions.iter().zip(velocities))
-        {
-            *y = x + v * h + half_h2a;
-            *z = x * 0.5;
-            *anchor = *x;
+        for (y, v) in targets.inertial_displacement.iter_mut().zip(velocities) {
+            *y = v * h + half_h2a;
         }
+        targets
+            .anchor_displacement
+            .iter_mut()
+            .for_each(|a| *a = Point::zeros());
     }
 
     fn finish(

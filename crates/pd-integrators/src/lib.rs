@@ -1,14 +1,21 @@
 //! Time integrators for Projective Dynamics, all in one form: each step
 //! minimises
 //!
-//! `g(x) = 1/(2h^2) |x - y|_M^2 + c1 E(c2 x + z) + Phi(x)`
+//! `g(x) = 1/(2h^2) |x - y|_M^2 + c1 E(x_n + c2 (x - x_n)) + Phi(x)`
 //!
 //! where `y` is the inertial target (external forces folded in), `E` the PD
 //! energy and `Phi` the implicit damping potential
-//! `1/2 c1 c2 gamma (x - x_hat)^T D (x - x_hat)`. An [`Integrator`] supplies
-//! `c1`, `c2`, `gamma`, the targets `y`, `z`, `x_hat`, and the velocity
+//! `1/2 c1 c2 gamma (x - x_hat)^T D (x - x_hat)`. (DESIGN.md writes the
+//! energy's argument `c2 x + z`; every one-leg method here has
+//! `z = (1 - c2) x_n`.) An [`Integrator`] supplies `c1`, `c2`, `gamma`, the
+//! targets `y` and `x_hat` as displacements from `x_n`, and the velocity
 //! update; it owns whatever history it needs. The coefficient table and the
 //! derivation are in `docs/integrators.md` (DESIGN.md section 3.1).
+//!
+//! Targets are displacements, not positions, so that the solver can work
+//! with the step's displacement `x - x_n` throughout: round-off then scales
+//! with how far a body moves in a step, not with how far it is from the
+//! origin (`docs/solver.md`).
 //!
 //! ```
 //! use pd_integrators::{BackwardEuler, Integrator, StepTargets};
@@ -18,13 +25,13 @@
 //! let c = be.coefficients(0.1);
 //! assert_eq!((c.c1, c.c2), (1.0, 1.0));
 //!
-//! // One vertex at rest under gravity: the inertial target is x + h^2 g.
+//! // One vertex at rest under gravity: the inertial target is x_n + h^2 g.
 //! let x = [Vector3::zeros()];
 //! let v = [Vector3::zeros()];
 //! let mut targets = StepTargets::with_len(1);
 //! let g = Vector3::new(0.0, -10.0, 0.0);
 //! be.prepare(0.1, &x, &v, g, &mut targets);
-//! assert!((targets.inertial[0].y + 0.1).abs() < 1e-15);
+//! assert!((targets.inertial_displacement[0].y + 0.1).abs() < 1e-15);
 //! ```
 
 mod backward_euler;
@@ -45,7 +52,7 @@ pub type Point = Vector3<f64>;
 pub struct StepCoefficients {
     /// Factor `c1` of the elastic energy.
     pub c1: f64,
-    /// Factor `c2` of `x` inside the energy, `E(c2 x + z)`.
+    /// Factor `c2` of the step inside the energy, `E(x_n + c2 (x - x_n))`.
     pub c2: f64,
     /// `gamma` in 1/s: the damping force is evaluated at the velocity
     /// `gamma (x - x_hat)`.
@@ -56,21 +63,19 @@ pub struct StepCoefficients {
 /// Buffers are sized once and reused, so preparing a step allocates nothing.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct StepTargets {
-    /// The inertial target `y` (m).
-    pub inertial: Vec<Point>,
-    /// The offset `z` inside the energy, `E(c2 x + z)` (m).
-    pub offset: Vec<Point>,
-    /// The damping anchor `x_hat` (m).
-    pub damping_anchor: Vec<Point>,
+    /// The inertial target `y` minus `x_n` (m).
+    pub inertial_displacement: Vec<Point>,
+    /// The damping anchor `x_hat` minus `x_n` (m): zero for one-step
+    /// methods, whose damping velocity is `gamma (x - x_n)`.
+    pub anchor_displacement: Vec<Point>,
 }
 
 impl StepTargets {
     /// Zeroed targets for `n` vertices.
     pub fn with_len(n: usize) -> Self {
         Self {
-            inertial: vec![Point::zeros(); n],
-            offset: vec![Point::zeros(); n],
-            damping_anchor: vec![Point::zeros(); n],
+            inertial_displacement: vec![Point::zeros(); n],
+            anchor_displacement: vec![Point::zeros(); n],
         }
     }
 }
@@ -89,8 +94,9 @@ pub trait Integrator: std::fmt::Debug + Send + Sync {
     /// cached factorisations on them.
     fn coefficients(&self, h: f64) -> StepCoefficients;
 
-    /// Fills `targets` for a step of length `h` (s) from positions `x_n`,
-    /// velocities `v_n` and a uniform external acceleration (m/s^2).
+    /// Fills `targets` (displacements from `x_n`) for a step of length `h`
+    /// (s) from positions `x_n`, velocities `v_n` and a uniform external
+    /// acceleration (m/s^2).
     fn prepare(
         &self,
         h: f64,

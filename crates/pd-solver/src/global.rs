@@ -38,11 +38,14 @@ pub(crate) struct GlobalSystem {
     pub free_index: Vec<usize>,
     /// The lower-triangle pattern over the free vertices.
     pub pattern: LowerPattern,
-    /// Rows of `L_sys` for the free vertices (all columns).
-    pub system_rows: CsrMatrix,
-    /// Rows of `L_d` for the free vertices (all columns); empty when no
-    /// model damps with it.
+    /// Rows of `L_d` (the translation-invariant constraints) for the free
+    /// vertices (all columns): the damping Laplacian, and with
+    /// `anchoring_rows` the system Laplacian `L_sys = L_d + L_anchor`, so
+    /// that the step can apply the translation-invariant part on
+    /// differences (`CsrMatrix::row_dot_relative`).
     pub damping_rows: CsrMatrix,
+    /// Rows of `L_anchor` (attachments) for the free vertices (all columns).
+    pub anchoring_rows: CsrMatrix,
     /// Rows of the projection operator `B` for the free vertices.
     pub projection_rows: CsrMatrix,
     /// Per pattern slot: the mass on the diagonal, else 0.
@@ -93,6 +96,7 @@ impl GlobalSystem {
         }
         let system = assembly::laplacian(local.blocks(), n, LaplacianKind::System);
         let damping = assembly::laplacian(local.blocks(), n, LaplacianKind::Damping);
+        let anchoring = assembly::laplacian(local.blocks(), n, LaplacianKind::Anchoring);
         let projection = assembly::projection_operator(local.blocks(), n);
 
         // Lower triangle over free vertices: diagonal plus every L_sys entry
@@ -146,8 +150,8 @@ impl GlobalSystem {
         let symbolic = SymbolicFactor::analyse(pattern.clone(), dissection.as_deref())?;
         Ok(Self {
             pattern,
-            system_rows: system.select_rows(&free),
             damping_rows: damping.select_rows(&free),
+            anchoring_rows: anchoring.select_rows(&free),
             projection_rows: projection.select_rows(&free),
             free,
             free_index,

@@ -98,11 +98,13 @@ impl Energies {
 #[derive(Debug)]
 struct Scratch {
     targets: StepTargets,
+    /// The step's displacement `x - x_n` (zero at fixed vertices): the
+    /// global step's unknown.
+    displacement: Vec<Point>,
+    /// The new positions `x_n + displacement`, once the iterations are done.
     iterate: Vec<Point>,
     q: Vec<Point>,
     projections: Vec<Point>,
-    energy_offset: Vec<Point>,
-    damping_offset: Vec<Point>,
     constant_rhs: Vec<Point>,
     rhs_points: Vec<Point>,
     rhs: Mat<f64>,
@@ -239,11 +241,10 @@ impl Simulation {
         let nf = global.free.len();
         let scratch = Scratch {
             targets: StepTargets::with_len(n),
+            displacement: vec![Point::zeros(); n],
             iterate: vec![Point::zeros(); n],
             q: vec![Point::zeros(); n],
             projections: vec![Point::zeros(); local.total_rows()],
-            energy_offset: vec![Point::zeros(); n],
-            damping_offset: vec![Point::zeros(); n],
             constant_rhs: vec![Point::zeros(); nf],
             rhs_points: vec![Point::zeros(); nf],
             rhs: Mat::zeros(nf, 3),
@@ -488,7 +489,7 @@ impl Simulation {
                 let rotation = nalgebra::Rotation3::new(omega / c.gamma);
                 for &i in body {
                     let r = x_n[i] - fit.centre;
-                    s.targets.damping_anchor[i] += rotation * r - r;
+                    s.targets.anchor_displacement[i] += rotation * r - r;
                 }
             }
         }
@@ -498,49 +499,60 @@ impl Simulation {
                 .add_explicit_force(&context, x_n, v_n, &mut s.forces);
             // An external force f enters y as c1 c2 h^2 M^-1 f (DESIGN.md 3.1).
             let scale = c.c1 * c.c2 * h * h;
-            for ((y, f), m) in s.targets.inertial.iter_mut().zip(&s.forces).zip(masses) {
+            for ((y, f), m) in s
+                .targets
+                .inertial_displacement
+                .iter_mut()
+                .zip(&s.forces)
+                .zip(masses)
+            {
                 if *m > 0.0 {
                     *y += f * (scale / m);
                 }
             }
         }
 
-        // Constant part of the right-hand side over the free vertices
-        // (docs/solver.md): M y / h^2 - c1 c2 L (z + c2 x_fixed)
-        //   + c1 c2 gamma D (x_hat - x_fixed), x_fixed zero at free vertices.
+        // The global step solves for the displacement `x - x_n` (zero at
+        // fixed vertices), docs/solver.md:
+        //   A (x - x_n) = M (y - x_n) / h^2 + c1 c2 (B p - L x_n)
+        //                 + c1 c2 gamma D (x_hat - x_n).
+        // Every term is built from displacements or, for `L x_n = L_d x_n +
+        // L_anchor x_n`, from the differences `x_j - x_i` across each row of
+        // the translation-invariant `L_d` (only attachments see absolute
+        // positions), so round-off scales with how far the body moves in a
+        // step, not with its distance from the origin. Constant part, over
+        // the free vertices:
         let energy_factor = c.c1 * c.c2;
         let damping_factor = energy_factor * c.gamma;
-        for v in 0..x_n.len() {
-            let fixed_part = if fixed[v] { x_n[v] } else { Point::zeros() };
-            s.energy_offset[v] = s.targets.offset[v] + fixed_part * c.c2;
-            s.damping_offset[v] = s.targets.damping_anchor[v] - fixed_part;
-        }
         let inv_h2 = 1.0 / (h * h);
         let global = &self.global;
         let use_damping_laplacian = d.damping_laplacian != 0.0;
+        let anchor = &s.targets.anchor_displacement;
         s.constant_rhs
             .par_iter_mut()
             .enumerate()
             .for_each(|(f, out)| {
                 let v = global.free[f];
-                let mut b = s.targets.inertial[v] * (masses[v] * inv_h2)
-                    - global.system_rows.row_dot(f, &s.energy_offset) * energy_factor;
+                let elastic = global.damping_rows.row_dot_relative(f, x_n[v], x_n)
+                    + global.anchoring_rows.row_dot(f, x_n);
+                let mut b = s.targets.inertial_displacement[v] * (masses[v] * inv_h2)
+                    - elastic * energy_factor;
                 if d.mass != 0.0 {
-                    b += s.damping_offset[v] * (damping_factor * d.mass * masses[v]);
+                    b += anchor[v] * (damping_factor * d.mass * masses[v]);
                 }
                 if use_damping_laplacian {
-                    b += global.damping_rows.row_dot(f, &s.damping_offset)
+                    b += global.damping_rows.row_dot_relative(f, anchor[v], anchor)
                         * (damping_factor * d.damping_laplacian);
                 }
                 *out = b;
             });
         if let Some(lagged) = &self.lagged {
-            // + c1 c2 gamma a3 K(x_n) (x_hat - x_fixed), on every vertex, then
+            // + c1 c2 gamma a3 K(x_n) (x_hat - x_n), on every vertex, then
             // gathered to the free ones.
             s.forces.iter_mut().for_each(|f| *f = Point::zeros());
             lagged.add_stiffness_product(
                 self.local.blocks(),
-                &s.damping_offset,
+                anchor,
                 damping_factor * d.lagged_stiffness,
                 &mut s.forces,
             );
@@ -550,12 +562,13 @@ impl Simulation {
         }
 
         // Start from the inertial target; fixed vertices stay where they are.
-        for v in 0..x_n.len() {
-            s.iterate[v] = if fixed[v] {
-                x_n[v]
-            } else {
-                s.targets.inertial[v]
-            };
+        for ((dx, target), &fixed) in s
+            .displacement
+            .iter_mut()
+            .zip(&s.targets.inertial_displacement)
+            .zip(fixed)
+        {
+            *dx = if fixed { Point::zeros() } else { *target };
         }
 
         let mut stats = StepStats {
@@ -572,16 +585,16 @@ impl Simulation {
                 masses,
                 &s.targets,
                 (c, d, h),
-                &s.iterate,
+                (x_n, &s.displacement),
                 [&mut s.q, &mut s.velocities, &mut s.forces],
             ));
         }
         for _ in 0..self.settings.iterations {
             let t0 = Instant::now();
-            let (c2, iterate, offset) = (c.c2, &s.iterate, &s.targets.offset);
+            let (c2, displacement) = (c.c2, &s.displacement);
             s.q.par_iter_mut()
                 .enumerate()
-                .for_each(|(v, q)| *q = iterate[v] * c2 + offset[v]);
+                .for_each(|(v, q)| *q = x_n[v] + displacement[v] * c2);
             self.local.project(&s.q, &mut s.projections);
             let t1 = Instant::now();
 
@@ -631,10 +644,10 @@ impl Simulation {
                     Point::new(solution[(f, 0)], solution[(f, 1)], solution[(f, 2)])
                 };
                 if self.settings.tolerance > 0.0 {
-                    change2 += masses[v] * (new - s.iterate[v]).norm_squared();
-                    displacement2 += masses[v] * (new - x_n[v]).norm_squared();
+                    change2 += masses[v] * (new - s.displacement[v]).norm_squared();
+                    displacement2 += masses[v] * new.norm_squared();
                 }
-                s.iterate[v] = new;
+                s.displacement[v] = new;
             }
             if let Some(trace) = &mut self.objective_trace {
                 trace.push(step_objective(
@@ -644,7 +657,7 @@ impl Simulation {
                     masses,
                     &s.targets,
                     (c, d, h),
-                    &s.iterate,
+                    (x_n, &s.displacement),
                     [&mut s.q, &mut s.velocities, &mut s.forces],
                 ));
             }
@@ -660,6 +673,9 @@ impl Simulation {
             }
         }
 
+        for ((x, x0), dx) in s.iterate.iter_mut().zip(x_n).zip(&s.displacement) {
+            *x = x0 + dx;
+        }
         let step = self.steps + 1;
         // From the step count, so that time does not drift by round-off.
         let time = step as f64 * h;
@@ -949,8 +965,8 @@ fn restore_spin(
     axes_left
 }
 
-/// The step objective (DESIGN.md 3.1-3.2) at `x`, in J:
-/// `g(x) = 1/(2h^2) |x - y|_M^2 + c1 E(c2 x + z)
+/// The step objective (DESIGN.md 3.1-3.2) at `x = x_n + dx`, in J:
+/// `g(x) = 1/(2h^2) |x - y|_M^2 + c1 E(x_n + c2 dx)
 ///   + 1/2 c1 c2 gamma (x - x_hat)^T D (x - x_hat)`, with
 /// `D = a1 M + a2 L_d + a3 K(x_n)`. Fixed vertices sit at `x_n`, where
 /// `x - x_hat` vanishes, so `L_d`'s rows of the free vertices suffice; their
@@ -964,21 +980,22 @@ fn step_objective(
     masses: &[f64],
     targets: &StepTargets,
     (c, d, h): (StepCoefficients, DampingMatrix, f64),
-    x: &[Point],
+    (x_n, dx): (&[Point], &[Point]),
     [q, offset, product]: [&mut [Point]; 3],
 ) -> f64 {
     let mut inertia = 0.0;
     let mut mass_form = 0.0;
-    for v in 0..x.len() {
-        q[v] = x[v] * c.c2 + targets.offset[v];
-        offset[v] = x[v] - targets.damping_anchor[v];
-        inertia += masses[v] * (x[v] - targets.inertial[v]).norm_squared();
+    for v in 0..x_n.len() {
+        q[v] = x_n[v] + dx[v] * c.c2;
+        offset[v] = dx[v] - targets.anchor_displacement[v];
+        inertia += masses[v] * (dx[v] - targets.inertial_displacement[v]).norm_squared();
         mass_form += masses[v] * offset[v].norm_squared();
     }
     let mut laplacian_form = 0.0;
     if d.damping_laplacian != 0.0 {
         for (f, &v) in global.free.iter().enumerate() {
-            laplacian_form += offset[v].dot(&global.damping_rows.row_dot(f, offset));
+            laplacian_form +=
+                offset[v].dot(&global.damping_rows.row_dot_relative(f, offset[v], offset));
         }
     }
     let mut lagged_form = 0.0;

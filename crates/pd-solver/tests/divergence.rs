@@ -45,7 +45,7 @@ impl Integrator for NanAtStepThree {
     fn prepare(&self, h: f64, x: &[Point], v: &[Point], a: Point, t: &mut StepTargets) {
         BackwardEuler.prepare(h, x, v, a, t);
         if self.steps == 2 {
-            t.inertial[2].y = f64::NAN;
+            t.inertial_displacement[2].y = f64::NAN;
         }
     }
     fn finish(&mut self, h: f64, x0: &[Point], v0: &[Point], x: &[Point], v: &mut [Point]) {
