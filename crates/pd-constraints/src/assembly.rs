@@ -78,3 +78,65 @@ pub fn projection_operator(blocks: &[Box<dyn ConstraintBlock>], num_vertices: us
     }
     CsrMatrix::from_triplets(num_vertices, total, &triplets)
 }
+
+#[cfg(test)]
+mod tests {
+    use pd_mesh::{Point, generators};
+
+    use super::*;
+    use crate::{ConstraintSet, TetStrain};
+
+    /// Tets of a box whose vertices are moved off the grid, so that element
+    /// weights and operators differ and round differently.
+    fn blocks() -> (Vec<Box<dyn ConstraintBlock>>, usize) {
+        let mesh = generators::box_tets([1.0, 0.7, 0.4], [3, 2, 2]).unwrap();
+        let rest: Vec<Point> = mesh
+            .vertices()
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                p + Point::new(0.01 * (i as f64).sin(), 0.013 * (i as f64 * 1.7).cos(), 0.0)
+            })
+            .collect();
+        let tets = mesh
+            .tets()
+            .iter()
+            .map(|&t| TetStrain::new(&rest, t, 1.7e5, None).unwrap())
+            .collect();
+        (vec![Box::new(ConstraintSet::new(tets))], rest.len())
+    }
+
+    #[test]
+    fn laplacians_are_symmetric_bit_for_bit() {
+        let (blocks, n) = blocks();
+        for kind in [LaplacianKind::System, LaplacianKind::Damping] {
+            let l = laplacian(&blocks, n, kind);
+            for t in l.triplets() {
+                let mirror = l.row(t.column).find(|&(c, _)| c == t.row).map(|(_, v)| v);
+                assert_eq!(mirror.map(f64::to_bits), Some(t.value.to_bits()), "{t:?}");
+            }
+        }
+        assert_eq!(
+            laplacian(&blocks, n, LaplacianKind::Anchoring)
+                .triplets()
+                .count(),
+            0
+        );
+    }
+
+    #[test]
+    fn difference_form_is_exact_on_a_uniform_vector_far_away() {
+        // L 1 = 0 in exact arithmetic; on differences a uniform vector gives
+        // exactly zero, where the plain product leaves row-sum round-off
+        // times |x|.
+        let (blocks, n) = blocks();
+        let l = laplacian(&blocks, n, LaplacianKind::Damping);
+        let far = vec![Point::new(1.0e5, -3.0e4, 7.0e3); n];
+        let mut plain_error = 0.0f64;
+        for row in 0..n {
+            assert_eq!(l.row_dot_relative(row, far[row], &far), Point::zeros());
+            plain_error = plain_error.max(l.row_dot(row, &far).amax());
+        }
+        assert!(plain_error > 0.0, "the control should show round-off");
+    }
+}
