@@ -202,6 +202,33 @@ struct Case {
     free: bool,
 }
 
+impl Case {
+    /// The column names of [`Case::cells`], for a Markdown table.
+    const COLUMNS: &str =
+        "integrator | model | c | stiffness | dt | density | iterations | start | body";
+    const COLUMN_COUNT: usize = 9;
+
+    /// The case's parameters as Markdown table cells.
+    fn cells(&self) -> String {
+        format!(
+            "{} | {} | {:e} | {:e} | {:e} | {:e} | {} | {} | {}",
+            self.integrator.name(),
+            MODELS[self.model],
+            self.coefficient,
+            self.stiffness,
+            self.dt,
+            self.density,
+            self.iterations,
+            self.start.name(),
+            if self.free {
+                "free cube"
+            } else {
+                "clamped beam"
+            },
+        )
+    }
+}
+
 /// How a run ended.
 #[derive(Debug, Clone, PartialEq)]
 enum Ending {
@@ -602,30 +629,13 @@ fn run(root: &Path, quick: bool) -> Result<PathBuf, String> {
     if !rises.is_empty() {
         writeln!(
             out,
-            "\n## The largest energy rises\n\n\
-             | rise (x scale) | integrator | model | c | stiffness | dt | density | iterations | start | body |\n\
-             |---|---|---|---|---|---|---|---|---|---|"
+            "\n## The largest energy rises\n\n| rise (x scale) | {} |\n|---|{}",
+            Case::COLUMNS,
+            "---|".repeat(Case::COLUMN_COUNT)
         )
         .expect("infallible");
         for (case, rise) in rises.iter().take(12) {
-            writeln!(
-                out,
-                "| {rise:.3e} | {} | {} | {:e} | {:e} | {:e} | {:e} | {} | {} | {} |",
-                case.integrator.name(),
-                MODELS[case.model],
-                case.coefficient,
-                case.stiffness,
-                case.dt,
-                case.density,
-                case.iterations,
-                case.start.name(),
-                if case.free {
-                    "free cube"
-                } else {
-                    "clamped beam"
-                },
-            )
-            .expect("infallible");
+            writeln!(out, "| {rise:.3e} | {} |", case.cells()).expect("infallible");
         }
     }
 
@@ -639,29 +649,17 @@ fn run(root: &Path, quick: bool) -> Result<PathBuf, String> {
     if !diverged.is_empty() {
         writeln!(
             out,
-            "\n## The runs that diverged\n\n\
-             | integrator | model | c | stiffness | dt | density | iterations | start | body | step | reason |\n\
-             |---|---|---|---|---|---|---|---|---|---|---|"
+            "\n## The runs that diverged\n\n| {} | step | reason |\n|---|{}",
+            Case::COLUMNS,
+            "---|".repeat(Case::COLUMN_COUNT + 1)
         )
         .expect("infallible");
         for (case, step, reason) in &diverged {
             writeln!(
                 out,
-                "| {} | {} | {:e} | {:e} | {:e} | {:e} | {} | {} | {} | {step} | {} |",
-                case.integrator.name(),
-                MODELS[case.model],
-                case.coefficient,
-                case.stiffness,
-                case.dt,
-                case.density,
-                case.iterations,
-                case.start.name(),
-                if case.free {
-                    "free cube"
-                } else {
-                    "clamped beam"
-                },
-                reason.replace('|', "/"),
+                "| {} | {step} | {} |",
+                case.cells(),
+                reason.replace('|', "/")
             )
             .expect("infallible");
         }
