@@ -121,8 +121,9 @@ struct Scratch {
 /// [`Simulation::new`]; [`Simulation::step`] reuses it. Each step: the
 /// integrator prepares its targets, then `iterations` times the local step
 /// projects every constraint (in parallel) and the global step solves
-/// `A x = b` with a cached Cholesky factor of `A`; the integrator then
-/// updates the velocities and the damping model filters them.
+/// `A dx = b` for the step's displacement `dx = x - x_n` with a cached
+/// Cholesky factor of `A` (docs/solver.md); the integrator then updates the
+/// velocities and the damping model filters them.
 ///
 /// ```
 /// use pd_damping::NoDamping;
