@@ -94,16 +94,16 @@ impl GlobalSystem {
                 reason: "every vertex is fixed: nothing to simulate".into(),
             });
         }
-        let system = assembly::laplacian(local.blocks(), n, LaplacianKind::System);
+        // L_sys = L_d + L_anchor: the two parts are kept apart (the step
+        // applies L_d to differences), and L_sys is their sum slot by slot.
         let damping = assembly::laplacian(local.blocks(), n, LaplacianKind::Damping);
         let anchoring = assembly::laplacian(local.blocks(), n, LaplacianKind::Anchoring);
         let projection = assembly::projection_operator(local.blocks(), n);
 
-        // Lower triangle over free vertices: diagonal plus every L_sys entry
-        // (L_d's pattern is a subset, as its constraints are among L_sys's).
+        // Lower triangle over free vertices: diagonal plus every L_sys entry.
         let nf = free.len();
         let mut per_column: Vec<Vec<usize>> = (0..nf).map(|j| vec![j]).collect();
-        for t in system.triplets() {
+        for t in damping.triplets().chain(anchoring.triplets()) {
             let (fr, fc) = (free_index[t.row], free_index[t.column]);
             if fr != FIXED && fc != FIXED && fr > fc {
                 per_column[fc].push(fr);
@@ -136,11 +136,15 @@ impl GlobalSystem {
         for (f, &v) in free.iter().enumerate() {
             mass_part[slot(f, f)] = masses[v];
         }
-        for (matrix, part) in [(&system, &mut system_part), (&damping, &mut damping_part)] {
+        for (matrix, is_damping) in [(&damping, true), (&anchoring, false)] {
             for t in matrix.triplets() {
                 let (fr, fc) = (free_index[t.row], free_index[t.column]);
                 if fr != FIXED && fc != FIXED && fr >= fc {
-                    part[slot(fr, fc)] += t.value;
+                    let k = slot(fr, fc);
+                    system_part[k] += t.value;
+                    if is_damping {
+                        damping_part[k] += t.value;
+                    }
                 }
             }
         }
