@@ -39,14 +39,7 @@ impl Integrator for BackwardEuler {
         acceleration: Point,
         targets: &mut StepTargets,
     ) {
-        let h2a = acceleration * (h * h);
-        for (y, v) in targets.inertial_displacement.iter_mut().zip(velocities) {
-            *y = v * h + h2a;
-        }
-        targets
-            .anchor_displacement
-            .iter_mut()
-            .for_each(|a| *a = Point::zeros());
+        targets.set_one_step(h, velocities, acceleration * (h * h));
     }
 
     fn finish(

@@ -44,14 +44,7 @@ impl Integrator for ImplicitMidpoint {
         acceleration: Point,
         targets: &mut StepTargets,
     ) {
-        let half_h2a = acceleration * (0.5 * h * h);
-        for (y, v) in targets.inertial_displacement.iter_mut().zip(velocities) {
-            *y = v * h + half_h2a;
-        }
-        targets
-            .anchor_displacement
-            .iter_mut()
-            .for_each(|a| *a = Point::zeros());
+        targets.set_one_step(h, velocities, acceleration * (0.5 * h * h));
     }
 
     fn finish(

@@ -78,6 +78,18 @@ impl StepTargets {
             anchor_displacement: vec![Point::zeros(); n],
         }
     }
+
+    /// The targets of a one-step method: `y - x_n = h v_n + displacement`
+    /// (the external acceleration's share, `h^2 a` for backward Euler,
+    /// `h^2 a / 2` for implicit midpoint) and `x_hat = x_n`.
+    pub(crate) fn set_one_step(&mut self, h: f64, velocities: &[Point], displacement: Point) {
+        for (y, v) in self.inertial_displacement.iter_mut().zip(velocities) {
+            *y = v * h + displacement;
+        }
+        self.anchor_displacement
+            .iter_mut()
+            .for_each(|a| *a = Point::zeros());
+    }
 }
 
 /// One integrator of the form above.
