@@ -19,7 +19,7 @@
 
 use nalgebra::Matrix3;
 
-use crate::signed_svd::signed_svd;
+use crate::signed_svd::{rescaling, signed_svd};
 
 /// Newton runs only when `det F > MIN_SHAPE |F|_F^3`. `det F / |F|_F^3` is
 /// `3^-3/2 = 0.19` for a rotation and falls like the smallest singular value
@@ -72,12 +72,7 @@ fn newton_polar(f: &Matrix3<f64>) -> Option<Matrix3<f64>> {
     // The polar factor of `c F` is that of `F` for `c > 0`: bring extreme
     // scales near 1 by an exact power of two so that `det` and `|F|^3`
     // neither underflow nor overflow.
-    // (The largest entry decides: the norm itself would underflow.)
-    let mut x = *f;
-    let largest = x.amax();
-    if largest.is_finite() && largest > 0.0 && !(1e-60..=1e60).contains(&largest) {
-        x *= 2f64.powi(-largest.log2().round() as i32);
-    }
+    let mut x = f * rescaling(f.amax());
     let norm = x.norm();
     let mut cofactors = cofactor(&x);
     let mut det = determinant_from_cofactors(&x, &cofactors);
