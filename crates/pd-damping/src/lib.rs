@@ -1,20 +1,25 @@
 //! Damping models for Projective Dynamics, one [`Damping`] implementation
-//! each.
+//! each, every model's behaviour in its own file.
 //!
-//! A model can contribute in four ways, and the solver asks for each:
+//! A model can contribute in four ways, and the step asks for each:
 //! 1. a **constant implicit matrix** `D = a1 M + a2 L_d`
 //!    ([`Damping::implicit_matrix`]), a mix of the lumped mass matrix and the
 //!    damping Laplacian that enters the global step and is factored once per
 //!    (integrator, h, coefficients);
 //! 2. a **per-step implicit matrix**, here the lagged stiffness term
-//!    `a3 K(x_n)` ([`DampingMatrix::lagged_stiffness`]), which forces a
-//!    numeric refactorisation every step;
-//! 3. an **explicit force** added to the right-hand side
-//!    ([`Damping::add_explicit_force`]);
-//! 4. a **velocity filter** after the solve ([`Damping::filter_velocities`]).
+//!    `a3 K(x_n)` ([`DampingMatrix::lagged_stiffness`]), which makes the
+//!    solver assemble the elastic Hessian and refactorise every step;
+//! 3. at the **start of the step** ([`Damping::begin_step`]): an explicit
+//!    force folded into the inertial target ([`Damping::add_explicit_force`]),
+//!    or a moved damping anchor (the rotation-preserving Laplacian variant,
+//!    `rotation_preserving.rs`);
+//! 4. at the **end of the step** ([`Damping::end_step`]): a velocity filter
+//!    after the solve ([`Damping::filter_velocities`]: explicit ether drag,
+//!    PBD) or the variant's spin restoration.
 //!
 //! How each enters each integrator's global step is derived in
-//! `docs/damping.md`.
+//! `docs/damping.md`. A model of your own is a type implementing [`Damping`]
+//! outside this crate (see `examples/custom_damping.rs` of `pd-solver`).
 //!
 //! ```
 //! use pd_damping::{Damping, NoDamping};
@@ -30,6 +35,7 @@ mod none;
 mod pbd;
 mod rayleigh_lagged;
 pub mod rigid;
+mod rotation_preserving;
 
 pub use error::DampingError;
 pub use ether_drag::EtherDrag;
@@ -86,7 +92,90 @@ pub struct DampingContext<'a> {
     pub fixed: &'a [bool],
 }
 
+/// What the step tells a damping model at its start and end, besides the
+/// [`DampingContext`].
+#[derive(Debug, Clone, Copy)]
+#[non_exhaustive]
+pub struct StepContext<'a> {
+    /// Time step, masses, bodies, components and fixed vertices.
+    pub base: DampingContext<'a>,
+    /// The free bodies: connected components that no fixed vertex and no
+    /// attachment holds, so that nothing outside them exerts a torque on
+    /// them (besides uniform gravity, which exerts none about the centre of
+    /// mass). Their vertex lists.
+    pub free_bodies: &'a [Vec<usize>],
+    /// `gamma` in 1/s of the integrator: the damping force is evaluated at the
+    /// velocity `gamma (x - x_hat)`.
+    pub gamma: f64,
+    /// `c1 c2 h^2` in s^2: a force `f` (N) on a vertex of mass `m` enters the
+    /// inertial target as `force_scale f / m` (DESIGN.md 3.1).
+    pub force_scale: f64,
+}
+
+impl<'a> StepContext<'a> {
+    /// The context of one step (for solvers; models only read it).
+    pub fn new(
+        base: DampingContext<'a>,
+        free_bodies: &'a [Vec<usize>],
+        gamma: f64,
+        force_scale: f64,
+    ) -> Self {
+        Self {
+            base,
+            free_bodies,
+            gamma,
+            force_scale,
+        }
+    }
+}
+
+/// The targets of a step a damping model may change at its start, as
+/// displacements from `x_n` (m), and a scratch buffer. All have one entry
+/// per vertex.
+#[derive(Debug)]
+#[non_exhaustive]
+pub struct DampingTargets<'a> {
+    /// `y - x_n`: the inertial target, where explicit forces go.
+    pub inertial_displacement: &'a mut [Point],
+    /// `x_hat - x_n`: the damping anchor (the damping velocity is
+    /// `gamma (x - x_hat)`).
+    pub anchor_displacement: &'a mut [Point],
+    /// Scratch, contents unspecified on entry.
+    pub scratch: &'a mut [Point],
+}
+
+impl<'a> DampingTargets<'a> {
+    /// The targets of one step (for solvers; models only change them).
+    pub fn new(
+        inertial_displacement: &'a mut [Point],
+        anchor_displacement: &'a mut [Point],
+        scratch: &'a mut [Point],
+    ) -> Self {
+        Self {
+            inertial_displacement,
+            anchor_displacement,
+            scratch,
+        }
+    }
+}
+
+/// What a damping model reports about one step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[non_exhaustive]
+pub struct DampingReport {
+    /// Principal axes (summed over the bodies) about which the
+    /// rotation-preserving Laplacian damping left the spin alone instead of
+    /// restoring it (`docs/damping.md`). 0 for other models.
+    pub spin_axes_left: usize,
+}
+
 /// A damping model.
+///
+/// The step calls, in order: [`Damping::implicit_matrix`] (for the global
+/// matrix), [`Damping::begin_step`] after the integrator prepared its
+/// targets, the position solve, the integrator's velocity update, then
+/// [`Damping::end_step`]. Every method has a default that does nothing, so a
+/// model implements only the channels it uses.
 pub trait Damping: std::fmt::Debug + Send + Sync {
     /// Name as scenes spell it (`none`, `laplacian`, ...).
     fn name(&self) -> &'static str;
@@ -97,7 +186,8 @@ pub trait Damping: std::fmt::Debug + Send + Sync {
     }
 
     /// Adds an explicit damping force (N), evaluated at the start of the step,
-    /// to `forces`.
+    /// to `forces`. Called by the default [`Damping::begin_step`] when
+    /// [`Damping::has_explicit_force`] says so.
     fn add_explicit_force(
         &self,
         _context: &DampingContext<'_>,
@@ -107,25 +197,68 @@ pub trait Damping: std::fmt::Debug + Send + Sync {
     ) {
     }
 
-    /// Whether the solver should restore, per body, the angular momentum that
-    /// the implicit damping force removed (the rotation-preserving Laplacian
-    /// variant, `docs/damping.md`).
+    /// Whether the model keeps the free bodies' rigid rotation undamped (the
+    /// rotation-preserving Laplacian variant, `docs/damping.md`).
     fn preserves_rotation(&self) -> bool {
         false
     }
 
-    /// Whether [`Damping::add_explicit_force`] does anything, so the solver
+    /// Whether [`Damping::add_explicit_force`] does anything, so the step
     /// can skip it.
     fn has_explicit_force(&self) -> bool {
         false
     }
 
     /// Adjusts the velocities after the solve (explicit ether drag, PBD).
+    /// Called by the default [`Damping::end_step`].
     fn filter_velocities(
         &self,
         _context: &DampingContext<'_>,
         _positions: &[Point],
         _velocities: &mut [Point],
     ) {
+    }
+
+    /// The start of a step, at positions `x_n` (m) and velocities `v_n`
+    /// (m/s), after the integrator prepared its targets. The default folds
+    /// the explicit force into the inertial target: `y += force_scale f / m`.
+    fn begin_step(
+        &mut self,
+        step: &StepContext<'_>,
+        positions: &[Point],
+        velocities: &[Point],
+        targets: DampingTargets<'_>,
+    ) {
+        if !self.has_explicit_force() {
+            return;
+        }
+        let forces = targets.scratch;
+        forces.iter_mut().for_each(|f| *f = Point::zeros());
+        self.add_explicit_force(&step.base, positions, velocities, forces);
+        let masses = step.base.masses;
+        for ((y, f), m) in targets
+            .inertial_displacement
+            .iter_mut()
+            .zip(forces.iter())
+            .zip(masses)
+        {
+            if *m > 0.0 {
+                *y += f * (step.force_scale / m);
+            }
+        }
+    }
+
+    /// The end of a step: `velocities` (m/s) are the integrator's new ones at
+    /// the new `positions` (m), fixed vertices at zero; the step zeroes them
+    /// again afterwards. The default applies
+    /// [`Damping::filter_velocities`].
+    fn end_step(
+        &mut self,
+        step: &StepContext<'_>,
+        positions: &[Point],
+        velocities: &mut [Point],
+    ) -> DampingReport {
+        self.filter_velocities(&step.base, positions, velocities);
+        DampingReport::default()
     }
 }
