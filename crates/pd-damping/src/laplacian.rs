@@ -78,7 +78,7 @@ impl Damping for LaplacianDamping {
         targets: DampingTargets<'_>,
     ) {
         if let Some(keeper) = &mut self.spin_keeper {
-            keeper.begin_step(step, positions, velocities, targets);
+            keeper.begin_step(self.mass, step, positions, velocities, targets);
         }
     }
 

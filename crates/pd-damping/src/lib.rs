@@ -99,33 +99,61 @@ pub struct DampingContext<'a> {
 pub struct StepContext<'a> {
     /// Time step, masses, bodies, components and fixed vertices.
     pub base: DampingContext<'a>,
-    /// The free bodies: connected components that no fixed vertex and no
-    /// attachment holds, so that nothing outside them exerts a torque on
-    /// them (besides uniform gravity, which exerts none about the centre of
-    /// mass). Their vertex lists.
-    pub free_bodies: &'a [Vec<usize>],
+    /// Every connected component with what holds it
+    /// ([`rigid::RigidFreedom`]): free bodies (no fixed vertex, no
+    /// attachment: nothing outside exerts a torque on them besides uniform
+    /// gravity, which exerts none about the centre of mass), bodies that can
+    /// swing about a pivot or a hinge, and held ones.
+    pub rigid_bodies: &'a [rigid::RigidBody],
     /// `gamma` in 1/s of the integrator: the damping force is evaluated at the
     /// velocity `gamma (x - x_hat)`.
     pub gamma: f64,
     /// `c1 c2 h^2` in s^2: a force `f` (N) on a vertex of mass `m` enters the
     /// inertial target as `force_scale f / m` (DESIGN.md 3.1).
     pub force_scale: f64,
+    /// The integrator's `c2` (dimensionless): the step's energy is evaluated
+    /// at `x_n + c2 (x - x_n)`.
+    pub c2: f64,
+    /// The coefficients of `x_{n+1}, x_n, x_{n-1}, ...` in `x - x_hat`
+    /// (`pd_integrators::Integrator::damping_stencil`): `[1, -1]` for
+    /// one-step methods, `[1, -4/3, 1/3]` for BDF-2.
+    pub damping_stencil: &'a [f64],
 }
 
 impl<'a> StepContext<'a> {
-    /// The context of one step (for solvers; models only read it).
+    /// The context of one step (for solvers; models only read it), with
+    /// `gamma`, `force_scale` and `c2` as documented on the fields and
+    /// `damping_stencil` as in [`StepContext::damping_stencil`].
     pub fn new(
         base: DampingContext<'a>,
-        free_bodies: &'a [Vec<usize>],
-        gamma: f64,
-        force_scale: f64,
+        rigid_bodies: &'a [rigid::RigidBody],
+        (gamma, force_scale, c2): (f64, f64, f64),
+        damping_stencil: &'a [f64],
     ) -> Self {
         Self {
             base,
-            free_bodies,
+            rigid_bodies,
             gamma,
             force_scale,
+            c2,
+            damping_stencil,
         }
+    }
+
+    /// The factor by which this step multiplies the momentum (linear, or
+    /// angular about the centre of mass) of a free body on which the only
+    /// force is the mass-proportional damping `-a1 M v` (`a1` in 1/s):
+    /// summing the global equations over the body leaves
+    /// `sum m (x - x_n) = (sum m (y - x_n) + k h^2 sum m (x_hat - x_n)) /
+    /// (1 + k h^2)` with `k = c1 c2 gamma a1`, and the velocity update
+    /// `v = (x - x_n) / (c2 h) - (1/c2 - 1) v_n` of the one-leg methods
+    /// gives `1 / (c2 (1 + k h^2)) - 1/c2 + 1`: backward Euler
+    /// `1 / (1 + a1 h)`, implicit midpoint `(1 - a1 h/2) / (1 + a1 h/2)`,
+    /// and BDF-2 `3 / (3 + 2 a1 h)` for a body whose previous momentum equals
+    /// the current one (`docs/damping.md`).
+    pub fn mass_damping_factor(&self, a1: f64) -> f64 {
+        let k_h2 = self.force_scale * self.gamma * a1;
+        1.0 / (self.c2 * (1.0 + k_h2)) - 1.0 / self.c2 + 1.0
     }
 }
 
@@ -137,9 +165,13 @@ impl<'a> StepContext<'a> {
 pub struct DampingTargets<'a> {
     /// `y - x_n`: the inertial target, where explicit forces go.
     pub inertial_displacement: &'a mut [Point],
-    /// `x_hat - x_n`: the damping anchor (the damping velocity is
-    /// `gamma (x - x_hat)`).
+    /// `x_hat - x_n`: the damping anchor of the mass term `a1 M` and the
+    /// lagged `K(x_n)` (the damping velocity is `gamma (x - x_hat)`).
     pub anchor_displacement: &'a mut [Point],
+    /// The damping anchor of the Laplacian term `a2 L_d`, equal to
+    /// `anchor_displacement` on entry: a model that damps only part of the
+    /// motion through `L_d` moves it (the rotation-preserving variant).
+    pub laplacian_anchor: &'a mut [Point],
     /// Scratch, contents unspecified on entry.
     pub scratch: &'a mut [Point],
 }
@@ -149,11 +181,13 @@ impl<'a> DampingTargets<'a> {
     pub fn new(
         inertial_displacement: &'a mut [Point],
         anchor_displacement: &'a mut [Point],
+        laplacian_anchor: &'a mut [Point],
         scratch: &'a mut [Point],
     ) -> Self {
         Self {
             inertial_displacement,
             anchor_displacement,
+            laplacian_anchor,
             scratch,
         }
     }

@@ -1,19 +1,33 @@
 //! The rotation-preserving Laplacian damping, this project's extension of the
 //! paper (`docs/damping.md`, "The rotation-preserving variant"):
-//! `D = a2 L_d` damps a free body's rigid rotation (`v^T L_d v > 0` for
-//! `v = omega x r`), which a spinning body should keep. The variant does two
-//! things per free body (a connected component that nothing outside holds):
+//! `D = a2 L_d` damps a body's rigid rotation (`v^T L_d v > 0` for
+//! `v = omega x r`), which a spinning body or a swinging pendulum should
+//! keep. The variant does two things per connected component
+//! ([`crate::rigid::RigidBody`]):
 //!
-//! 1. at the start of the step it moves the damping anchor with the body's
-//!    rigid rotation, so that `D` acts on the damping velocity minus that
-//!    rotation's: only the strain rate is damped, the matrix is unchanged, and
-//!    `L_d`'s zero column sums keep linear momentum exact;
-//! 2. at the end of the step it gives the body back the spin it had at the
-//!    start, as a rigid rotation about its centre of mass (no linear momentum
-//!    change), about every principal axis where that is a rotation the body can
-//!    carry ([`RigidFit::spin_restoring_velocity`]).
+//! 1. at the start of the step it moves the anchor of the `L_d` term with the
+//!    body's rigid rotation, exactly as the integrator's damping velocity
+//!    sees a rigid rotation (its [`StepContext::damping_stencil`] applied to
+//!    the rotating trajectory), so that `a2 L_d` acts on the damping
+//!    velocity minus that rotation's: only the strain rate is damped, the
+//!    matrix is unchanged, and `L_d`'s zero column sums keep linear momentum
+//!    exact. The mass term `a1 M` keeps its anchor: it damps spin and
+//!    translation alike, as ether drag does;
+//! 2. at the end of the step it gives the body back the spin that the `L_d`
+//!    term took: the spin at the start times what `a1 M` alone leaves of it
+//!    ([`StepContext::mass_damping_factor`]), as a rigid rotation about the
+//!    centre of mass (no linear momentum change), about every principal axis
+//!    where that is a rotation the body can carry
+//!    ([`RigidFit::spin_restoring_velocity`]).
+//!
+//! What it preserves, exactly: a free body's angular momentum about its
+//! centre of mass evolves as it would under `D = a1 M` alone (kept, with
+//! `a1 = 0`), up to the axes the guard leaves alone; bodies held by a fixed
+//! vertex or an attachment are not free: their spin is not restored, but
+//! the rigid rotation they can still perform (about a single holding point
+//! or line: a pendulum, a door) is left undamped by step 1.
 
-use crate::rigid::{RigidFit, SpinAtStart};
+use crate::rigid::{RigidFit, RigidFreedom, SpinAtStart};
 use crate::{DampingTargets, Point, StepContext};
 
 /// Per-step state of the variant: each free body's spin at the start of the
@@ -24,38 +38,67 @@ pub(crate) struct SpinKeeper {
 }
 
 impl SpinKeeper {
-    /// Records each free body's spin at `x_n`, `v_n` and moves its damping
-    /// anchor by the rigid rotation over `1 / gamma`.
+    /// Records each free body's spin at `x_n`, `v_n` (scaled by what the
+    /// mass term `a1` (1/s) leaves of it) and moves its `L_d` anchor with its
+    /// rigid rotation.
     pub(crate) fn begin_step(
         &mut self,
+        a1: f64,
         step: &StepContext<'_>,
         positions: &[Point],
         velocities: &[Point],
         targets: DampingTargets<'_>,
     ) {
         let masses = step.base.masses;
-        self.spins.resize(step.free_bodies.len(), SpinAtStart::ZERO);
-        for (spin, body) in self.spins.iter_mut().zip(step.free_bodies) {
+        let h = step.base.h;
+        // The motion the step predicts before internal forces act, as a
+        // velocity: `(y - x_n) / h`. Its rigid rotation includes the angular
+        // impulse of external forces (gravity about a pivot), so a pendulum's
+        // swing is followed as it speeds up; for a steady spin it is `v_n`'s
+        // rotation (the inertial target moves each vertex by `h v_n` for one-
+        // step methods, by `h v_n` to first order for BDF-2).
+        let predicted = &mut *targets.scratch;
+        for (u, y) in predicted
+            .iter_mut()
+            .zip(targets.inertial_displacement.iter())
+        {
+            *u = y / h;
+        }
+        self.spins
+            .resize(step.rigid_bodies.len(), SpinAtStart::ZERO);
+        for (spin, rigid) in self.spins.iter_mut().zip(step.rigid_bodies) {
+            let body = &rigid.vertices;
             let fit = RigidFit::of(body, masses, positions, velocities);
-            let omega = fit.angular_velocity();
+            let start_omega = fit.angular_velocity();
             *spin = SpinAtStart {
-                angular_momentum: fit.angular_momentum,
-                angular_speed: omega.norm(),
+                angular_momentum: fit.angular_momentum * step.mass_damping_factor(a1),
+                angular_speed: start_omega.norm(),
                 kinetic_energy: body
                     .iter()
                     .map(|&i| 0.5 * masses[i] * velocities[i].norm_squared())
                     .sum(),
             };
-            // The rigid rotation's displacement over 1/gamma (one step for
-            // backward Euler and implicit midpoint): exact, not linearised,
-            // so a rigidly spinning body feels no damping at all. (A linear
-            // shift `omega x r / gamma` lies on the tangent, and the damping
-            // then stretches a spinning body: on a stiff spinning chain it
-            // raised the total energy by 67% in 8 steps.)
-            let rotation = nalgebra::Rotation3::new(omega / step.gamma);
+            // The rigid rotation the body can perform: any for a free body,
+            // about its pivot or hinge for a held one (a pendulum swings
+            // undamped), none for a clamped one.
+            let coming = RigidFit::of(body, masses, positions, predicted);
+            let omega = match &rigid.freedom {
+                RigidFreedom::Free => coming.angular_velocity(),
+                RigidFreedom::Pivot { point } => coming.angular_velocity_about(point, None),
+                RigidFreedom::Hinge { point, axis } => {
+                    coming.angular_velocity_about(point, Some(axis))
+                }
+                RigidFreedom::Held => continue,
+            };
+            let rotations: [nalgebra::Rotation3<f64>; 3] =
+                std::array::from_fn(|k| nalgebra::Rotation3::new(omega * (h * (1.0 - k as f64))));
             for &i in body {
                 let r = positions[i] - fit.centre;
-                targets.anchor_displacement[i] += rotation * r - r;
+                let mut along = Point::zeros();
+                for (beta, rotation) in step.damping_stencil.iter().zip(&rotations) {
+                    along += (rotation * r) * *beta;
+                }
+                targets.laplacian_anchor[i] += along;
             }
         }
     }
@@ -80,7 +123,12 @@ impl SpinKeeper {
         velocities: &mut [Point],
     ) -> usize {
         let mut axes_left = 0;
-        for (body, start) in step.free_bodies.iter().zip(&self.spins) {
+        for (rigid, start) in step.rigid_bodies.iter().zip(&self.spins) {
+            if rigid.freedom != RigidFreedom::Free {
+                // What holds it exerts a real torque: its spin is not its own.
+                continue;
+            }
+            let body = &rigid.vertices;
             let fit = RigidFit::of(body, step.base.masses, positions, velocities);
             let restoration = fit.spin_restoring_velocity(start);
             axes_left += restoration.axes_left;

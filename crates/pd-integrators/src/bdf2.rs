@@ -56,6 +56,15 @@ impl Integrator for Bdf2 {
         }
     }
 
+    /// `x - x_hat = x_{n+1} - (4 x_n - x_{n-1}) / 3` after the start-up.
+    fn damping_stencil(&self) -> &'static [f64] {
+        if self.has_history {
+            &[1.0, -4.0 / 3.0, 1.0 / 3.0]
+        } else {
+            BackwardEuler.damping_stencil()
+        }
+    }
+
     fn prepare(
         &self,
         h: f64,

@@ -129,6 +129,16 @@ pub trait Integrator: std::fmt::Debug + Send + Sync {
         velocities: &mut [Point],
     );
 
+    /// The damping velocity `gamma (x - x_hat)` of the coming step as a
+    /// combination of positions, divided by `gamma`: the coefficients of
+    /// `x_{n+1}, x_n, x_{n-1}, ...` in `x - x_hat`. One-step methods (and a
+    /// multistep method's start-up) have `x_hat = x_n`: `[1, -1]`. A damping
+    /// model that must leave a rigid motion undamped applies it to that
+    /// motion's trajectory (`pd_damping`'s rotation-preserving variant).
+    fn damping_stencil(&self) -> &'static [f64] {
+        &[1.0, -1.0]
+    }
+
     /// Forgets the history (after the state is replaced from outside).
     fn reset(&mut self) {}
 

@@ -4,7 +4,12 @@
 
 use std::ops::Range;
 
+use pd_constraints::ConstraintBlock;
+use pd_damping::rigid::{RigidBody, RigidFreedom};
+use pd_mesh::Point;
+
 use crate::Model;
+use crate::energy::bounding_box;
 
 /// Bodies, components and free bodies of a model, computed once.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -14,13 +19,16 @@ pub(crate) struct Topology {
     /// Free vertices of each connected component of the mesh graphs (edges,
     /// which include those of tetrahedra and triangles).
     pub components: Vec<Vec<usize>>,
-    /// The components without any fixed vertex: free rigid bodies.
-    pub free_bodies: Vec<Vec<usize>>,
+    /// Every component with its free vertices and what holds it: fixed
+    /// vertices and the vertices of anchoring constraints (attachments, or
+    /// any block whose constraints are not translation invariant), at their
+    /// rest positions. Only free ones keep their spin physically.
+    pub rigid_bodies: Vec<RigidBody>,
 }
 
 impl Topology {
-    /// The topology of `model`.
-    pub fn of(model: &Model) -> Self {
+    /// The topology of `model`, whose constraints are `blocks`.
+    pub fn of(model: &Model, blocks: &[Box<dyn ConstraintBlock>]) -> Self {
         let n = model.num_vertices();
         let mut parent: Vec<usize> = (0..n).collect();
         fn root(parent: &mut [usize], mut v: usize) -> usize {
@@ -41,35 +49,47 @@ impl Topology {
                 }
             }
         }
+        let mut anchored = vec![false; n];
+        for block in blocks.iter().filter(|b| !b.translation_invariant()) {
+            for i in 0..block.len() {
+                for &v in block.stencil(i) {
+                    anchored[v] = true;
+                }
+            }
+        }
         let mut index_of_root = vec![usize::MAX; n];
-        let mut all: Vec<(Vec<usize>, bool)> = Vec::new();
+        // Per component: its free vertices and the rest positions that hold it.
+        let mut all: Vec<(Vec<usize>, Vec<Point>)> = Vec::new();
+        let rest = model.rest_positions();
         for v in 0..n {
             let r = root(&mut parent, v);
             if index_of_root[r] == usize::MAX {
                 index_of_root[r] = all.len();
-                all.push((Vec::new(), false));
+                all.push((Vec::new(), Vec::new()));
             }
             let (vertices, held) = &mut all[index_of_root[r]];
-            if model.fixed()[v] {
-                *held = true;
-            } else {
+            if model.fixed()[v] || anchored[v] {
+                held.push(rest[v]);
+            }
+            if !model.fixed()[v] {
                 vertices.push(v);
             }
         }
-        let free_bodies = all
-            .iter()
-            .filter(|(vertices, held)| !held && !vertices.is_empty())
-            .map(|(vertices, _)| vertices.clone())
-            .collect();
-        let components = all
+        let rigid_bodies = all
             .into_iter()
-            .map(|(vertices, _)| vertices)
-            .filter(|vertices| !vertices.is_empty())
-            .collect();
+            .filter(|(vertices, _)| !vertices.is_empty())
+            .map(|(vertices, held)| {
+                let points: Vec<Point> = vertices.iter().map(|&v| rest[v]).collect();
+                let (lo, hi) = bounding_box(&points);
+                let freedom = RigidFreedom::of_held_points(&held, (hi - lo).norm());
+                RigidBody { vertices, freedom }
+            })
+            .collect::<Vec<_>>();
+        let components = rigid_bodies.iter().map(|b| b.vertices.clone()).collect();
         Self {
             bodies: model.bodies().iter().map(|b| b.vertices()).collect(),
             components,
-            free_bodies,
+            rigid_bodies,
         }
     }
 }

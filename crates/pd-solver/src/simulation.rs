@@ -192,13 +192,18 @@ impl Simulation {
             model.rest_positions(),
             d.is_lagged(),
         )?;
-        let topology = Topology::of(&model);
+        let topology = Topology::of(&model, local.blocks());
         let setup = SetupStats {
             analysis_seconds: analysis_start.elapsed().as_secs_f64(),
             ..SetupStats::default()
         };
         let n = model.num_vertices();
-        let scratch = Scratch::new(n, global.free().len(), local.total_rows());
+        let scratch = Scratch::new(
+            n,
+            global.free().len(),
+            local.total_rows(),
+            local.num_chunks(),
+        );
         let state = State {
             positions: model.rest_positions().to_vec(),
             velocities: vec![Point::zeros(); n],

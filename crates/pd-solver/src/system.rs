@@ -62,8 +62,10 @@ pub(crate) struct RhsInput<'a> {
     pub positions: &'a [Point],
     /// `y - x_n` in m.
     pub inertial_displacement: &'a [Point],
-    /// `x_hat - x_n` in m.
+    /// `x_hat - x_n` in m, the anchor of the mass and lagged terms.
     pub anchor_displacement: &'a [Point],
+    /// The anchor of the `L_d` term, m.
+    pub laplacian_anchor: &'a [Point],
     pub coefficients: StepCoefficients,
     pub damping: DampingMatrix,
     /// `h` in s.
@@ -194,6 +196,7 @@ impl GlobalStep {
             positions: x_n,
             inertial_displacement: inertial,
             anchor_displacement: anchor,
+            laplacian_anchor,
             coefficients: c,
             damping: d,
             h,
@@ -212,7 +215,9 @@ impl GlobalStep {
                 b += anchor[v] * (damping_factor * d.mass * masses[v]);
             }
             if use_damping_laplacian {
-                b += system.damping_rows.row_dot_relative(f, anchor[v], anchor)
+                b += system
+                    .damping_rows
+                    .row_dot_relative(f, laplacian_anchor[v], laplacian_anchor)
                     * (damping_factor * d.damping_laplacian);
             }
             *out = b;

@@ -90,9 +90,9 @@ pub(crate) struct IterationBuffers {
     pub constant_rhs: Vec<Point>,
     /// The full right-hand side, one point per free vertex.
     pub rhs: Vec<Point>,
-    /// Two per-vertex scratch vectors (the objective's `x - x_hat` and
-    /// `K (x - x_hat)`).
-    pub scratch: [Vec<Point>; 2],
+    /// Three per-vertex scratch vectors (the objective's `x - x_hat` of the
+    /// mass and `L_d` terms and `K (x - x_hat)`).
+    pub scratch: [Vec<Point>; 3],
 }
 
 impl IterationBuffers {
@@ -103,10 +103,7 @@ impl IterationBuffers {
             projections: vec![Point::zeros(); projection_rows],
             constant_rhs: vec![Point::zeros(); free],
             rhs: vec![Point::zeros(); free],
-            scratch: [
-                vec![Point::zeros(); vertices],
-                vec![Point::zeros(); vertices],
-            ],
+            scratch: std::array::from_fn(|_| vec![Point::zeros(); vertices]),
         }
     }
 }
@@ -121,6 +118,7 @@ pub struct StepProblem<'a> {
     pub(crate) positions: &'a [Point],
     pub(crate) masses: &'a [f64],
     pub(crate) targets: &'a StepTargets,
+    pub(crate) laplacian_anchor: &'a [Point],
     pub(crate) coefficients: StepCoefficients,
     pub(crate) damping: DampingMatrix,
     pub(crate) h: f64,

@@ -18,6 +18,8 @@ pub(crate) mod objective;
 
 use std::time::Instant;
 
+use divergence::StepState;
+use pd_constraints::EnergyBound;
 use pd_damping::{DampingContext, DampingTargets, StepContext};
 use pd_integrators::StepTargets;
 use pd_mesh::Point;
@@ -39,17 +41,24 @@ pub(crate) struct Scratch {
     pub iterate: Vec<Point>,
     /// The new velocities.
     pub velocities: Vec<Point>,
+    /// The anchor of the `L_d` damping term, `x_hat - x_n` unless the damping
+    /// model moved it (`pd_damping::DampingTargets::laplacian_anchor`).
+    pub laplacian_anchor: Vec<Point>,
     /// Per-vertex scratch of the damping model and the lagged right-hand side.
     pub forces: Vec<Point>,
+    /// Per-chunk energy bounds of the divergence check.
+    pub energy_partials: Vec<EnergyBound>,
 }
 
 impl Scratch {
-    pub fn new(vertices: usize, free: usize, projection_rows: usize) -> Self {
+    pub fn new(vertices: usize, free: usize, projection_rows: usize, chunks: usize) -> Self {
         Self {
+            energy_partials: vec![EnergyBound::default(); chunks],
             targets: StepTargets::with_len(vertices),
             iteration: IterationBuffers::new(vertices, free, projection_rows),
             iterate: vec![Point::zeros(); vertices],
             velocities: vec![Point::zeros(); vertices],
+            laplacian_anchor: vec![Point::zeros(); vertices],
             forces: vec![Point::zeros(); vertices],
         }
     }
@@ -58,10 +67,10 @@ impl Scratch {
 /// The damping model's view of the step.
 fn step_context<'a>(
     topology: &'a Topology,
-    masses: &'a [f64],
-    fixed: &'a [bool],
+    (masses, fixed): (&'a [f64], &'a [bool]),
     h: f64,
     c: pd_integrators::StepCoefficients,
+    damping_stencil: &'a [f64],
 ) -> StepContext<'a> {
     let base = DampingContext {
         h,
@@ -71,7 +80,12 @@ fn step_context<'a>(
         fixed,
     };
     // An external force f enters y as c1 c2 h^2 M^-1 f (DESIGN.md 3.1).
-    StepContext::new(base, &topology.free_bodies, c.gamma, c.c1 * c.c2 * h * h)
+    StepContext::new(
+        base,
+        &topology.rigid_bodies,
+        (c.gamma, c.c1 * c.c2 * h * h, c.c2),
+        damping_stencil,
+    )
 }
 
 impl Simulation {
@@ -130,7 +144,10 @@ impl Simulation {
         let (x_n, v_n) = (&self.state.positions, &self.state.velocities);
         self.integrator
             .prepare(h, x_n, v_n, self.settings.gravity, &mut s.targets);
-        let step = step_context(&self.topology, masses, fixed, h, c);
+        s.laplacian_anchor
+            .copy_from_slice(&s.targets.anchor_displacement);
+        let stencil = self.integrator.damping_stencil();
+        let step = step_context(&self.topology, (masses, fixed), h, c, stencil);
         self.damping.begin_step(
             &step,
             x_n,
@@ -138,6 +155,7 @@ impl Simulation {
             DampingTargets::new(
                 &mut s.targets.inertial_displacement,
                 &mut s.targets.anchor_displacement,
+                &mut s.laplacian_anchor,
                 &mut s.forces,
             ),
         );
@@ -146,6 +164,7 @@ impl Simulation {
             positions: x_n,
             inertial_displacement: &s.targets.inertial_displacement,
             anchor_displacement: &s.targets.anchor_displacement,
+            laplacian_anchor: &s.laplacian_anchor,
             coefficients: c,
             damping: self.damping.implicit_matrix(),
             h,
@@ -179,6 +198,7 @@ impl Simulation {
             positions: &self.state.positions,
             masses: self.model.masses(),
             targets: &self.scratch.targets,
+            laplacian_anchor: &self.scratch.laplacian_anchor,
             coefficients: self.integrator.coefficients(h),
             damping: self.damping.implicit_matrix(),
             h,
@@ -215,20 +235,24 @@ impl Simulation {
         self.integrator
             .finish(h, x_n, v_n, &s.iterate, &mut s.velocities);
         zero_fixed(&mut s.velocities, fixed);
-        let context = step_context(&self.topology, masses, fixed, h, c);
+        let stencil = self.integrator.damping_stencil();
+        let context = step_context(&self.topology, (masses, fixed), h, c, stencil);
         let report = self
             .damping
             .end_step(&context, &s.iterate, &mut s.velocities);
         stats.spin_axes_left = report.spin_axes_left;
         zero_fixed(&mut s.velocities, fixed);
-        self.divergence.check(
-            step,
-            time,
+        let elastic =
+            self.local
+                .energy_bound(&s.iterate, &s.iteration.projections, &mut s.energy_partials);
+        let new_state = StepState {
             masses,
-            &s.iterate,
-            &s.velocities,
-            self.settings.gravity,
-        )?;
+            positions: &s.iterate,
+            velocities: &s.velocities,
+            gravity: self.settings.gravity,
+        };
+        self.divergence
+            .check(step, time, new_state, elastic, &self.local)?;
 
         std::mem::swap(&mut self.state.positions, &mut s.iterate);
         std::mem::swap(&mut self.state.velocities, &mut s.velocities);

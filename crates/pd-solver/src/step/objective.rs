@@ -3,9 +3,10 @@
 //! `g(x) = 1/(2h^2) |x - y|_M^2 + c1 E(x_n + c2 dx)
 //!   + 1/2 c1 c2 gamma (x - x_hat)^T D (x - x_hat)`, `dx = x - x_n`,
 //!
-//! with `D = a1 M + a2 L_d + a3 K(x_n)`. Fixed vertices sit at `x_n`, where
-//! `x - x_hat` vanishes, so `L_d`'s rows of the free vertices suffice; their
-//! inertia term is a constant of the step.
+//! with `D = a1 M + a2 L_d + a3 K(x_n)` (the `L_d` term measured from its
+//! own anchor, which a damping model may move). Fixed vertices sit at `x_n`,
+//! where `x - x_hat` vanishes, so `L_d`'s rows of the free vertices suffice;
+//! their inertia term is a constant of the step.
 
 use super::iteration::StepProblem;
 
@@ -19,17 +20,19 @@ pub(crate) fn step_objective(problem: &mut StepProblem<'_>) -> f64 {
     let masses = problem.masses;
     let b = &mut *problem.buffers;
     let dx = &b.displacement;
-    let [offset, product] = &mut b.scratch;
+    let [offset, laplacian_offset, product] = &mut b.scratch;
+    let laplacian_anchor = problem.laplacian_anchor;
     let mut inertia = 0.0;
     let mut mass_form = 0.0;
     for v in 0..x_n.len() {
         b.q[v] = x_n[v] + dx[v] * c.c2;
         offset[v] = dx[v] - targets.anchor_displacement[v];
+        laplacian_offset[v] = dx[v] - laplacian_anchor[v];
         inertia += masses[v] * (dx[v] - targets.inertial_displacement[v]).norm_squared();
         mass_form += masses[v] * offset[v].norm_squared();
     }
     let laplacian_form = if d.damping_laplacian != 0.0 {
-        problem.global.damping_laplacian_form(offset)
+        problem.global.damping_laplacian_form(laplacian_offset)
     } else {
         0.0
     };
