@@ -83,7 +83,7 @@ impl SpinKeeper {
             // undamped), none for a clamped one.
             let coming = RigidFit::of(body, masses, positions, predicted);
             let omega = match &rigid.freedom {
-                RigidFreedom::Free => coming.angular_velocity(),
+                RigidFreedom::Free => start_omega,
                 RigidFreedom::Pivot { point } => coming.angular_velocity_about(point, None),
                 RigidFreedom::Hinge { point, axis } => {
                     coming.angular_velocity_about(point, Some(axis))
