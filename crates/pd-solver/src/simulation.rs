@@ -699,9 +699,14 @@ impl Simulation {
                 &mut s.velocities,
             );
         }
-        self.damping
-            .filter_velocities(&context, &s.iterate, &mut s.velocities);
-        zero_fixed(&mut s.velocities, fixed);
+        // The integrator sees what the filter changed, so that a multistep
+        // history follows it (docs/integrators.md).
+        self.integrator
+            .filter_velocities(h, &mut s.velocities, &mut |velocities| {
+                self.damping
+                    .filter_velocities(&context, &s.iterate, velocities);
+                zero_fixed(velocities, fixed);
+            });
         if let Some(v) = first_non_finite(&s.velocities) {
             return Err(SolverError::Diverged {
                 step,
