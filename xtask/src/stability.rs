@@ -531,9 +531,9 @@ fn run(root: &Path, quick: bool) -> Result<PathBuf, String> {
          {threads} threads, {} build). Do not edit by hand: the matrix and the rules are in\n\
          `xtask/src/stability.rs`; `docs/properties.md` explains how this relates to the tests.\n\n\
          Every run must either complete with a finite state and finite energies, or stop with\n\
-         the solver's divergence error (`SolverError::Diverged`, which also bounds the energy:\n\
-         a step fails when the kinetic plus gravitational energy exceeds the initial energy by\n\
-         more than 1000 times the system's energy scale, `docs/solver.md`). A panic, a NaN or\n\
+         the solver's divergence error (`SolverError::Diverged`, which also catches energy blow-ups:\n\
+         a step fails when its kinetic plus gravitational plus elastic energy exceeds the initial\n\
+         energy by more than 1000 times the system's energy scale, `docs/solver.md`). A panic, a NaN or\n\
          infinity after a step that returned `Ok`, or any other error is a bug.\n\n\
          Matrix: stiffness {} Pa; time step {} s; density {} kg/m^3; damping\n\
          coefficient `c` {} (a rate in 1/s for ether drag, `a2` in s for Laplacian and\n\

@@ -293,13 +293,26 @@ fn slow_root_matches_dense_eigenvalues() {
 /// about 15 s: "> run" in the table's 3 s run.
 ///
 /// Laplacian: the first-order `zeta_L = a2 r omega/2` is about 2, so the
-/// mode is overdamped and the perturbation formula no longer applies; its
-/// slow real root `lambda` of the quadratic eigenproblem sets the decay,
-/// energy like `exp(2 lambda t)`, `tau = 1/|lambda|`. The table measured
-/// 0.57 s from a large deflection (tip 0.3 m, 30% of the length, every mode
-/// present); the test asserts the linear prediction is within 25% of it
-/// (large-amplitude geometry changes `K` and the mode by that order) and
-/// prints the numbers.
+/// mode is overdamped and the perturbation formula no longer applies; the
+/// slow real root `lambda` of the quadratic eigenproblem that
+/// [`slow_root`] finds from the bending mode sets its decay, energy like
+/// `exp(2 lambda t)`, `tau = 1/|lambda|` = 0.592 s.
+///
+/// What is asserted about the Laplacian run is a regression pin, not a
+/// derived expectation: `lambda` = -1.687947 /s, the value this
+/// deterministic eigen computation gives (its method is checked against
+/// dense eigenvalues by [`slow_root_matches_dense_eigenvalues`]; 1e-6
+/// relative is far above its 1e-13 convergence and far below any change
+/// of the mesh or the model). The table's 0.57 s is printed beside it but
+/// not asserted: it was measured from a large deflection (tip 0.3 m, 30%
+/// of the length, every mode present), where no linear theory predicts
+/// the decay (printed gap 4%). And the link between the two is open: a
+/// run of this mesh at small amplitude (1e-3 of the M-normalised mode,
+/// implicit midpoint, rate from the Cayley map, independent of `dt` to
+/// 1e-5) decays at 1.649 /s after 0.75 s and still drifts down (1.642 /s
+/// at 2 s), and its late shape has Rayleigh-functional root -1.628 /s, so
+/// `lambda` need not be the slowest damped mode. Asserting
+/// `tau` against the table would need that mode identified first.
 #[test]
 fn damping_table_decay_times_explained() {
     let lin = Linearised::of(&beam([1.0, 0.2, 0.2], [20, 4, 4]));
@@ -319,6 +332,10 @@ fn damping_table_decay_times_explained() {
     );
     let omega_eb = 1.875_104_068_711_961f64.powi(2) * (1.0e6_f64 * 0.04 / (12.0 * 1000.0)).sqrt();
     check_ratio_against_euler_bernoulli(r, 5.0, omega, omega_eb);
-    assert!((tau_l / 0.57 - 1.0).abs() < 0.25, "{tau_l}");
+    let pinned = -1.687_947;
+    assert!(
+        (lambda / pinned - 1.0).abs() < 1e-6,
+        "slow root {lambda} /s moved from the pinned {pinned} /s"
+    );
     assert!(tau_r > 3.0);
 }
