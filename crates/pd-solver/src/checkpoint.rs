@@ -121,7 +121,7 @@ impl Simulation {
             self.integrator
                 .restore_history(&before, n)
                 .expect("the integrator's own history restores");
-            return Err(invalid(reason));
+            return Err(invalid(reason.to_string()));
         }
         self.state = checkpoint.state.clone();
         self.steps = checkpoint.steps;

@@ -20,7 +20,7 @@ use std::time::Instant;
 
 use divergence::StepState;
 use pd_constraints::EnergyBound;
-use pd_damping::{DampingContext, DampingTargets, StepContext};
+use pd_damping::{DampingContext, DampingReport, DampingTargets, StepContext};
 use pd_integrators::StepTargets;
 use pd_mesh::Point;
 
@@ -237,11 +237,18 @@ impl Simulation {
         zero_fixed(&mut s.velocities, fixed);
         let stencil = self.integrator.damping_stencil();
         let context = step_context(&self.topology, (masses, fixed), h, c, stencil);
-        let report = self
-            .damping
-            .end_step(&context, &s.iterate, &mut s.velocities);
+        // The integrator sees what the damping model changed (a velocity
+        // filter, the variant's spin restoration), so that a multistep
+        // history follows it (docs/integrators.md).
+        let damping = &mut self.damping;
+        let iterate = &s.iterate;
+        let mut report = DampingReport::default();
+        self.integrator
+            .filter_velocities(h, &mut s.velocities, &mut |velocities| {
+                report = damping.end_step(&context, iterate, velocities);
+                zero_fixed(velocities, fixed);
+            });
         stats.spin_axes_left = report.spin_axes_left;
-        zero_fixed(&mut s.velocities, fixed);
         let elastic =
             self.local
                 .energy_bound(&s.iterate, &s.iteration.projections, &mut s.energy_partials);
