@@ -106,22 +106,25 @@ impl DivergenceCheck {
         if energy.is_finite() && energy <= limit {
             return Ok(());
         }
-        let worst = &local.blocks()[block];
+        let culprit = match local.blocks().get(block) {
+            Some(worst) => format!(
+                "; the most strained element is {} constraint {} (vertices {:?}), elastic energy \
+                 up to {:.6e} J",
+                worst.kind(),
+                bound.worst,
+                worst.stencil(bound.worst),
+                bound.worst_energy
+            ),
+            None => String::new(),
+        };
         Err(SolverError::Diverged {
             step,
             time,
             reason: format!(
                 "total energy {energy:.6e} J (kinetic + gravitational {motion:.6e} J, elastic \
                  {exact:.6e} J) exceeds the bound {limit:.6e} J (initial energy {:.6e} J plus {} \
-                 x the energy scale {:.6e} J); the most strained element is {} constraint {} \
-                 (vertices {:?}), elastic energy up to {:.6e} J",
-                self.reference,
-                self.factor,
-                self.scale,
-                worst.kind(),
-                bound.worst,
-                worst.stencil(bound.worst),
-                bound.worst_energy
+                 x the energy scale {:.6e} J){culprit}",
+                self.reference, self.factor, self.scale
             ),
         })
     }
