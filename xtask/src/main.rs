@@ -35,19 +35,10 @@ fn main() -> ExitCode {
             ],
             &["test", "--workspace"],
         ]),
-        Some("damping-table") => {
-            let quick = args.iter().any(|a| a == "--quick");
-            match damping_table::run(&workspace_root(), quick) {
-                Ok(path) => {
-                    eprintln!("wrote {}", path.display());
-                    ExitCode::SUCCESS
-                }
-                Err(e) => {
-                    eprintln!("error: {e}");
-                    ExitCode::FAILURE
-                }
-            }
-        }
+        Some("damping-table") => report(damping_table::run(
+            &workspace_root(),
+            args.iter().any(|a| a == "--quick"),
+        )),
         Some("bench-report") => report(bench_report::run(
             &workspace_root(),
             args.iter().any(|a| a == "--quick"),
@@ -63,8 +54,9 @@ fn main() -> ExitCode {
     }
 }
 
-/// Prints where a report went, or the error.
-fn report(result: Result<PathBuf, String>) -> ExitCode {
+/// Prints where a report went, or the error: the ending of every task
+/// that writes a report.
+pub(crate) fn report(result: Result<PathBuf, String>) -> ExitCode {
     match result {
         Ok(path) => {
             eprintln!("wrote {}", path.display());

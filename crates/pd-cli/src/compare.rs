@@ -1,15 +1,15 @@
 //! `pd compare`: one scene, several damping models or integrators.
 //!
-//! Short damping names stand for the parameters of the measured table in
-//! `docs/damping-table.md`: `none`; `ether-drag` = explicit rate 1/s;
-//! `pbd` = factor 0.05; `rayleigh-lagged` = stiffness 0.003 s, mass 0;
-//! `laplacian` = stiffness 0.003 s, mass 0; `laplacian-rot` = the same with
-//! `preserve_rotation`. Integrators keep the scene's damping model.
+//! Damping models are named by the presets of `pd_damping::registry`: each
+//! model's main preset (named as the model) and variants such as
+//! `laplacian-rot`, with the coefficients of the measured table in
+//! `docs/damping-table.md`. Integrators keep the scene's damping model.
 
 use pd_io::recorder::median;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use pd_damping::registry;
 use pd_io::scene::{DampingSpec, FrameFormat, IntegratorKind};
 use pd_viz::plot::Plot;
 use serde_json::json;
@@ -17,36 +17,36 @@ use tracing::{info, warn};
 
 use crate::Failure;
 use crate::pictures::{Metrics, RenderOptions, render, write_plot};
-use crate::run::{LoadedScene, Overrides, load_scene, run_loaded};
+use crate::run::{LoadedScene, SceneOptions, load_scene, run_loaded};
 
-/// The damping model a short name stands for.
-pub(crate) fn damping_of(name: &str) -> Option<DampingSpec> {
-    Some(match name {
-        "none" => DampingSpec::None,
-        "ether-drag" => DampingSpec::EtherRate {
-            rate: 1.0,
-            implicit: false,
-        },
-        "pbd" => DampingSpec::Pbd { factor: 0.05 },
-        "rayleigh-lagged" => DampingSpec::RayleighLagged {
-            mass: 0.0,
-            stiffness: 0.003,
-        },
-        "laplacian" => DampingSpec::Laplacian {
-            stiffness: 0.003,
-            mass: 0.0,
-            preserve_rotation: false,
-        },
-        "laplacian-rot" => DampingSpec::Laplacian {
-            stiffness: 0.003,
-            mass: 0.0,
-            preserve_rotation: true,
-        },
-        _ => return None,
-    })
+/// The help of `--damping`: every preset with its coefficients.
+pub(crate) fn damping_help() -> String {
+    let presets: Vec<String> = registry::presets()
+        .iter()
+        .map(|p| match (p.description.is_empty(), p.is_main()) {
+            (true, _) => p.name.to_string(),
+            (false, true) => format!("{} ({})", p.name, p.description),
+            (false, false) => format!("{} ({})", p.name, p.label()),
+        })
+        .collect();
+    format!(
+        "Damping models, comma separated, by preset: {}",
+        presets.join("; ")
+    )
 }
 
-const DAMPING_NAMES: &str = "none, ether-drag, pbd, rayleigh-lagged, laplacian, laplacian-rot";
+/// The damping model a preset name stands for.
+fn damping_of(name: &str) -> Result<DampingSpec, Failure> {
+    let preset = registry::preset(name).ok_or_else(|| {
+        Failure::Input(format!(
+            "--damping: unknown model {name:?}; expected one of: {}",
+            registry::preset_names().join(", ")
+        ))
+    })?;
+    preset
+        .spec()
+        .map_err(|e| Failure::Input(format!("--damping {name}: {e}")))
+}
 
 /// One row of the comparison table.
 struct Row {
@@ -105,21 +105,15 @@ fn fmt_opt(v: Option<f64>) -> String {
 
 /// `pd compare`.
 pub(crate) fn compare(
-    scene_path: Option<&Path>,
+    options: &SceneOptions,
     damping: &[String],
     integrators: &[String],
-    out: Option<PathBuf>,
-    overrides: &Overrides,
     quiet: bool,
 ) -> Result<(), Failure> {
-    let loaded = load_scene(scene_path, overrides)?;
+    let loaded = load_scene(options)?;
     let mut variants = Vec::new();
     for name in damping {
-        let spec = damping_of(name).ok_or_else(|| {
-            Failure::Input(format!(
-                "--damping: unknown model {name:?}; expected one of: {DAMPING_NAMES}"
-            ))
-        })?;
+        let spec = damping_of(name)?;
         let mut scene = loaded.scene.clone();
         scene.damping = spec;
         variants.push((name.clone(), scene));
@@ -127,7 +121,8 @@ pub(crate) fn compare(
     for name in integrators {
         let kind = IntegratorKind::parse(name).ok_or_else(|| {
             Failure::Input(format!(
-                "--integrator: unknown integrator {name:?}; expected one of: backward-euler, implicit-midpoint, bdf2"
+                "--integrator: unknown integrator {name:?}; expected one of: {}",
+                IntegratorKind::ALL.map(IntegratorKind::name).join(", ")
             ))
         })?;
         let mut scene = loaded.scene.clone();
@@ -147,7 +142,10 @@ pub(crate) fn compare(
     {
         return Err(Failure::Input(format!("variant {name:?} is given twice")));
     }
-    let out = out.unwrap_or_else(|| Path::new("out").join(format!("compare-{}", loaded.name)));
+    let out = options
+        .out
+        .clone()
+        .unwrap_or_else(|| Path::new("out").join(format!("compare-{}", loaded.name)));
 
     let mut rows = Vec::new();
     let mut diverged = Vec::new();

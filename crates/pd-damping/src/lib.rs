@@ -19,7 +19,7 @@
 //! ```
 //! use pd_damping::{Damping, NoDamping};
 //! let none = NoDamping;
-//! assert_eq!(none.name(), "none");
+//! assert_eq!(none.name(), pd_damping::registry::UNDAMPED);
 //! assert!(none.implicit_matrix().is_zero());
 //! ```
 
@@ -29,6 +29,7 @@ mod laplacian;
 mod none;
 mod pbd;
 mod rayleigh_lagged;
+pub mod registry;
 pub mod rigid;
 
 pub use error::DampingError;
