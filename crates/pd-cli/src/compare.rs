@@ -16,7 +16,7 @@ use serde_json::json;
 use tracing::{info, warn};
 
 use crate::Failure;
-use crate::pictures::{Metrics, RenderOptions, render, write_plot};
+use crate::pictures::{self, RenderOptions, read_metrics, render, write_plot};
 use crate::run::{LoadedScene, SceneOptions, load_scene, run_loaded};
 
 /// The help of `--damping`: every preset with its coefficients.
@@ -62,10 +62,6 @@ struct Row {
     final_angular_momentum: f64,
 }
 
-fn norm(x: f64, y: f64, z: f64) -> f64 {
-    (x * x + y * y + z * z).sqrt()
-}
-
 /// `|final| / |initial|`, or `None` when the initial value is below 0.1%
 /// of the largest during the run: then there was nothing to keep (a body
 /// starting at rest), and the ratio would only measure round-off growth.
@@ -74,24 +70,19 @@ fn kept(initial: f64, last: f64, largest: f64) -> Option<f64> {
 }
 
 fn row_of(name: &str, status: String, dir: &Path) -> Result<Row, Failure> {
-    let path = dir.join("metrics.csv");
-    let m = Metrics::read(&path)?;
-    let col = |c: &str| m.column(c, &path);
-    let total = col("total")?;
-    let (px, py, pz) = (col("px")?, col("py")?, col("pz")?);
-    let (jx, jy, jz) = (col("jx")?, col("jy")?, col("jz")?);
-    let last = total.len() - 1;
-    let p = |i: usize| norm(px[i], py[i], pz[i]);
-    let j = |i: usize| norm(jx[i], jy[i], jz[i]);
+    let rows = read_metrics(dir)?;
+    let last = rows.len() - 1;
+    let p = |i: usize| rows[i].linear_momentum().norm();
+    let j = |i: usize| rows[i].angular_momentum().norm();
     // Row 0 is the initial state and has no step time.
-    let step_ms = col("step_ms")?;
+    let step_ms: Vec<f64> = rows[1..].iter().map(|r| r.step_ms).collect();
     Ok(Row {
         name: name.to_string(),
         status,
-        median_step_ms: median(&step_ms[1..]),
+        median_step_ms: median(&step_ms),
         steps: last,
-        initial_energy: total[0],
-        final_energy: total[last],
+        initial_energy: rows[0].total,
+        final_energy: rows[last].total,
         momentum_kept: kept(p(0), p(last), (0..=last).map(p).fold(0.0, f64::max)),
         angular_momentum_kept: kept(j(0), j(last), (0..=last).map(j).fold(0.0, f64::max)),
         final_momentum: p(last),
@@ -194,8 +185,9 @@ pub(crate) fn compare(
     )?;
     let mut series = Vec::new();
     for (row, dir) in &rows {
-        let path = dir.join("metrics.csv");
-        series.push(Metrics::read(&path)?.series("total", &row.name, &path)?);
+        series.push(pictures::series(&read_metrics(dir)?, &row.name, |r| {
+            r.total
+        }));
     }
     write_plot(
         &Plot {
