@@ -10,7 +10,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use pd_damping::registry;
-use pd_io::scene::{DampingSpec, FrameFormat, IntegratorKind};
+use pd_io::scene::{DampingSpec, FrameFormat, IntegratorKind, Scene};
 use pd_viz::plot::Plot;
 use serde_json::json;
 use tracing::{info, warn};
@@ -102,6 +102,45 @@ pub(crate) fn compare(
     quiet: bool,
 ) -> Result<(), Failure> {
     let loaded = load_scene(options)?;
+    let variants = variants(&loaded, damping, integrators)?;
+    let out = options
+        .out
+        .clone()
+        .unwrap_or_else(|| Path::new("out").join(format!("compare-{}", loaded.name)));
+
+    let mut rows = Vec::new();
+    let mut diverged = Vec::new();
+    for (name, scene) in variants {
+        let dir = out.join(&name);
+        let status = run_variant(&loaded, &name, scene, &dir, quiet)?;
+        if status == "diverged" {
+            diverged.push(name.clone());
+        }
+        rows.push((row_of(&name, status.to_string(), &dir)?, dir));
+    }
+    write_pictures(&rows, &out)?;
+    write_table(&rows, &loaded, &out)?;
+    info!(
+        "comparison.md, comparison.json, energy.png/svg and render/ in {}",
+        out.display()
+    );
+    if diverged.is_empty() {
+        Ok(())
+    } else {
+        Err(Failure::Diverged(format!(
+            "variants diverged: {} (the comparison is written to {})",
+            diverged.join(", "),
+            out.display()
+        )))
+    }
+}
+
+/// The scene once per damping preset or integrator, each with its name.
+fn variants(
+    loaded: &LoadedScene,
+    damping: &[String],
+    integrators: &[String],
+) -> Result<Vec<(String, Scene)>, Failure> {
     let mut variants = Vec::new();
     for name in damping {
         let spec = damping_of(name)?;
@@ -133,41 +172,42 @@ pub(crate) fn compare(
     {
         return Err(Failure::Input(format!("variant {name:?} is given twice")));
     }
-    let out = options
-        .out
-        .clone()
-        .unwrap_or_else(|| Path::new("out").join(format!("compare-{}", loaded.name)));
+    Ok(variants)
+}
 
-    let mut rows = Vec::new();
-    let mut diverged = Vec::new();
-    for (name, mut scene) in variants {
-        // Frames are needed for the animation.
-        if scene.output.every == 0 {
-            scene.output.every = (scene.steps / 40).max(1);
-        }
-        if !scene.output.formats.contains(&FrameFormat::Obj) {
-            scene.output.formats.push(FrameFormat::Obj);
-        }
-        let dir = out.join(&name);
-        info!("variant {name}: running into {}", dir.display());
-        let variant = LoadedScene {
-            scene,
-            text: loaded.text.clone(),
-            name: name.clone(),
-        };
-        let status = match run_loaded(&variant, &dir, 0, quiet) {
-            Ok(_) => "completed".to_string(),
-            Err(Failure::Diverged(message)) => {
-                warn!("variant {name} diverged: {message}");
-                diverged.push(name.clone());
-                "diverged".to_string()
-            }
-            Err(other) => return Err(other),
-        };
-        rows.push((row_of(&name, status, &dir)?, dir));
+/// Runs one variant into `dir`, with OBJ frames for the animation;
+/// `completed` or `diverged` (any other failure ends the comparison).
+fn run_variant(
+    loaded: &LoadedScene,
+    name: &str,
+    mut scene: Scene,
+    dir: &Path,
+    quiet: bool,
+) -> Result<&'static str, Failure> {
+    if scene.output.every == 0 {
+        scene.output.every = (scene.steps / 40).max(1);
     }
+    if !scene.output.formats.contains(&FrameFormat::Obj) {
+        scene.output.formats.push(FrameFormat::Obj);
+    }
+    info!("variant {name}: running into {}", dir.display());
+    let variant = LoadedScene {
+        scene,
+        text: loaded.text.clone(),
+        name: name.to_string(),
+    };
+    match run_loaded(&variant, dir, 0, quiet) {
+        Ok(_) => Ok("completed"),
+        Err(Failure::Diverged(message)) => {
+            warn!("variant {name} diverged: {message}");
+            Ok("diverged")
+        }
+        Err(other) => Err(other),
+    }
+}
 
-    // The animation and the energy plot.
+/// The side-by-side animation (`render/`) and the energy plot.
+fn write_pictures(rows: &[(Row, PathBuf)], out: &Path) -> Result<(), Failure> {
     let panels: Vec<(String, PathBuf)> = rows
         .iter()
         .map(|(row, dir)| (row.name.clone(), dir.clone()))
@@ -184,7 +224,7 @@ pub(crate) fn compare(
         },
     )?;
     let mut series = Vec::new();
-    for (row, dir) in &rows {
+    for (row, dir) in rows {
         series.push(pictures::series(&read_metrics(dir)?, &row.name, |r| {
             r.total
         }));
@@ -196,11 +236,13 @@ pub(crate) fn compare(
             y_label: "kinetic + elastic + gravity (J)".into(),
             series,
         },
-        &out,
+        out,
         "energy",
-    )?;
+    )
+}
 
-    // The table.
+/// `comparison.md` and `comparison.json`.
+fn write_table(rows: &[(Row, PathBuf)], loaded: &LoadedScene, out: &Path) -> Result<(), Failure> {
     let base = rows[0].0.median_step_ms;
     let mut md = String::new();
     let _ = writeln!(
@@ -210,7 +252,7 @@ pub(crate) fn compare(
     );
     let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|");
     let mut json_rows = Vec::new();
-    for (row, _) in &rows {
+    for (row, _) in rows {
         let overhead = row.median_step_ms / base - 1.0;
         let _ = writeln!(
             md,
@@ -255,20 +297,7 @@ pub(crate) fn compare(
     write(
         "comparison.json",
         &(serde_json::to_string_pretty(&table).expect("a JSON value serialises") + "\n"),
-    )?;
-    info!(
-        "comparison.md, comparison.json, energy.png/svg and render/ in {}",
-        out.display()
-    );
-    if diverged.is_empty() {
-        Ok(())
-    } else {
-        Err(Failure::Diverged(format!(
-            "variants diverged: {} (the comparison is written to {})",
-            diverged.join(", "),
-            out.display()
-        )))
-    }
+    )
 }
 
 fn finite(v: f64) -> Option<f64> {
