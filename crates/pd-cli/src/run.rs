@@ -25,9 +25,12 @@ pub(crate) struct SceneOptions {
     /// Scene file (.toml or .json). Without one, runs the bundled
     /// cantilever beam.
     pub scene: Option<PathBuf>,
-    /// Output folder [default: out/<scene name>; for compare,
-    /// out/compare-<scene name>].
-    #[arg(long)]
+    // The help is an attribute, not a doc comment, so rustdoc does not read
+    // `<scene name>` as an HTML tag.
+    #[arg(
+        long,
+        help = "Output folder [default: out/<scene name>; for compare, out/compare-<scene name>]"
+    )]
     pub out: Option<PathBuf>,
     /// Override the scene's number of steps.
     #[arg(long)]
