@@ -39,7 +39,7 @@ pub mod tet_strain;
 
 pub use attachment::Attachment;
 pub use constraint::Constraint;
-pub use set::{ConstraintBlock, ConstraintSet, MAX_ROWS};
+pub use set::{ConstraintBlock, ConstraintSet, EnergyBound, MAX_ROWS};
 pub use sparse::{CsrMatrix, Triplet};
 pub use spring::Spring;
 pub use tet_strain::TetStrain;

@@ -13,7 +13,7 @@
 //!
 //! Inverted, flat and strongly distorted elements (`det F` small or negative
 //! relative to `|F|^3`) go to the signed SVD instead
-//! ([`signed_svd`]): for `det F < 0` the
+//! ([`signed_svd`](crate::signed_svd)): for `det F < 0` the
 //! polar factor is a reflection, not the closest rotation, and as `det F`
 //! approaches 0 the inverse in the iteration loses accuracy.
 

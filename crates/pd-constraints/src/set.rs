@@ -31,6 +31,31 @@ impl<C: Constraint> ConstraintSet<C> {
     }
 }
 
+/// An upper bound of the energy of some constraints and the constraint
+/// with the largest term ([`ConstraintBlock::energy_bound_range`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct EnergyBound {
+    /// `sum w_i/2 |G_i q - p_i|^2` in J.
+    pub total: f64,
+    /// Index (within its block) of the constraint with the largest term.
+    pub worst: usize,
+    /// That constraint's term in J.
+    pub worst_energy: f64,
+}
+
+impl EnergyBound {
+    /// Adds `other`'s total and keeps the larger worst term (the earlier one
+    /// on a tie, so that the result does not depend on how work was split).
+    pub fn merge(&mut self, other: &EnergyBound) {
+        self.total += other.total;
+        // `!(a <= b)` also takes a NaN term: it is the one to report.
+        if !(other.worst_energy <= self.worst_energy) {
+            self.worst = other.worst;
+            self.worst_energy = other.worst_energy;
+        }
+    }
+}
+
 /// What the solver needs of a set of constraints, independent of their kind.
 /// One virtual call covers a whole range of constraints, so dynamic dispatch
 /// never sits in the inner loop.
@@ -61,6 +86,13 @@ pub trait ConstraintBlock: std::fmt::Debug + Send + Sync {
     fn project_range(&self, q: &[Point], first: usize, out: &mut [Point]);
     /// Energy `sum w_i/2 |G_i q - P_i(G_i q)|^2` of the constraints in `range`, in J.
     fn energy_range(&self, q: &[Point], range: Range<usize>) -> f64;
+    /// An upper bound of the energy at `q` of constraints
+    /// `first..first + projections.len() / ROWS`, from points `p_i` of their
+    /// constraint sets found earlier (a local step's projections, in its
+    /// layout): `sum w_i/2 |G_i q - p_i|^2`. It bounds the energy because
+    /// the projection is the closest point of the set. No projection is
+    /// computed, so it costs a fraction of [`ConstraintBlock::energy_range`].
+    fn energy_bound_range(&self, q: &[Point], first: usize, projections: &[Point]) -> EnergyBound;
     /// Adds the energy gradient `w_i G_i^T (G_i q - P_i(G_i q))` of every
     /// constraint to `gradient` (one entry per vertex, in N).
     fn add_gradient(&self, q: &[Point], gradient: &mut [Point]);
@@ -74,6 +106,8 @@ pub trait ConstraintBlock: std::fmt::Debug + Send + Sync {
     /// vertex `k`, axis `a`. With `project_psd`, each is positive
     /// semi-definite (N/m).
     fn hessian_range(&self, q: &[Point], first: usize, project_psd: bool, out: &mut [f64]);
+    /// A boxed copy of the block (blocks are kept as trait objects).
+    fn boxed_clone(&self) -> Box<dyn ConstraintBlock>;
 }
 
 impl<C: Constraint> ConstraintBlock for ConstraintSet<C> {
@@ -155,6 +189,31 @@ impl<C: Constraint> ConstraintBlock for ConstraintSet<C> {
                 0.5 * c.weight() * distance2
             })
             .sum()
+    }
+
+    fn boxed_clone(&self) -> Box<dyn ConstraintBlock> {
+        Box::new(self.clone())
+    }
+
+    fn energy_bound_range(&self, q: &[Point], first: usize, projections: &[Point]) -> EnergyBound {
+        let count = projections.len() / C::ROWS;
+        let mut gx = [Point::zeros(); MAX_ROWS];
+        let mut bound = EnergyBound::default();
+        for (i, (c, p)) in self.constraints[first..first + count]
+            .iter()
+            .zip(projections.chunks_exact(C::ROWS))
+            .enumerate()
+        {
+            apply_operator(c, q, &mut gx[..C::ROWS]);
+            let distance2: f64 = (0..C::ROWS).map(|r| (gx[r] - p[r]).norm_squared()).sum();
+            let energy = 0.5 * c.weight() * distance2;
+            bound.merge(&EnergyBound {
+                total: energy,
+                worst: first + i,
+                worst_energy: energy,
+            });
+        }
+        bound
     }
 
     fn add_gradient(&self, q: &[Point], gradient: &mut [Point]) {

@@ -15,7 +15,7 @@ use crate::{Constraint, ConstraintError};
 /// the deformation gradient is `F = Ds B`, and `F^T = G [x0; x1; x2; x3]`
 /// with the 3 x 4 operator `G = B^T [-1 | I]`: the rows of `G x` are the
 /// columns of `F`. The projection is the closest proper rotation `R = U V^T`
-/// from the signed SVD of [`signed_svd`] (so
+/// from the signed SVD of [`signed_svd`](crate::signed_svd) (so
 /// an inverted element projects to a rotation, not a reflection), or with
 /// strain limits `[min, max]` the matrix
 /// `U clamp(S, min, max) V^T`. The weight is `stiffness * rest volume`; with

@@ -2,7 +2,10 @@
 //! is factored once with the rest of the global step.
 
 use crate::error::non_negative;
-use crate::{Damping, DampingError, DampingMatrix};
+use crate::rotation_preserving::SpinKeeper;
+use crate::{
+    Damping, DampingError, DampingMatrix, DampingReport, DampingTargets, Point, StepContext,
+};
 
 /// The name scenes, the command line and the registry use for this model.
 pub const NAME: &str = "laplacian";
@@ -12,9 +15,9 @@ pub const NAME: &str = "laplacian";
 /// constraints.
 ///
 /// `L_d` damps rigid rotation too (`v^T L_d v > 0` for `v = omega x r`). With
-/// `preserve_rotation` the solver restores, per body, the angular momentum
-/// the damping removed ([`Damping::preserves_rotation`]); this model only
-/// reports the choice.
+/// `preserve_rotation` it leaves each free body's rigid rotation alone: the
+/// damping anchor turns with the body, and the spin is given back at the end
+/// of the step (`rotation_preserving.rs`, `docs/damping.md`).
 ///
 /// ```
 /// use pd_damping::{Damping, DampingMatrix, LaplacianDamping};
@@ -27,11 +30,12 @@ pub const NAME: &str = "laplacian";
 /// );
 /// # Ok::<(), pd_damping::DampingError>(())
 /// ```
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct LaplacianDamping {
     stiffness: f64,
     mass: f64,
-    preserve_rotation: bool,
+    /// The rotation-preserving variant's state, when it is on.
+    spin_keeper: Option<SpinKeeper>,
 }
 
 impl LaplacianDamping {
@@ -47,7 +51,7 @@ impl LaplacianDamping {
         Ok(Self {
             stiffness: non_negative("stiffness", stiffness)?,
             mass: non_negative("mass", mass)?,
-            preserve_rotation,
+            spin_keeper: preserve_rotation.then(SpinKeeper::default),
         })
     }
 }
@@ -66,6 +70,31 @@ impl Damping for LaplacianDamping {
     }
 
     fn preserves_rotation(&self) -> bool {
-        self.preserve_rotation
+        self.spin_keeper.is_some()
+    }
+
+    fn begin_step(
+        &mut self,
+        step: &StepContext<'_>,
+        positions: &[Point],
+        velocities: &[Point],
+        targets: DampingTargets<'_>,
+    ) {
+        if let Some(keeper) = &mut self.spin_keeper {
+            keeper.begin_step(self.mass, step, positions, velocities, targets);
+        }
+    }
+
+    fn end_step(
+        &mut self,
+        step: &StepContext<'_>,
+        positions: &[Point],
+        velocities: &mut [Point],
+    ) -> DampingReport {
+        let mut report = DampingReport::default();
+        if let Some(keeper) = &self.spin_keeper {
+            report.spin_axes_left = keeper.end_step(step, positions, velocities);
+        }
+        report
     }
 }

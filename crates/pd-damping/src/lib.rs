@@ -1,20 +1,25 @@
 //! Damping models for Projective Dynamics, one [`Damping`] implementation
-//! each.
+//! each, every model's behaviour in its own file.
 //!
-//! A model can contribute in four ways, and the solver asks for each:
+//! A model can contribute in four ways, and the step asks for each:
 //! 1. a **constant implicit matrix** `D = a1 M + a2 L_d`
 //!    ([`Damping::implicit_matrix`]), a mix of the lumped mass matrix and the
 //!    damping Laplacian that enters the global step and is factored once per
 //!    (integrator, h, coefficients);
 //! 2. a **per-step implicit matrix**, here the lagged stiffness term
-//!    `a3 K(x_n)` ([`DampingMatrix::lagged_stiffness`]), which forces a
-//!    numeric refactorisation every step;
-//! 3. an **explicit force** added to the right-hand side
-//!    ([`Damping::add_explicit_force`]);
-//! 4. a **velocity filter** after the solve ([`Damping::filter_velocities`]).
+//!    `a3 K(x_n)` ([`DampingMatrix::lagged_stiffness`]), which makes the
+//!    solver assemble the elastic Hessian and refactorise every step;
+//! 3. at the **start of the step** ([`Damping::begin_step`]): an explicit
+//!    force folded into the inertial target ([`Damping::add_explicit_force`]),
+//!    or a moved damping anchor (the rotation-preserving Laplacian variant,
+//!    `rotation_preserving.rs`);
+//! 4. at the **end of the step** ([`Damping::end_step`]): a velocity filter
+//!    after the solve ([`Damping::filter_velocities`]: explicit ether drag,
+//!    PBD) or the variant's spin restoration.
 //!
 //! How each enters each integrator's global step is derived in
-//! `docs/damping.md`.
+//! `docs/damping.md`. A model of your own is a type implementing [`Damping`]
+//! outside this crate (see `examples/custom_damping.rs` of `pd-solver`).
 //!
 //! ```
 //! use pd_damping::{Damping, NoDamping};
@@ -31,6 +36,7 @@ mod pbd;
 mod rayleigh_lagged;
 pub mod registry;
 pub mod rigid;
+mod rotation_preserving;
 
 pub use error::DampingError;
 pub use ether_drag::EtherDrag;
@@ -87,7 +93,124 @@ pub struct DampingContext<'a> {
     pub fixed: &'a [bool],
 }
 
+/// What the step tells a damping model at its start and end, besides the
+/// [`DampingContext`].
+#[derive(Debug, Clone, Copy)]
+#[non_exhaustive]
+pub struct StepContext<'a> {
+    /// Time step, masses, bodies, components and fixed vertices.
+    pub base: DampingContext<'a>,
+    /// Every connected component with what holds it
+    /// ([`rigid::RigidFreedom`]): free bodies (no fixed vertex, no
+    /// attachment: nothing outside exerts a torque on them besides uniform
+    /// gravity, which exerts none about the centre of mass), bodies that can
+    /// swing about a pivot or a hinge, and held ones.
+    pub rigid_bodies: &'a [rigid::RigidBody],
+    /// `gamma` in 1/s of the integrator: the damping force is evaluated at the
+    /// velocity `gamma (x - x_hat)`.
+    pub gamma: f64,
+    /// `c1 c2 h^2` in s^2: a force `f` (N) on a vertex of mass `m` enters the
+    /// inertial target as `force_scale f / m` (DESIGN.md 3.1).
+    pub force_scale: f64,
+    /// The integrator's `c2` (dimensionless): the step's energy is evaluated
+    /// at `x_n + c2 (x - x_n)`.
+    pub c2: f64,
+    /// The coefficients of `x_{n+1}, x_n, x_{n-1}, ...` in `x - x_hat`
+    /// (`pd_integrators::Integrator::damping_stencil`): `[1, -1]` for
+    /// one-step methods, `[1, -4/3, 1/3]` for BDF-2.
+    pub damping_stencil: &'a [f64],
+}
+
+impl<'a> StepContext<'a> {
+    /// The context of one step (for solvers; models only read it), with
+    /// `gamma`, `force_scale` and `c2` as documented on the fields and
+    /// `damping_stencil` as in [`StepContext::damping_stencil`].
+    pub fn new(
+        base: DampingContext<'a>,
+        rigid_bodies: &'a [rigid::RigidBody],
+        (gamma, force_scale, c2): (f64, f64, f64),
+        damping_stencil: &'a [f64],
+    ) -> Self {
+        Self {
+            base,
+            rigid_bodies,
+            gamma,
+            force_scale,
+            c2,
+            damping_stencil,
+        }
+    }
+
+    /// The factor by which this step multiplies the momentum (linear, or
+    /// angular about the centre of mass) of a free body on which the only
+    /// force is the mass-proportional damping `-a1 M v` (`a1` in 1/s):
+    /// summing the global equations over the body leaves
+    /// `sum m (x - x_n) = (sum m (y - x_n) + k h^2 sum m (x_hat - x_n)) /
+    /// (1 + k h^2)` with `k = c1 c2 gamma a1`, and the velocity update
+    /// `v = (x - x_n) / (c2 h) - (1/c2 - 1) v_n` of the one-leg methods
+    /// gives `1 / (c2 (1 + k h^2)) - 1/c2 + 1`: backward Euler
+    /// `1 / (1 + a1 h)`, implicit midpoint `(1 - a1 h/2) / (1 + a1 h/2)`,
+    /// and BDF-2 `3 / (3 + 2 a1 h)` for a body whose previous momentum equals
+    /// the current one (`docs/damping.md`).
+    pub fn mass_damping_factor(&self, a1: f64) -> f64 {
+        let k_h2 = self.force_scale * self.gamma * a1;
+        1.0 / (self.c2 * (1.0 + k_h2)) - 1.0 / self.c2 + 1.0
+    }
+}
+
+/// The targets of a step a damping model may change at its start, as
+/// displacements from `x_n` (m), and a scratch buffer. All have one entry
+/// per vertex.
+#[derive(Debug)]
+#[non_exhaustive]
+pub struct DampingTargets<'a> {
+    /// `y - x_n`: the inertial target, where explicit forces go.
+    pub inertial_displacement: &'a mut [Point],
+    /// `x_hat - x_n`: the damping anchor of the mass term `a1 M` and the
+    /// lagged `K(x_n)` (the damping velocity is `gamma (x - x_hat)`).
+    pub anchor_displacement: &'a mut [Point],
+    /// The damping anchor of the Laplacian term `a2 L_d`, equal to
+    /// `anchor_displacement` on entry: a model that damps only part of the
+    /// motion through `L_d` moves it (the rotation-preserving variant).
+    pub laplacian_anchor: &'a mut [Point],
+    /// Scratch, contents unspecified on entry.
+    pub scratch: &'a mut [Point],
+}
+
+impl<'a> DampingTargets<'a> {
+    /// The targets of one step (for solvers; models only change them).
+    pub fn new(
+        inertial_displacement: &'a mut [Point],
+        anchor_displacement: &'a mut [Point],
+        laplacian_anchor: &'a mut [Point],
+        scratch: &'a mut [Point],
+    ) -> Self {
+        Self {
+            inertial_displacement,
+            anchor_displacement,
+            laplacian_anchor,
+            scratch,
+        }
+    }
+}
+
+/// What a damping model reports about one step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[non_exhaustive]
+pub struct DampingReport {
+    /// Principal axes (summed over the bodies) about which the
+    /// rotation-preserving Laplacian damping left the spin alone instead of
+    /// restoring it (`docs/damping.md`). 0 for other models.
+    pub spin_axes_left: usize,
+}
+
 /// A damping model.
+///
+/// The step calls, in order: [`Damping::implicit_matrix`] (for the global
+/// matrix), [`Damping::begin_step`] after the integrator prepared its
+/// targets, the position solve, the integrator's velocity update, then
+/// [`Damping::end_step`]. Every method has a default that does nothing, so a
+/// model implements only the channels it uses.
 pub trait Damping: std::fmt::Debug + Send + Sync {
     /// Name as scenes spell it (`none`, `laplacian`, ...).
     fn name(&self) -> &'static str;
@@ -98,7 +221,8 @@ pub trait Damping: std::fmt::Debug + Send + Sync {
     }
 
     /// Adds an explicit damping force (N), evaluated at the start of the step,
-    /// to `forces`.
+    /// to `forces`. Called by the default [`Damping::begin_step`] when
+    /// [`Damping::has_explicit_force`] says so.
     fn add_explicit_force(
         &self,
         _context: &DampingContext<'_>,
@@ -108,25 +232,68 @@ pub trait Damping: std::fmt::Debug + Send + Sync {
     ) {
     }
 
-    /// Whether the solver should restore, per body, the angular momentum that
-    /// the implicit damping force removed (the rotation-preserving Laplacian
-    /// variant, `docs/damping.md`).
+    /// Whether the model keeps the free bodies' rigid rotation undamped (the
+    /// rotation-preserving Laplacian variant, `docs/damping.md`).
     fn preserves_rotation(&self) -> bool {
         false
     }
 
-    /// Whether [`Damping::add_explicit_force`] does anything, so the solver
+    /// Whether [`Damping::add_explicit_force`] does anything, so the step
     /// can skip it.
     fn has_explicit_force(&self) -> bool {
         false
     }
 
     /// Adjusts the velocities after the solve (explicit ether drag, PBD).
+    /// Called by the default [`Damping::end_step`].
     fn filter_velocities(
         &self,
         _context: &DampingContext<'_>,
         _positions: &[Point],
         _velocities: &mut [Point],
     ) {
+    }
+
+    /// The start of a step, at positions `x_n` (m) and velocities `v_n`
+    /// (m/s), after the integrator prepared its targets. The default folds
+    /// the explicit force into the inertial target: `y += force_scale f / m`.
+    fn begin_step(
+        &mut self,
+        step: &StepContext<'_>,
+        positions: &[Point],
+        velocities: &[Point],
+        targets: DampingTargets<'_>,
+    ) {
+        if !self.has_explicit_force() {
+            return;
+        }
+        let forces = targets.scratch;
+        forces.iter_mut().for_each(|f| *f = Point::zeros());
+        self.add_explicit_force(&step.base, positions, velocities, forces);
+        let masses = step.base.masses;
+        for ((y, f), m) in targets
+            .inertial_displacement
+            .iter_mut()
+            .zip(forces.iter())
+            .zip(masses)
+        {
+            if *m > 0.0 {
+                *y += f * (step.force_scale / m);
+            }
+        }
+    }
+
+    /// The end of a step: `velocities` (m/s) are the integrator's new ones at
+    /// the new `positions` (m), fixed vertices at zero; the step zeroes them
+    /// again afterwards. The default applies
+    /// [`Damping::filter_velocities`].
+    fn end_step(
+        &mut self,
+        step: &StepContext<'_>,
+        positions: &[Point],
+        velocities: &mut [Point],
+    ) -> DampingReport {
+        self.filter_velocities(&step.base, positions, velocities);
+        DampingReport::default()
     }
 }

@@ -89,6 +89,72 @@ pub const SPIN_RESTORE_ENERGY_FRACTION: f64 = 1e-3;
 /// handful, the cap only guards against non-convergence.
 const EIGEN_MAX_ITERATIONS: usize = 256;
 
+/// How a connected component can move rigidly, given what holds it
+/// (fixed vertices and attachments, at their rest positions).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RigidFreedom {
+    /// Nothing holds it: it translates and turns freely, and keeps its spin
+    /// about its centre of mass.
+    Free,
+    /// Held at one point (m): it can turn about it, like a pendulum.
+    Pivot {
+        /// The point, m.
+        point: Point,
+    },
+    /// Held along a line: it can turn about it, like a door.
+    Hinge {
+        /// A point on the line, m.
+        point: Point,
+        /// The line's unit direction.
+        axis: Point,
+    },
+    /// Held at points that span a plane or more: no rigid motion is left.
+    Held,
+}
+
+/// A connected component and how it can move rigidly.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RigidBody {
+    /// Its free vertices.
+    pub vertices: Vec<usize>,
+    /// What holding it leaves of its rigid motion.
+    pub freedom: RigidFreedom,
+}
+
+impl RigidFreedom {
+    /// The freedom left by holding points `held` (m), `size` (m) the body's
+    /// size: points within `1e-9 size` of a point or a line count as one.
+    pub fn of_held_points(held: &[Point], size: f64) -> Self {
+        if held.is_empty() {
+            return Self::Free;
+        }
+        let centre = held.iter().sum::<Point>() / held.len() as f64;
+        let mut spread = Matrix3::zeros();
+        for p in held {
+            let r = p - centre;
+            spread += r * r.transpose();
+        }
+        let tolerance = (1e-9 * size).powi(2) * held.len() as f64;
+        let Some(eigen) = SymmetricEigen::try_new(spread, f64::EPSILON, EIGEN_MAX_ITERATIONS)
+        else {
+            return Self::Held;
+        };
+        let mut order = [0, 1, 2];
+        order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
+        let [largest, middle, _] = order.map(|k| eigen.eigenvalues[k]);
+        if largest <= tolerance {
+            Self::Pivot { point: centre }
+        } else if middle <= tolerance {
+            Self::Hinge {
+                point: centre,
+                axis: eigen.eigenvectors.column(order[0]).into_owned(),
+            }
+        } else {
+            Self::Held
+        }
+    }
+}
+
 /// Mass, centre, momenta and inertia of a set of vertices.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RigidFit {
@@ -184,6 +250,36 @@ impl RigidFit {
     /// The angular velocity `omega = I^+ J` in rad/s.
     pub fn angular_velocity(&self) -> Point {
         self.solve_inertia(&self.angular_momentum)
+    }
+
+    /// The angular velocity (rad/s) of the rotation about `point` (m) that
+    /// best fits the velocities when the body can only turn about that point
+    /// (`axis = None`) or about the line through it along the unit vector
+    /// `axis`: `I_p^+ J_p` with the inertia and angular momentum about the
+    /// point, restricted to the axis when there is one. Equals
+    /// [`RigidFit::angular_velocity`] when the velocities are a rigid
+    /// rotation about `point`.
+    pub fn angular_velocity_about(&self, point: &Point, axis: Option<&Point>) -> Point {
+        let d = self.centre - point;
+        let inertia = self.inertia
+            + self.mass * (Matrix3::from_diagonal_element(d.norm_squared()) - d * d.transpose());
+        let momentum = self.angular_momentum_about(point);
+        match axis {
+            Some(axis) => {
+                let moment = axis.dot(&(inertia * axis));
+                if moment > 0.0 {
+                    axis * (axis.dot(&momentum) / moment)
+                } else {
+                    Point::zeros()
+                }
+            }
+            None => Self {
+                inertia,
+                angular_momentum: momentum,
+                ..*self
+            }
+            .angular_velocity(),
+        }
     }
 
     /// The rigid field `v_cm + omega x (x - x_cm)` with the fitted momenta.

@@ -5,9 +5,11 @@ use crate::{Integrator, Point, StepCoefficients, StepTargets};
 /// Backward Euler: `c1 = c2 = 1`, `z = 0`, `y = x_n + h v_n + h^2 a`,
 /// `x_hat = x_n`, `gamma = 1/h`, and `v_{n+1} = (x_{n+1} - x_n)/h`.
 ///
-/// First order; it damps a mode of frequency `omega` by about `h omega / 2`
-/// per unit time (numerical damping), and never increases the energy of a
-/// convex system solved to convergence.
+/// First order; its numerical damping ratio for a mode of angular frequency
+/// `omega` (rad/s) is about `h omega / 2`, i.e. the mode's amplitude decays
+/// at the rate `h omega^2 / 2` (1/s): per step it is multiplied by
+/// `1/sqrt(1 + (h omega)^2)` (`docs/integrators.md`). It never increases
+/// the energy of a convex system solved to convergence.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct BackwardEuler;
 

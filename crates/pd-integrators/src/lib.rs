@@ -96,7 +96,8 @@ impl StepTargets {
 ///
 /// A step is `coefficients()`, then `prepare(...)`, then the solver's
 /// minimisation, then `finish(...)`, which computes the new velocities and
-/// updates the history.
+/// updates the history, then `filter_velocities(...)`, which runs any
+/// explicit velocity filter and keeps the history consistent with it.
 pub trait Integrator: std::fmt::Debug + Send + Sync {
     /// Name as scenes spell it (`backward-euler`).
     fn name(&self) -> &'static str;
@@ -129,6 +130,36 @@ pub trait Integrator: std::fmt::Debug + Send + Sync {
         velocities: &mut [Point],
     );
 
+    /// The damping velocity `gamma (x - x_hat)` of the coming step as a
+    /// combination of positions, divided by `gamma`: the coefficients of
+    /// `x_{n+1}, x_n, x_{n-1}, ...` in `x - x_hat`. One-step methods (and a
+    /// multistep method's start-up) have `x_hat = x_n`: `[1, -1]`. A damping
+    /// model that must leave a rigid motion undamped applies it to that
+    /// motion's trajectory (`pd_damping`'s rotation-preserving variant).
+    fn damping_stencil(&self) -> &'static [f64] {
+        &[1.0, -1.0]
+    }
+
+    /// Runs `filter`, an explicit change of the velocities written by
+    /// [`Integrator::finish`] (a velocity filter such as explicit ether drag
+    /// or PBD damping, then any velocity constraint), on `velocities`, and
+    /// keeps the history consistent with what it did, for a step of length
+    /// `h` (s).
+    ///
+    /// One-step methods keep no history, so the default only runs the
+    /// filter. A multistep method whose next step reads previous positions
+    /// and velocities must see the filtered motion there too, or the
+    /// filter's effect is partly undone (BDF-2: `docs/integrators.md`).
+    fn filter_velocities(
+        &mut self,
+        h: f64,
+        velocities: &mut [Point],
+        filter: &mut dyn FnMut(&mut [Point]),
+    ) {
+        let _ = h;
+        filter(velocities);
+    }
+
     /// Forgets the history (after the state is replaced from outside).
     fn reset(&mut self) {}
 
@@ -144,21 +175,56 @@ pub trait Integrator: std::fmt::Debug + Send + Sync {
     /// saved integrator would have taken.
     ///
     /// # Errors
-    /// A history this integrator cannot hold (too many states, or states of
-    /// a different length than `vertices`), described.
-    fn restore_history(&mut self, history: &History, vertices: usize) -> Result<(), String> {
+    /// [`HistoryError`] for a history this integrator cannot hold: more
+    /// previous states than it keeps, or a state whose length is not
+    /// `vertices`.
+    fn restore_history(&mut self, history: &History, vertices: usize) -> Result<(), HistoryError> {
         let _ = vertices;
         if history.states.is_empty() {
             self.reset();
             Ok(())
         } else {
-            Err(format!(
-                "{} keeps no history, but {} previous states were given",
-                self.name(),
-                history.states.len()
-            ))
+            Err(HistoryError::TooManyStates {
+                integrator: self.name(),
+                kept: 0,
+                given: history.states.len(),
+            })
         }
     }
+}
+
+/// Why [`Integrator::restore_history`] refused a history.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum HistoryError {
+    /// The history holds more previous states than the integrator keeps.
+    #[error("{integrator} keeps {kept} previous state(s), but {given} were given")]
+    TooManyStates {
+        /// The integrator's name as scenes spell it.
+        integrator: &'static str,
+        /// How many previous states it keeps.
+        kept: usize,
+        /// How many the history holds.
+        given: usize,
+    },
+    /// A previous state does not have one position and one velocity per
+    /// vertex.
+    #[error(
+        "{integrator} previous state {state} has {positions} positions and {velocities} \
+         velocities for {vertices} vertices"
+    )]
+    WrongLength {
+        /// The integrator's name as scenes spell it.
+        integrator: &'static str,
+        /// Which previous state, 0 for the most recent.
+        state: usize,
+        /// Number of positions in it.
+        positions: usize,
+        /// Number of velocities in it.
+        velocities: usize,
+        /// Number of vertices of the simulation.
+        vertices: usize,
+    },
 }
 
 /// An integrator's history: previous states `(positions, velocities)`, most

@@ -4,15 +4,15 @@
 //!
 //! The model, settings and damping model are not part of a checkpoint: they
 //! come from the scene, which a checkpoint file stores next to this (the
-//! `pd-io` crate). Damping models keep no state between steps (every method
-//! of `pd_damping::Damping` takes `&self`); the cached factorisations are
+//! `pd-io` crate). Damping models keep no state from one step to the next
+//! (what the rotation-preserving variant records at the start of a step it
+//! uses by the end of the same step); the cached factorisations are
 //! recomputed on demand and are deterministic functions of the matrix
 //! coefficients, so neither needs saving.
 
 use pd_integrators::History;
 
-use super::{Simulation, State};
-use crate::SolverError;
+use crate::{Simulation, SolverError, State};
 
 /// The saved state of a [`Simulation`] after some step.
 #[derive(Debug, Clone, PartialEq)]
@@ -71,8 +71,8 @@ impl Simulation {
             state: self.state.clone(),
             integrator: self.integrator.name().to_string(),
             history: self.integrator.history(),
-            energy_reference: self.energy_reference,
-            energy_scale: self.energy_scale,
+            energy_reference: self.divergence.reference,
+            energy_scale: self.divergence.scale,
         }
     }
 
@@ -121,13 +121,13 @@ impl Simulation {
             self.integrator
                 .restore_history(&before, n)
                 .expect("the integrator's own history restores");
-            return Err(invalid(reason));
+            return Err(invalid(reason.to_string()));
         }
         self.state = checkpoint.state.clone();
         self.steps = checkpoint.steps;
         self.time = checkpoint.time;
-        self.energy_reference = checkpoint.energy_reference;
-        self.energy_scale = checkpoint.energy_scale;
+        self.divergence.reference = checkpoint.energy_reference;
+        self.divergence.scale = checkpoint.energy_scale;
         Ok(())
     }
 }

@@ -42,7 +42,7 @@ pub(crate) struct LaggedSystem {
     factor: NumericFactor,
     values: Vec<f64>,
     /// The right-hand side and solution, 3 n_free x 1, interleaved x, y, z.
-    pub rhs: Mat<f64>,
+    rhs: Mat<f64>,
 }
 
 impl LaggedSystem {
@@ -223,9 +223,25 @@ impl LaggedSystem {
         self.symbolic.pattern().to_symmetric(&self.values)
     }
 
-    /// Solves in place with the current factorisation.
-    pub fn solve(&mut self) {
+    /// Solves `A u = rhs` (one point per free vertex) with the current
+    /// factorisation; [`LaggedSystem::solution`] reads `u`.
+    pub fn solve(&mut self, rhs: &[Point]) {
+        for (f, p) in rhs.iter().enumerate() {
+            for k in 0..3 {
+                self.rhs[(3 * f + k, 0)] = p[k];
+            }
+        }
         self.symbolic
             .solve_in_place(&self.factor, self.rhs.as_mut());
+    }
+
+    /// Free vertex `f`'s entry of the last solution.
+    #[inline]
+    pub fn solution(&self, f: usize) -> Point {
+        Point::new(
+            self.rhs[(3 * f, 0)],
+            self.rhs[(3 * f + 1, 0)],
+            self.rhs[(3 * f + 2, 0)],
+        )
     }
 }

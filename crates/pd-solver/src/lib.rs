@@ -32,17 +32,25 @@
 //! assert!((sim.linear_momentum() - Point::new(0.0, 0.5, 0.0)).norm() < 1e-12);
 //! ```
 
+mod checkpoint;
 mod cholesky;
+mod components;
+mod energy;
 mod global;
 mod lagged;
 mod local;
 mod model;
+mod phases;
 mod settings;
 mod simulation;
+mod step;
+mod system;
 
+pub use checkpoint::Checkpoint;
 pub use model::{Body, BodyId, Model};
 pub use settings::Settings;
-pub use simulation::{Checkpoint, Energies, SetupStats, Simulation, State, StepStats};
+pub use simulation::{Energies, SetupStats, Simulation, State, StepStats};
+pub use step::{IterationChange, LocalGlobal, PositionSolver, StepProblem};
 
 /// Everything that can go wrong building or stepping a simulation.
 #[derive(Debug, thiserror::Error)]

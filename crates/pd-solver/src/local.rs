@@ -3,7 +3,7 @@
 
 use std::ops::Range;
 
-use pd_constraints::{ConstraintBlock, assembly};
+use pd_constraints::{ConstraintBlock, EnergyBound, assembly};
 use pd_mesh::Point;
 use rayon::prelude::*;
 
@@ -46,6 +46,57 @@ impl LocalStep {
                 .enumerate()
                 .for_each(|(chunk, out)| block.project_range(q, chunk * CHUNK, out));
         }
+    }
+
+    /// Number of parallel tasks of a pass over every constraint: the length
+    /// of the buffer [`LocalStep::energy_bound`] needs.
+    pub fn num_chunks(&self) -> usize {
+        self.blocks.iter().map(|b| b.len().div_ceil(CHUNK)).sum()
+    }
+
+    /// An upper bound of the constraint energy at `q` (J) from the last
+    /// local step's `projections` (no projection is computed; see
+    /// [`ConstraintBlock::energy_bound_range`]), and where its largest term
+    /// is: `(bound, block index, constraint index, term)`. `partials` (one
+    /// entry per [`LocalStep::num_chunks`]) is scratch; chunks are fixed and
+    /// summed in order, so the result does not depend on the thread count.
+    pub fn energy_bound(
+        &self,
+        q: &[Point],
+        projections: &[Point],
+        partials: &mut [EnergyBound],
+    ) -> (EnergyBound, usize) {
+        let mut first_chunk = 0;
+        for (block, &offset) in self.blocks.iter().zip(&self.offsets) {
+            let rows = block.rows_per_constraint();
+            let chunks = block.len().div_ceil(CHUNK);
+            let mine = &projections[offset..offset + block.len() * rows];
+            partials[first_chunk..first_chunk + chunks]
+                .par_iter_mut()
+                .zip(mine.par_chunks(CHUNK * rows))
+                .enumerate()
+                .for_each(|(chunk, (out, p))| {
+                    *out = block.energy_bound_range(q, chunk * CHUNK, p);
+                });
+            first_chunk += chunks;
+        }
+        let mut total = EnergyBound::default();
+        let mut worst_block = 0;
+        let mut first_chunk = 0;
+        for (index, block) in self.blocks.iter().enumerate() {
+            let chunks = block.len().div_ceil(CHUNK);
+            let mut bound = EnergyBound::default();
+            for partial in &partials[first_chunk..first_chunk + chunks] {
+                bound.merge(partial);
+            }
+            // The rule of `EnergyBound::merge`: a larger or NaN term wins.
+            if !(bound.worst_energy <= total.worst_energy) {
+                worst_block = index;
+            }
+            total.merge(&bound);
+            first_chunk += chunks;
+        }
+        (total, worst_block)
     }
 
     /// Total constraint energy at `q` (J). Partial sums over fixed chunks are

@@ -3,7 +3,7 @@
 
 use std::ops::Range;
 
-use pd_constraints::{Attachment, ConstraintBlock, ConstraintSet, Spring, TetStrain};
+use pd_constraints::{Attachment, Constraint, ConstraintBlock, ConstraintSet, Spring, TetStrain};
 use pd_mesh::{Mesh, Point};
 
 use crate::SolverError;
@@ -46,7 +46,7 @@ impl Body {
 /// assert_eq!(model.num_vertices(), 24);
 /// assert_eq!(model.num_constraints(), 30);
 /// ```
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Default)]
 pub struct Model {
     rest_positions: Vec<Point>,
     masses: Vec<f64>,
@@ -55,6 +55,23 @@ pub struct Model {
     tet_strain: Vec<TetStrain>,
     springs: Vec<Spring>,
     attachments: Vec<Attachment>,
+    /// Blocks of kinds defined elsewhere ([`Model::add_constraints`]).
+    other: Vec<Box<dyn ConstraintBlock>>,
+}
+
+impl Clone for Model {
+    fn clone(&self) -> Self {
+        Self {
+            rest_positions: self.rest_positions.clone(),
+            masses: self.masses.clone(),
+            fixed: self.fixed.clone(),
+            bodies: self.bodies.clone(),
+            tet_strain: self.tet_strain.clone(),
+            springs: self.springs.clone(),
+            attachments: self.attachments.clone(),
+            other: self.other.iter().map(|b| b.boxed_clone()).collect(),
+        }
+    }
 }
 
 impl Model {
@@ -161,6 +178,51 @@ impl Model {
         Self::append(body, new, &mut self.springs)
     }
 
+    /// Adds constraints of any kind, including one defined outside this
+    /// workspace (a type implementing [`Constraint`]), stored contiguously
+    /// as one block. Their stencils are global vertex indices (a body's
+    /// vertex `v` is `model.bodies()[b].offset + v`). A kind whose
+    /// constraints are not translation invariant acts as an anchor (like
+    /// attachments). Returns how many were added.
+    ///
+    /// # Errors
+    /// A vertex out of range, naming the constraint.
+    ///
+    /// ```
+    /// use pd_constraints::Spring;
+    /// use pd_mesh::generators;
+    /// use pd_solver::Model;
+    ///
+    /// let chain = generators::chain(3, 1.0).unwrap();
+    /// let mut model = Model::new();
+    /// model.add_body(chain, vec![0.1; 3]).unwrap();
+    /// // One extra spring from the first to the last vertex.
+    /// let spring = Spring::new(model.rest_positions(), [0, 2], 10.0).unwrap();
+    /// assert_eq!(model.add_constraints(vec![spring]).unwrap(), 1);
+    /// assert_eq!(model.num_constraints(), 1);
+    /// ```
+    pub fn add_constraints<C: Constraint>(
+        &mut self,
+        constraints: Vec<C>,
+    ) -> Result<usize, SolverError> {
+        let n = self.num_vertices();
+        for (i, c) in constraints.iter().enumerate() {
+            if let Some(&v) = c.vertices().iter().find(|&&v| v >= n) {
+                return Err(SolverError::InvalidModel {
+                    reason: format!(
+                        "{} constraint {i}: vertex {v} is out of range: the model has {n} vertices",
+                        C::KIND
+                    ),
+                });
+            }
+        }
+        let count = constraints.len();
+        if count > 0 {
+            self.other.push(Box::new(ConstraintSet::new(constraints)));
+        }
+        Ok(count)
+    }
+
     /// Appends freshly built constraints of one body, or names the body in
     /// the error; returns how many were added.
     fn append<C>(
@@ -221,7 +283,10 @@ impl Model {
 
     /// Total number of constraints of every kind.
     pub fn num_constraints(&self) -> usize {
-        self.tet_strain.len() + self.springs.len() + self.attachments.len()
+        self.tet_strain.len()
+            + self.springs.len()
+            + self.attachments.len()
+            + self.other.iter().map(|b| b.len()).sum::<usize>()
     }
 
     /// Rest positions (m), global numbering.
@@ -257,6 +322,7 @@ impl Model {
         if !self.attachments.is_empty() {
             blocks.push(Box::new(ConstraintSet::new(self.attachments.clone())));
         }
+        blocks.extend(self.other.iter().map(|b| b.boxed_clone()));
         blocks
     }
 

@@ -19,7 +19,7 @@ impl Simulation {
         let (local, positions, projections) = (
             &self.local,
             &self.state.positions,
-            &mut self.scratch.projections,
+            &mut self.scratch.iteration.projections,
         );
         match &self.pool {
             Some(pool) => pool.install(|| run(local, positions, projections)),
@@ -36,38 +36,22 @@ impl Simulation {
     /// # Errors
     /// A failed factorisation, if the factor was not cached yet.
     pub fn profile_global_solve(&mut self) -> Result<(), SolverError> {
-        let index = match self.lagged {
-            Some(_) => None,
-            None => Some(self.global.prepare_factor(self.matrix_coefficients().0)?.0),
-        };
+        // A lagged system keeps the factor of the last step (or of the
+        // build); a constant one takes the cached factor of the coming step.
+        if !self.damping.implicit_matrix().is_lagged() {
+            self.prepare_matrix()?;
+        }
         let pool = self.pool.take();
         let mut run = || {
-            use rayon::prelude::*;
-            let s = &mut self.scratch;
-            let (projections, rows) = (&s.projections, &self.global.projection_rows);
-            s.rhs_points
-                .par_iter_mut()
-                .enumerate()
-                .for_each(|(f, out)| *out = rows.row_dot(f, projections));
-            match (&mut self.lagged, index) {
-                (Some(lagged), _) => {
-                    for (f, p) in s.rhs_points.iter().enumerate() {
-                        for k in 0..3 {
-                            lagged.rhs[(3 * f + k, 0)] = p[k];
-                        }
-                    }
-                    lagged.solve();
-                }
-                (None, Some(index)) => {
-                    for (f, p) in s.rhs_points.iter().enumerate() {
-                        for k in 0..3 {
-                            s.rhs[(f, k)] = p[k];
-                        }
-                    }
-                    self.global.solve(index, s.rhs.as_mut());
-                }
-                (None, None) => unreachable!("a constant model has a cached factor"),
-            }
+            let b = &mut self.scratch.iteration;
+            // The constant part is left out: B p alone, as it was measured
+            // before the step was split into phases.
+            b.constant_rhs
+                .iter_mut()
+                .for_each(|p| *p = pd_mesh::Point::zeros());
+            self.global
+                .rhs_with_projections(&b.constant_rhs, &b.projections, 1.0, &mut b.rhs);
+            self.global.solve(&b.rhs);
         };
         match &pool {
             Some(pool) => pool.install(run),
@@ -86,16 +70,11 @@ impl Simulation {
     /// # Errors
     /// A matrix that is not positive definite.
     pub fn profile_factorise(&mut self) -> Result<(), SolverError> {
-        let (coefficients, stiffness) = self.matrix_coefficients();
+        let coefficients = self.system_coefficients();
         let pool = self.pool.take();
-        let mut run = || match &mut self.lagged {
-            Some(lagged) => lagged.refactorise(
-                self.local.blocks(),
-                &self.state.positions,
-                coefficients,
-                stiffness,
-            ),
-            None => self.global.refactorise_cached(coefficients),
+        let mut run = || {
+            self.global
+                .refactorise(coefficients, self.local.blocks(), &self.state.positions)
         };
         let result = match &pool {
             Some(pool) => pool.install(run),

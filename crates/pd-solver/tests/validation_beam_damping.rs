@@ -293,13 +293,28 @@ fn slow_root_matches_dense_eigenvalues() {
 /// about 15 s: "> run" in the table's 3 s run.
 ///
 /// Laplacian: the first-order `zeta_L = a2 r omega/2` is about 2, so the
-/// mode is overdamped and the perturbation formula no longer applies; its
-/// slow real root `lambda` of the quadratic eigenproblem sets the decay,
-/// energy like `exp(2 lambda t)`, `tau = 1/|lambda|`. The table measured
-/// 0.57 s from a large deflection (tip 0.3 m, 30% of the length, every mode
-/// present); the test asserts the linear prediction is within 25% of it
-/// (large-amplitude geometry changes `K` and the mode by that order) and
-/// prints the numbers.
+/// mode is overdamped and the perturbation formula no longer applies; the
+/// slow real root `lambda` of the quadratic eigenproblem that
+/// [`slow_root`] finds from the bending mode sets its decay, energy like
+/// `exp(2 lambda t)`, `tau = 1/|lambda|` = 0.592 s.
+///
+/// What is asserted about the Laplacian run is a regression pin, not a
+/// derived expectation: `lambda` = -1.687947 /s, the value this
+/// deterministic eigen computation gives (its method is checked against
+/// dense eigenvalues by [`slow_root_matches_dense_eigenvalues`]; 1e-6
+/// relative is far above its 1e-13 convergence and far below any change
+/// of the mesh or the model). It is the root continued from the undamped
+/// bending mode, and it need not be the slowest damped mode: on a coarser
+/// mesh it is not ([`overdamped_beam_decays_at_the_slowest_eigenvalue`]),
+/// and on this one a small-amplitude run (1e-2 to 1e-4 of the
+/// M-normalised mode: the same rates to six digits; independent of `dt`)
+/// decays at 1.6465 /s at 1 s and still drifts down, 1.6318 /s at 4 s, so
+/// the slowest mode decays at about that rate or slower (`tau` of 0.61 s
+/// or more), not at the continued root's 1.688 /s. The
+/// dense eigenproblem that would pin it (3000 x 3000) is too slow for a
+/// test. The table's 0.57 s is printed but not asserted: it was measured
+/// from a large deflection (tip 0.3 m, 30% of the length, every mode
+/// present), where no linear theory predicts the decay.
 #[test]
 fn damping_table_decay_times_explained() {
     let lin = Linearised::of(&beam([1.0, 0.2, 0.2], [20, 4, 4]));
@@ -319,6 +334,102 @@ fn damping_table_decay_times_explained() {
     );
     let omega_eb = 1.875_104_068_711_961f64.powi(2) * (1.0e6_f64 * 0.04 / (12.0 * 1000.0)).sqrt();
     check_ratio_against_euler_bernoulli(r, 5.0, omega, omega_eb);
-    assert!((tau_l / 0.57 - 1.0).abs() < 0.25, "{tau_l}");
+    let pinned = -1.687_947;
+    assert!(
+        (lambda / pinned - 1.0).abs() < 1e-6,
+        "slow root {lambda} /s moved from the pinned {pinned} /s"
+    );
     assert!(tau_r > 3.0);
+}
+
+/// The slowest real eigenvalue and the next slowest decay rate (both
+/// 1/s, as `(lambda_1, |re lambda_2|)`) of `M q'' + a2 L_d q' + K q = 0`,
+/// from the dense companion matrix (small meshes only).
+fn slowest_decays(lin: &Linearised, a2: f64) -> (f64, f64) {
+    let n = lin.dofs();
+    let mut companion = DMatrix::<f64>::zeros(2 * n, 2 * n);
+    for i in 0..n {
+        companion[(i, n + i)] = 1.0;
+        for &(c, v) in &lin.stiffness.0[i] {
+            companion[(n + i, c)] = -v / lin.mass[i];
+        }
+        for &(c, v) in &lin.laplacian.0[i] {
+            companion[(n + i, n + c)] = -a2 * v / lin.mass[i];
+        }
+    }
+    let mut eigenvalues: Vec<Complex<f64>> =
+        companion.complex_eigenvalues().iter().copied().collect();
+    eigenvalues.sort_by(|a, b| b.re.total_cmp(&a.re));
+    let slowest = eigenvalues[0];
+    assert!(
+        slowest.im.abs() < 1e-9,
+        "the slowest mode oscillates: {slowest}"
+    );
+    (slowest.re, -eigenvalues[1].re)
+}
+
+/// Laplacian damping strong enough to overdamp the first bending mode
+/// (`a2 = 0.003 s`, the damping table's) on a 1 x 0.2 x 0.2 m beam of
+/// 10 x 2 x 2 cells: the simulated decay at small amplitude is the slowest
+/// eigenvalue of the quadratic eigenproblem, which is not the root
+/// [`slow_root`] continues from the undamped bending mode (here -2.81 /s
+/// against the slowest -2.22 /s: the heavy damping reorders the modes).
+///
+/// The modal coordinate `q_n` of a run from the bending mode at rest is a
+/// sum of damped modes; implicit midpoint maps each continuous `lambda` to
+/// the per-step factor `mu = (1 + h lambda/2)/(1 - h lambda/2)` exactly,
+/// so `lambda = (2/h)(mu - 1)/(mu + 1)` from `mu = q_n / q_{n-1}` carries no
+/// time-step error. Its error is the next slowest mode's share, decaying
+/// relative to the slowest as `rho = exp(-g t)` with the known gap `g`;
+/// one Aitken-style step with that `rho` removes it. What is left are the
+/// faster modes' shares, which shrink per 0.5 s window by at least
+/// `exp(-0.5 (3.16 - 2.22)) = 0.63` (the third decay rate, 3.16 /s, from the
+/// same eigenvalues), so the corrected estimate's remaining error is at
+/// most `0.63/(1 - 0.63) = 1.7` times its change over the last window:
+/// the test allows 4 times that change plus 1e-4 relative (the amplitude's
+/// geometric nonlinearity, 1e-3 of an M-normalised mode, and the 1e-7
+/// solve tolerance; the rate did not change in its sixth digit between
+/// amplitudes 1e-2 and 1e-4). Measured: 2.9e-4 relative against a
+/// tolerance of 9.7e-4.
+#[test]
+fn overdamped_beam_decays_at_the_slowest_eigenvalue() {
+    let cells = [10, 2, 2];
+    let lin = Linearised::of(&beam([1.0, 0.2, 0.2], cells));
+    let (_, phi) = bending_mode(&lin);
+    let a2 = 0.003;
+    let (slowest, next) = slowest_decays(&lin, a2);
+    let continued = slow_root(&lin, a2, &phi).expect("overdamped");
+    let dt = 0.01;
+    let window = 50;
+    let run = vibrate(
+        beam([1.0, 0.2, 0.2], cells),
+        &lin,
+        Box::new(LaplacianDamping::new(a2, 0.0, false).unwrap()),
+        &phi,
+        1e-3,
+        dt,
+        8 * window,
+        1e-7,
+    );
+    let rate_at = |n: usize| {
+        let mu = run.q[n] / run.q[n - 1];
+        -(2.0 / dt) * (mu - 1.0) / (mu + 1.0)
+    };
+    let rates: Vec<f64> = (1..=8).map(|w| rate_at(w * window)).collect();
+    let rho = (-(next + slowest) * window as f64 * dt).exp();
+    let corrected = |w: usize| rates[w] - (rates[w - 1] - rates[w]) * rho / (1.0 - rho);
+    let (last, before) = (corrected(7), corrected(6));
+    eprintln!(
+        "slowest eigenvalue {slowest:.6} /s (next {next:.4} /s), root continued from the bending \
+         mode {continued:.6} /s; simulated rate every 0.5 s {rates:.6?}, corrected {before:.6}, {last:.6}"
+    );
+    let tolerance = 1e-4 + 4.0 * (last - before).abs() / last;
+    assert!(
+        (last / slowest.abs() - 1.0).abs() < tolerance,
+        "simulated {last} /s vs the slowest eigenvalue {slowest} /s (tolerance {tolerance:e})"
+    );
+    assert!(
+        (last / continued.abs() - 1.0).abs() > 0.1,
+        "the continued root {continued} is the slowest after all"
+    );
 }

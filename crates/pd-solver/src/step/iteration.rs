@@ -1,0 +1,223 @@
+//! The iteration seam: how the positions of one step are found.
+//!
+//! Everything around it (the integrator's targets, the damping model's
+//! contribution, the constant part of the right-hand side before; the
+//! velocity update, the damping filters and the divergence check after) is
+//! the same for every method. A [`PositionSolver`] receives a
+//! [`StepProblem`], which starts at the inertial target and offers the
+//! building blocks: one local-global iteration (local step, right-hand side,
+//! prefactored solve), the step objective (the merit function every method
+//! lowers), and the convergence test of [`crate::Settings::tolerance`].
+//! Today's method is [`LocalGlobal`]; accelerated and converged methods plug
+//! in beside it through [`crate::Simulation::set_position_solver`].
+
+use std::time::Instant;
+
+use pd_damping::DampingMatrix;
+use pd_integrators::{StepCoefficients, StepTargets};
+use pd_mesh::Point;
+use rayon::prelude::*;
+
+use crate::local::LocalStep;
+use crate::system::GlobalStep;
+use crate::{Settings, SolverError, StepStats};
+
+/// How the positions of a step are found: a minimiser of the step objective
+/// `g(x)` (DESIGN.md 3.1-3.2) given as a [`StepProblem`].
+///
+/// ```
+/// use pd_solver::{LocalGlobal, PositionSolver};
+/// assert_eq!(LocalGlobal.name(), "local-global");
+/// ```
+pub trait PositionSolver: std::fmt::Debug + Send + Sync {
+    /// Name as scenes spell it (`local-global`).
+    fn name(&self) -> &'static str;
+
+    /// Moves `step`'s displacement towards the minimiser of the step
+    /// objective, within the iteration budget of [`StepProblem::iterations`].
+    ///
+    /// # Errors
+    /// A method that fails outright (the step then stops with the error).
+    fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError>;
+}
+
+/// Plain Projective Dynamics: local step, then global solve, `iterations`
+/// times, stopping early once [`StepProblem::converged`] says so. Each local
+/// step and each global step lowers the step objective (docs/solver.md).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LocalGlobal;
+
+impl PositionSolver for LocalGlobal {
+    fn name(&self) -> &'static str {
+        "local-global"
+    }
+
+    fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {
+        step.record_objective();
+        for _ in 0..step.iterations() {
+            let change = step.local_global_iteration();
+            step.record_objective();
+            if step.converged(change) {
+                break;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// How much one iteration moved the displacement, in the mass norm:
+/// `|dx_new - dx_old|_M^2` and `|dx_new|_M^2` (kg m^2). Both are 0 unless
+/// a tolerance is set (they are not computed otherwise).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct IterationChange {
+    /// `|dx_new - dx_old|_M^2` in kg m^2.
+    pub change_squared: f64,
+    /// `|dx_new|_M^2` in kg m^2.
+    pub displacement_squared: f64,
+}
+
+/// Scratch of the iterations, sized once.
+#[derive(Debug)]
+pub(crate) struct IterationBuffers {
+    /// The step's displacement `x - x_n` (zero at fixed vertices): the
+    /// unknown.
+    pub displacement: Vec<Point>,
+    /// Where the constraints are projected: `x_n + c2 dx`.
+    pub q: Vec<Point>,
+    /// The stacked projections.
+    pub projections: Vec<Point>,
+    /// The right-hand side's constant part, one point per free vertex.
+    pub constant_rhs: Vec<Point>,
+    /// The full right-hand side, one point per free vertex.
+    pub rhs: Vec<Point>,
+    /// Three per-vertex scratch vectors (the objective's `x - x_hat` of the
+    /// mass and `L_d` terms and `K (x - x_hat)`).
+    pub scratch: [Vec<Point>; 3],
+}
+
+impl IterationBuffers {
+    pub fn new(vertices: usize, free: usize, projection_rows: usize) -> Self {
+        Self {
+            displacement: vec![Point::zeros(); vertices],
+            q: vec![Point::zeros(); vertices],
+            projections: vec![Point::zeros(); projection_rows],
+            constant_rhs: vec![Point::zeros(); free],
+            rhs: vec![Point::zeros(); free],
+            scratch: std::array::from_fn(|_| vec![Point::zeros(); vertices]),
+        }
+    }
+}
+
+/// One step's minimisation problem, as a [`PositionSolver`] sees it: the
+/// current displacement `dx = x - x_n` (starting at the inertial target) and
+/// the operations on it. Built by the step; allocates nothing.
+#[derive(Debug)]
+pub struct StepProblem<'a> {
+    pub(crate) local: &'a LocalStep,
+    pub(crate) global: &'a mut GlobalStep,
+    pub(crate) positions: &'a [Point],
+    pub(crate) masses: &'a [f64],
+    pub(crate) targets: &'a StepTargets,
+    pub(crate) laplacian_anchor: &'a [Point],
+    pub(crate) coefficients: StepCoefficients,
+    pub(crate) damping: DampingMatrix,
+    pub(crate) h: f64,
+    pub(crate) settings: &'a Settings,
+    pub(crate) buffers: &'a mut IterationBuffers,
+    pub(crate) stats: &'a mut StepStats,
+    pub(crate) trace: Option<&'a mut Vec<f64>>,
+}
+
+impl StepProblem<'_> {
+    /// The iteration budget (`Settings::iterations`).
+    pub fn iterations(&self) -> usize {
+        self.settings.iterations
+    }
+
+    /// The relative stopping tolerance (`Settings::tolerance`; 0 = none).
+    pub fn tolerance(&self) -> f64 {
+        self.settings.tolerance
+    }
+
+    /// The current displacement `x - x_n` per vertex (m), zero at fixed
+    /// vertices.
+    pub fn displacement(&self) -> &[Point] {
+        &self.buffers.displacement
+    }
+
+    /// One local-global iteration from the current displacement: project
+    /// every constraint at `x_n + c2 dx` (in parallel), build the right-hand
+    /// side, solve with the prefactored matrix, and make the solution the
+    /// new displacement. Counts the iteration and its time in the step's
+    /// statistics.
+    pub fn local_global_iteration(&mut self) -> IterationChange {
+        let t0 = Instant::now();
+        let c2 = self.coefficients.c2;
+        let x_n = self.positions;
+        let b = &mut *self.buffers;
+        let displacement = &b.displacement;
+        b.q.par_iter_mut()
+            .enumerate()
+            .for_each(|(v, q)| *q = x_n[v] + displacement[v] * c2);
+        self.local.project(&b.q, &mut b.projections);
+        let t1 = Instant::now();
+
+        let energy_factor = self.coefficients.c1 * self.coefficients.c2;
+        self.global.rhs_with_projections(
+            &b.constant_rhs,
+            &b.projections,
+            energy_factor,
+            &mut b.rhs,
+        );
+        self.global.solve(&b.rhs);
+        let mut change = IterationChange::default();
+        let measure = self.settings.tolerance > 0.0;
+        for (f, &v) in self.global.free().iter().enumerate() {
+            let new = self.global.solution(f);
+            if measure {
+                let m = self.masses[v];
+                change.change_squared += m * (new - b.displacement[v]).norm_squared();
+                change.displacement_squared += m * new.norm_squared();
+            }
+            b.displacement[v] = new;
+        }
+        self.stats.iterations += 1;
+        self.stats.local_seconds += (t1 - t0).as_secs_f64();
+        self.stats.global_seconds += t1.elapsed().as_secs_f64();
+        change
+    }
+
+    /// Whether the iteration that moved the displacement by `change` met the
+    /// tolerance: `|dx_new - dx_old|_M <= tolerance |dx_new|_M`. Records the
+    /// relative change and the verdict in the step's statistics. Always
+    /// `false` with tolerance 0.
+    pub fn converged(&mut self, change: IterationChange) -> bool {
+        let tolerance = self.settings.tolerance;
+        if tolerance > 0.0 {
+            self.stats.relative_change =
+                (change.change_squared / change.displacement_squared).sqrt();
+            if change.change_squared <= tolerance.powi(2) * change.displacement_squared {
+                self.stats.converged = true;
+            }
+        }
+        self.stats.converged
+    }
+
+    /// The step objective `g(x_n + dx)` at the current displacement, in J
+    /// (the function every method minimises, DESIGN.md 3.1-3.2).
+    /// Costs one energy evaluation (a projection of every constraint).
+    pub fn objective(&mut self) -> f64 {
+        super::objective::step_objective(self)
+    }
+
+    /// Appends the current objective to the simulation's objective trace,
+    /// when recording is on ([`crate::Simulation::record_objective`]).
+    pub fn record_objective(&mut self) {
+        if self.trace.is_some() {
+            let value = self.objective();
+            if let Some(trace) = self.trace.as_mut() {
+                trace.push(value);
+            }
+        }
+    }
+}

@@ -1,0 +1,270 @@
+//! One time step, in named phases (docs/solver.md):
+//!
+//! 1. [`Simulation::prepare_matrix`]: the global matrix of the step (a
+//!    cached factor, or the lagged refactorisation);
+//! 2. [`Simulation::prepare_targets`]: the integrator's targets `y` and
+//!    `x_hat`, then the damping model's contribution
+//!    ([`pd_damping::Damping::begin_step`]), then the constant part of the
+//!    right-hand side;
+//! 3. the iteration ([`PositionSolver`]): how the step's positions are
+//!    found, local-global by default;
+//! 4. [`Simulation::finish_step`]: the integrator's velocity update, the
+//!    damping model's end of step (velocity filters, spin restoration), the
+//!    divergence check, and the new state.
+
+pub(crate) mod divergence;
+pub(crate) mod iteration;
+pub(crate) mod objective;
+
+use std::time::Instant;
+
+use divergence::StepState;
+use pd_constraints::EnergyBound;
+use pd_damping::{DampingContext, DampingReport, DampingTargets, StepContext};
+use pd_integrators::StepTargets;
+use pd_mesh::Point;
+
+use crate::components::Topology;
+use crate::energy::{first_non_finite, zero_fixed};
+use crate::system::{RhsInput, SystemCoefficients};
+use crate::{Simulation, SolverError, StepStats};
+use iteration::IterationBuffers;
+
+pub use iteration::{IterationChange, LocalGlobal, PositionSolver, StepProblem};
+
+/// Scratch buffers sized once, so that a step allocates nothing.
+#[derive(Debug)]
+pub(crate) struct Scratch {
+    pub targets: StepTargets,
+    pub iteration: IterationBuffers,
+    /// The new positions `x_n + displacement`, once the iterations are done.
+    pub iterate: Vec<Point>,
+    /// The new velocities.
+    pub velocities: Vec<Point>,
+    /// The anchor of the `L_d` damping term, `x_hat - x_n` unless the damping
+    /// model moved it (`pd_damping::DampingTargets::laplacian_anchor`).
+    pub laplacian_anchor: Vec<Point>,
+    /// Per-vertex scratch of the damping model and the lagged right-hand side.
+    pub forces: Vec<Point>,
+    /// Per-chunk energy bounds of the divergence check.
+    pub energy_partials: Vec<EnergyBound>,
+}
+
+impl Scratch {
+    pub fn new(vertices: usize, free: usize, projection_rows: usize, chunks: usize) -> Self {
+        Self {
+            energy_partials: vec![EnergyBound::default(); chunks],
+            targets: StepTargets::with_len(vertices),
+            iteration: IterationBuffers::new(vertices, free, projection_rows),
+            iterate: vec![Point::zeros(); vertices],
+            velocities: vec![Point::zeros(); vertices],
+            laplacian_anchor: vec![Point::zeros(); vertices],
+            forces: vec![Point::zeros(); vertices],
+        }
+    }
+}
+
+/// The damping model's view of the step.
+fn step_context<'a>(
+    topology: &'a Topology,
+    (masses, fixed): (&'a [f64], &'a [bool]),
+    h: f64,
+    c: pd_integrators::StepCoefficients,
+    damping_stencil: &'a [f64],
+) -> StepContext<'a> {
+    let base = DampingContext {
+        h,
+        masses,
+        bodies: &topology.bodies,
+        components: &topology.components,
+        fixed,
+    };
+    // An external force f enters y as c1 c2 h^2 M^-1 f (DESIGN.md 3.1).
+    StepContext::new(
+        base,
+        &topology.rigid_bodies,
+        (c.gamma, c.c1 * c.c2 * h * h, c.c2),
+        damping_stencil,
+    )
+}
+
+impl Simulation {
+    /// Advances one time step on the current thread pool.
+    pub(crate) fn step_inner(&mut self) -> Result<StepStats, SolverError> {
+        let start = Instant::now();
+        let factor_seconds = self.prepare_matrix()?;
+        self.prepare_targets();
+        let mut stats = StepStats {
+            relative_change: f64::NAN,
+            factor_seconds,
+            ..StepStats::default()
+        };
+        self.find_positions(&mut stats)?;
+        self.finish_step(&mut stats)?;
+        stats.total_seconds = start.elapsed().as_secs_f64();
+        Ok(stats)
+    }
+
+    /// Phase 1: the global matrix of the coming step. Returns the time spent
+    /// factorising (0 on a cache hit), s.
+    pub(crate) fn prepare_matrix(&mut self) -> Result<f64, SolverError> {
+        let start = Instant::now();
+        let coefficients = self.system_coefficients();
+        let factorised =
+            self.global
+                .prepare(coefficients, self.local.blocks(), &self.state.positions)?;
+        if !factorised {
+            return Ok(0.0);
+        }
+        let seconds = start.elapsed().as_secs_f64();
+        self.setup.factor_seconds += seconds;
+        self.setup.factorisations += 1;
+        Ok(seconds)
+    }
+
+    /// The global matrix's coefficients for the coming step.
+    pub(crate) fn system_coefficients(&self) -> SystemCoefficients {
+        let h = self.settings.dt;
+        SystemCoefficients::of(
+            self.integrator.coefficients(h),
+            self.damping.implicit_matrix(),
+            h,
+        )
+    }
+
+    /// Phase 2: the integrator's targets, the damping model's contribution
+    /// to them, and the constant part of the right-hand side; the
+    /// displacement starts at the inertial target (zero at fixed vertices).
+    fn prepare_targets(&mut self) {
+        let h = self.settings.dt;
+        let c = self.integrator.coefficients(h);
+        let masses = self.model.masses();
+        let fixed = self.model.fixed();
+        let s = &mut self.scratch;
+        let (x_n, v_n) = (&self.state.positions, &self.state.velocities);
+        self.integrator
+            .prepare(h, x_n, v_n, self.settings.gravity, &mut s.targets);
+        s.laplacian_anchor
+            .copy_from_slice(&s.targets.anchor_displacement);
+        let stencil = self.integrator.damping_stencil();
+        let step = step_context(&self.topology, (masses, fixed), h, c, stencil);
+        self.damping.begin_step(
+            &step,
+            x_n,
+            v_n,
+            DampingTargets::new(
+                &mut s.targets.inertial_displacement,
+                &mut s.targets.anchor_displacement,
+                &mut s.laplacian_anchor,
+                &mut s.forces,
+            ),
+        );
+        let input = RhsInput {
+            masses,
+            positions: x_n,
+            inertial_displacement: &s.targets.inertial_displacement,
+            anchor_displacement: &s.targets.anchor_displacement,
+            laplacian_anchor: &s.laplacian_anchor,
+            coefficients: c,
+            damping: self.damping.implicit_matrix(),
+            h,
+        };
+        self.global.constant_rhs(
+            self.local.blocks(),
+            &input,
+            &mut s.iteration.constant_rhs,
+            &mut s.forces,
+        );
+        for ((dx, target), &fixed) in s
+            .iteration
+            .displacement
+            .iter_mut()
+            .zip(&s.targets.inertial_displacement)
+            .zip(fixed)
+        {
+            *dx = if fixed { Point::zeros() } else { *target };
+        }
+    }
+
+    /// Phase 3: the iteration seam.
+    fn find_positions(&mut self, stats: &mut StepStats) -> Result<(), SolverError> {
+        let h = self.settings.dt;
+        if let Some(trace) = &mut self.objective_trace {
+            trace.clear();
+        }
+        let mut problem = StepProblem {
+            local: &self.local,
+            global: &mut self.global,
+            positions: &self.state.positions,
+            masses: self.model.masses(),
+            targets: &self.scratch.targets,
+            laplacian_anchor: &self.scratch.laplacian_anchor,
+            coefficients: self.integrator.coefficients(h),
+            damping: self.damping.implicit_matrix(),
+            h,
+            settings: &self.settings,
+            buffers: &mut self.scratch.iteration,
+            stats,
+            trace: self.objective_trace.as_mut(),
+        };
+        self.position_solver.find_positions(&mut problem)
+    }
+
+    /// Phase 4: new positions and velocities, the damping model's end of
+    /// step, the divergence check; the state changes only if all pass.
+    fn finish_step(&mut self, stats: &mut StepStats) -> Result<(), SolverError> {
+        let h = self.settings.dt;
+        let c = self.integrator.coefficients(h);
+        let masses = self.model.masses();
+        let fixed = self.model.fixed();
+        let s = &mut self.scratch;
+        let (x_n, v_n) = (&self.state.positions, &self.state.velocities);
+        for ((x, x0), dx) in s.iterate.iter_mut().zip(x_n).zip(&s.iteration.displacement) {
+            *x = x0 + dx;
+        }
+        let step = self.steps + 1;
+        // From the step count, so that time does not drift by round-off.
+        let time = step as f64 * h;
+        if let Some(v) = first_non_finite(&s.iterate) {
+            return Err(SolverError::Diverged {
+                step,
+                time,
+                reason: format!("position of vertex {v} is not finite"),
+            });
+        }
+        self.integrator
+            .finish(h, x_n, v_n, &s.iterate, &mut s.velocities);
+        zero_fixed(&mut s.velocities, fixed);
+        let stencil = self.integrator.damping_stencil();
+        let context = step_context(&self.topology, (masses, fixed), h, c, stencil);
+        // The integrator sees what the damping model changed (a velocity
+        // filter, the variant's spin restoration), so that a multistep
+        // history follows it (docs/integrators.md).
+        let damping = &mut self.damping;
+        let iterate = &s.iterate;
+        let mut report = DampingReport::default();
+        self.integrator
+            .filter_velocities(h, &mut s.velocities, &mut |velocities| {
+                report = damping.end_step(&context, iterate, velocities);
+                zero_fixed(velocities, fixed);
+            });
+        stats.spin_axes_left = report.spin_axes_left;
+        let elastic =
+            self.local
+                .energy_bound(&s.iterate, &s.iteration.projections, &mut s.energy_partials);
+        let new_state = StepState {
+            masses,
+            positions: &s.iterate,
+            velocities: &s.velocities,
+            gravity: self.settings.gravity,
+        };
+        self.divergence
+            .check(step, time, new_state, elastic, &self.local)?;
+
+        std::mem::swap(&mut self.state.positions, &mut s.iterate);
+        std::mem::swap(&mut self.state.velocities, &mut s.velocities);
+        self.steps = step;
+        self.time = time;
+        Ok(())
+    }
+}

@@ -1,0 +1,49 @@
+//! The step objective (DESIGN.md 3.1-3.2), the merit function of a step:
+//!
+//! `g(x) = 1/(2h^2) |x - y|_M^2 + c1 E(x_n + c2 dx)
+//!   + 1/2 c1 c2 gamma (x - x_hat)^T D (x - x_hat)`, `dx = x - x_n`,
+//!
+//! with `D = a1 M + a2 L_d + a3 K(x_n)` (the `L_d` term measured from its
+//! own anchor, which a damping model may move). Fixed vertices sit at `x_n`,
+//! where `x - x_hat` vanishes, so `L_d`'s rows of the free vertices suffice;
+//! their inertia term is a constant of the step.
+
+use super::iteration::StepProblem;
+
+/// `g(x_n + dx)` in J for the problem's current displacement.
+pub(crate) fn step_objective(problem: &mut StepProblem<'_>) -> f64 {
+    let c = problem.coefficients;
+    let d = problem.damping;
+    let h = problem.h;
+    let x_n = problem.positions;
+    let targets = problem.targets;
+    let masses = problem.masses;
+    let b = &mut *problem.buffers;
+    let dx = &b.displacement;
+    let [offset, laplacian_offset, product] = &mut b.scratch;
+    let laplacian_anchor = problem.laplacian_anchor;
+    let mut inertia = 0.0;
+    let mut mass_form = 0.0;
+    for v in 0..x_n.len() {
+        b.q[v] = x_n[v] + dx[v] * c.c2;
+        offset[v] = dx[v] - targets.anchor_displacement[v];
+        laplacian_offset[v] = dx[v] - laplacian_anchor[v];
+        inertia += masses[v] * (dx[v] - targets.inertial_displacement[v]).norm_squared();
+        mass_form += masses[v] * offset[v].norm_squared();
+    }
+    let laplacian_form = if d.damping_laplacian != 0.0 {
+        problem.global.damping_laplacian_form(laplacian_offset)
+    } else {
+        0.0
+    };
+    let blocks = problem.local.blocks();
+    let lagged_form = problem
+        .global
+        .lagged_stiffness_form(blocks, offset, product);
+    let damping_form = d.mass * mass_form
+        + d.damping_laplacian * laplacian_form
+        + d.lagged_stiffness * lagged_form;
+    inertia / (2.0 * h * h)
+        + c.c1 * problem.local.energy(&b.q)
+        + 0.5 * c.c1 * c.c2 * c.gamma * damping_form
+}

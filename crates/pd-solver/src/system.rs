@@ -1,0 +1,313 @@
+//! The global step behind one interface: the constant operators over the
+//! free vertices ([`GlobalSystem`]) and the matrix of the coming step, either
+//! a cached factor of the constant `A = alpha M + beta L_sys + delta L_d`
+//! or the lagged 3n x 3n system that adds `K(x_n)` (DESIGN.md 3.2-3.3).
+//! Which of the two a simulation has is decided once, from the damping
+//! model's [`DampingMatrix`]; callers never see the difference. The system
+//! owns its right-hand side: callers hand it one point per free vertex and
+//! read the solution back, per free vertex.
+
+use faer::Mat;
+use pd_constraints::{ConstraintBlock, CsrMatrix};
+use pd_damping::DampingMatrix;
+use pd_integrators::StepCoefficients;
+use pd_mesh::Point;
+use rayon::prelude::*;
+
+use crate::SolverError;
+use crate::global::{GlobalSystem, MatrixCoefficients};
+use crate::lagged::LaggedSystem;
+use crate::local::LocalStep;
+
+/// The matrix of the coming step and its factorisation.
+#[derive(Debug)]
+enum StepMatrix {
+    /// A constant model: the index of the cached factor of this step's
+    /// coefficients, and the n_free x 3 right-hand side and solution.
+    Constant { factor: usize, rhs: Mat<f64> },
+    /// A lagged model: refactorised every step.
+    Lagged(LaggedSystem),
+}
+
+/// The coefficients of one step's global matrix: `A = mass M + system L_sys
+/// + damping L_d + lagged_stiffness K(x_n)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct SystemCoefficients {
+    pub matrix: MatrixCoefficients,
+    pub lagged_stiffness: f64,
+}
+
+impl SystemCoefficients {
+    /// The matrix of a step with integrator coefficients `c`, damping
+    /// matrix `d` and time step `h` (s), DESIGN.md 3.2.
+    pub fn of(c: StepCoefficients, d: DampingMatrix, h: f64) -> Self {
+        let damping_factor = c.c1 * c.c2 * c.gamma;
+        Self {
+            matrix: MatrixCoefficients {
+                mass: 1.0 / (h * h) + damping_factor * d.mass,
+                system: c.c1 * c.c2 * c.c2,
+                damping: damping_factor * d.damping_laplacian,
+            },
+            lagged_stiffness: damping_factor * d.lagged_stiffness,
+        }
+    }
+}
+
+/// What the constant part of the right-hand side is built from
+/// ([`GlobalStep::constant_rhs`]); every vector has one entry per vertex.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct RhsInput<'a> {
+    pub masses: &'a [f64],
+    /// `x_n` in m.
+    pub positions: &'a [Point],
+    /// `y - x_n` in m.
+    pub inertial_displacement: &'a [Point],
+    /// `x_hat - x_n` in m, the anchor of the mass and lagged terms.
+    pub anchor_displacement: &'a [Point],
+    /// The anchor of the `L_d` term, m.
+    pub laplacian_anchor: &'a [Point],
+    pub coefficients: StepCoefficients,
+    pub damping: DampingMatrix,
+    /// `h` in s.
+    pub h: f64,
+}
+
+/// The global step: operators, the step's matrix, its factor and its
+/// right-hand side.
+#[derive(Debug)]
+pub(crate) struct GlobalStep {
+    system: GlobalSystem,
+    matrix: StepMatrix,
+}
+
+impl GlobalStep {
+    /// Assembles the operators, analyses the pattern and, for a lagged
+    /// damping model (`lagged`), the 3n system. Nothing is factorised yet:
+    /// [`GlobalStep::prepare`] does that.
+    pub fn new(
+        local: &LocalStep,
+        masses: &[f64],
+        fixed: &[bool],
+        rest: &[Point],
+        lagged: bool,
+    ) -> Result<Self, SolverError> {
+        let system = GlobalSystem::new(local, masses, fixed, rest)?;
+        let matrix = if lagged {
+            StepMatrix::Lagged(LaggedSystem::new(&system, local.blocks())?)
+        } else {
+            StepMatrix::Constant {
+                factor: usize::MAX,
+                rhs: Mat::zeros(system.free.len(), 3),
+            }
+        };
+        Ok(Self { system, matrix })
+    }
+
+    /// Global index of each free vertex.
+    pub fn free(&self) -> &[usize] {
+        &self.system.free
+    }
+
+    /// Number of stored values of one Cholesky factor of the scalar system.
+    pub fn factor_len(&self) -> usize {
+        self.system.factor_len()
+    }
+
+    /// Makes the matrix of the coming step ready: the cached factor of a
+    /// constant matrix (factorising only on a cache miss), or a fresh
+    /// numeric factorisation of the lagged system with `K` at `positions`.
+    /// Returns whether it factorised.
+    pub fn prepare(
+        &mut self,
+        coefficients: SystemCoefficients,
+        blocks: &[Box<dyn ConstraintBlock>],
+        positions: &[Point],
+    ) -> Result<bool, SolverError> {
+        match &mut self.matrix {
+            StepMatrix::Constant { factor, .. } => {
+                let (index, factorised) = self.system.prepare_factor(coefficients.matrix)?;
+                *factor = index;
+                Ok(factorised)
+            }
+            StepMatrix::Lagged(lagged) => {
+                lagged.refactorise(
+                    blocks,
+                    positions,
+                    coefficients.matrix,
+                    coefficients.lagged_stiffness,
+                )?;
+                Ok(true)
+            }
+        }
+    }
+
+    /// Recomputes the numeric factorisation of the coming step's matrix into
+    /// its existing buffer (for timing it alone): bit for bit the same
+    /// factor for a constant model, the per-step refactorisation for a
+    /// lagged one.
+    pub fn refactorise(
+        &mut self,
+        coefficients: SystemCoefficients,
+        blocks: &[Box<dyn ConstraintBlock>],
+        positions: &[Point],
+    ) -> Result<(), SolverError> {
+        match &mut self.matrix {
+            StepMatrix::Constant { .. } => self.system.refactorise_cached(coefficients.matrix),
+            StepMatrix::Lagged(_) => self.prepare(coefficients, blocks, positions).map(|_| ()),
+        }
+    }
+
+    /// The global matrix for `coefficients` over the free unknowns, full and
+    /// symmetric: n_free x n_free for a constant model, 3 n_free x 3 n_free
+    /// (x, y, z interleaved) for a lagged one, refactorised at `positions`.
+    pub fn matrix(
+        &mut self,
+        coefficients: SystemCoefficients,
+        blocks: &[Box<dyn ConstraintBlock>],
+        positions: &[Point],
+    ) -> Result<CsrMatrix, SolverError> {
+        self.prepare(coefficients, blocks, positions)?;
+        Ok(match &self.matrix {
+            StepMatrix::Constant { .. } => self.system.matrix(coefficients.matrix),
+            StepMatrix::Lagged(lagged) => lagged.matrix(),
+        })
+    }
+
+    /// The part of the right-hand side that stays the same through a step's
+    /// iterations, one point per free vertex, into `out` (docs/solver.md):
+    ///
+    /// `M (y - x_n) / h^2 - c1 c2 L x_n + c1 c2 gamma D (x_hat - x_n)`.
+    ///
+    /// Every term is built from displacements or, for `L x_n = L_d x_n +
+    /// L_anchor x_n`, from the differences `x_j - x_i` across each row of
+    /// the translation-invariant `L_d` (only attachments see absolute
+    /// positions), so round-off scales with how far the body moves in a
+    /// step, not with its distance from the origin. `scratch` (one point per
+    /// vertex) holds the lagged `K (x_hat - x_n)`.
+    pub fn constant_rhs(
+        &self,
+        blocks: &[Box<dyn ConstraintBlock>],
+        input: &RhsInput<'_>,
+        out: &mut [Point],
+        scratch: &mut [Point],
+    ) {
+        let RhsInput {
+            masses,
+            positions: x_n,
+            inertial_displacement: inertial,
+            anchor_displacement: anchor,
+            laplacian_anchor,
+            coefficients: c,
+            damping: d,
+            h,
+        } = *input;
+        let energy_factor = c.c1 * c.c2;
+        let damping_factor = energy_factor * c.gamma;
+        let inv_h2 = 1.0 / (h * h);
+        let system = &self.system;
+        let use_damping_laplacian = d.damping_laplacian != 0.0;
+        out.par_iter_mut().enumerate().for_each(|(f, out)| {
+            let v = system.free[f];
+            let elastic = system.damping_rows.row_dot_relative(f, x_n[v], x_n)
+                + system.anchoring_rows.row_dot(f, x_n);
+            let mut b = inertial[v] * (masses[v] * inv_h2) - elastic * energy_factor;
+            if d.mass != 0.0 {
+                b += anchor[v] * (damping_factor * d.mass * masses[v]);
+            }
+            if use_damping_laplacian {
+                b += system
+                    .damping_rows
+                    .row_dot_relative(f, laplacian_anchor[v], laplacian_anchor)
+                    * (damping_factor * d.damping_laplacian);
+            }
+            *out = b;
+        });
+        if let StepMatrix::Lagged(lagged) = &self.matrix {
+            // + c1 c2 gamma a3 K(x_n) (x_hat - x_n), on every vertex, then
+            // gathered to the free ones.
+            scratch.iter_mut().for_each(|f| *f = Point::zeros());
+            lagged.add_stiffness_product(
+                blocks,
+                anchor,
+                damping_factor * d.lagged_stiffness,
+                scratch,
+            );
+            for (out, &v) in out.iter_mut().zip(&system.free) {
+                *out += scratch[v];
+            }
+        }
+    }
+
+    /// The full right-hand side `constant + energy_factor B p` for the
+    /// stacked projections `p`, one point per free vertex, into `out`
+    /// (row-parallel; each row is computed alone, so the result does not
+    /// depend on the thread count).
+    pub fn rhs_with_projections(
+        &self,
+        constant: &[Point],
+        projections: &[Point],
+        energy_factor: f64,
+        out: &mut [Point],
+    ) {
+        let rows = &self.system.projection_rows;
+        out.par_iter_mut().enumerate().for_each(|(f, out)| {
+            *out = constant[f] + rows.row_dot(f, projections) * energy_factor;
+        });
+    }
+
+    /// Solves the step's system for `rhs` (one point per free vertex);
+    /// [`GlobalStep::solution`] reads the result. Requires a
+    /// [`GlobalStep::prepare`] since the last change of coefficients.
+    pub fn solve(&mut self, rhs: &[Point]) {
+        match &mut self.matrix {
+            StepMatrix::Constant { factor, rhs: mat } => {
+                for (f, p) in rhs.iter().enumerate() {
+                    for k in 0..3 {
+                        mat[(f, k)] = p[k];
+                    }
+                }
+                self.system.solve(*factor, mat.as_mut());
+            }
+            StepMatrix::Lagged(lagged) => lagged.solve(rhs),
+        }
+    }
+
+    /// Free vertex `f`'s entry of the last solution.
+    #[inline]
+    pub fn solution(&self, f: usize) -> Point {
+        match &self.matrix {
+            StepMatrix::Constant { rhs, .. } => Point::new(rhs[(f, 0)], rhs[(f, 1)], rhs[(f, 2)]),
+            StepMatrix::Lagged(lagged) => lagged.solution(f),
+        }
+    }
+
+    /// `w^T L_d w` over the free vertices' rows (J s^2/m^2 scale: the
+    /// Laplacian's units times m^2), with `L_d` applied on differences.
+    /// Fixed vertices contribute nothing when `w` vanishes on them.
+    pub fn damping_laplacian_form(&self, w: &[Point]) -> f64 {
+        let rows = &self.system.damping_rows;
+        self.system
+            .free
+            .iter()
+            .enumerate()
+            .map(|(f, &v)| w[v].dot(&rows.row_dot_relative(f, w[v], w)))
+            .sum()
+    }
+
+    /// `w^T K(x_n) w` with the lagged Hessians of the last refactorisation
+    /// (0 for a constant model); `product` (one point per vertex) is
+    /// scratch.
+    pub fn lagged_stiffness_form(
+        &self,
+        blocks: &[Box<dyn ConstraintBlock>],
+        w: &[Point],
+        product: &mut [Point],
+    ) -> f64 {
+        let StepMatrix::Lagged(lagged) = &self.matrix else {
+            return 0.0;
+        };
+        product.iter_mut().for_each(|p| *p = Point::zeros());
+        lagged.add_stiffness_product(blocks, w, 1.0, product);
+        w.iter().zip(product.iter()).map(|(a, b)| a.dot(b)).sum()
+    }
+}
