@@ -662,6 +662,18 @@ fn run(root: &Path, quick: bool) -> Result<PathBuf, String> {
         for (case, rise) in rises.iter().take(12) {
             writeln!(out, "| {rise:.3e} | {} |", case.cells()).expect("infallible");
         }
+        // The overall list is dominated by one integrator; each one's own
+        // largest rises show where it gains energy (docs/properties.md).
+        for integrator in IntegratorKind::ALL {
+            let own: Vec<_> = rises
+                .iter()
+                .filter(|(case, _)| case.integrator == integrator)
+                .take(4)
+                .collect();
+            for (case, rise) in own {
+                writeln!(out, "| {rise:.3e} | {} |", case.cells()).expect("infallible");
+            }
+        }
     }
 
     let diverged: Vec<(&Case, usize, &str)> = results

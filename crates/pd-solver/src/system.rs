@@ -25,8 +25,9 @@ enum StepMatrix {
     /// A constant model: the index of the cached factor of this step's
     /// coefficients, and the n_free x 3 right-hand side and solution.
     Constant { factor: usize, rhs: Mat<f64> },
-    /// A lagged model: refactorised every step.
-    Lagged(LaggedSystem),
+    /// A lagged model: refactorised every step (boxed: it is large and there
+    /// is one per simulation).
+    Lagged(Box<LaggedSystem>),
 }
 
 /// The coefficients of one step's global matrix: `A = mass M + system L_sys
@@ -93,7 +94,7 @@ impl GlobalStep {
     ) -> Result<Self, SolverError> {
         let system = GlobalSystem::new(local, masses, fixed, rest)?;
         let matrix = if lagged {
-            StepMatrix::Lagged(LaggedSystem::new(&system, local.blocks())?)
+            StepMatrix::Lagged(Box::new(LaggedSystem::new(&system, local.blocks())?))
         } else {
             StepMatrix::Constant {
                 factor: usize::MAX,
