@@ -25,8 +25,11 @@
 //! ```
 //! use pd_damping::registry::{self, DampingSpec, Value};
 //!
-//! // The preset of `pd compare --damping laplacian-rot`, and its model.
-//! let preset = registry::preset("laplacian-rot").expect("a preset");
+//! // A preset of the comparisons (`pd compare --damping NAME`), and its model.
+//! let preset = registry::presets()
+//!     .iter()
+//!     .find(|p| p.description.contains("preserve_rotation"))
+//!     .expect("a preset");
 //! assert_eq!(preset.spec()?.flag("preserve_rotation"), Some(true));
 //! let model = registry::model(preset.model).expect("a model");
 //! assert_eq!(model.parameter("stiffness").map(|p| p.unit), Some("s"));
