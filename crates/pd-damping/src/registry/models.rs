@@ -22,31 +22,25 @@ const ETHER_DRAG: Model = Model {
     summary: "every velocity decays towards zero, as in a viscous medium at rest \
               (rigid motion too)",
     parameters: &[
-        Parameter {
-            name: "factor",
-            unit: "1",
-            kind: Kind::Number,
-            requirement: Requirement::Optional,
-            maximum: Some(1.0),
-            doc: "in [0, 1]: v <- (1 - k) v after each step (give factor or rate)",
-        },
-        Parameter {
-            name: "rate",
-            unit: "1/s",
-            kind: Kind::Number,
-            requirement: Requirement::Optional,
-            maximum: None,
-            doc: ">= 0: v <- exp(-c h) v after each step, or D = c M inside the solve \
+        number(
+            "factor",
+            "1",
+            Requirement::Optional,
+            Some(1.0),
+            "in [0, 1]: v <- (1 - k) v after each step (give factor or rate)",
+        ),
+        number(
+            "rate",
+            "1/s",
+            Requirement::Optional,
+            None,
+            ">= 0: v <- exp(-c h) v after each step, or D = c M inside the solve \
                   with implicit",
-        },
-        Parameter {
-            name: "implicit",
-            unit: "",
-            kind: Kind::Flag,
-            requirement: Requirement::Default(Value::Flag(false)),
-            maximum: None,
-            doc: "only with rate: damp inside the solve (D = c M)",
-        },
+        ),
+        flag(
+            "implicit",
+            "only with rate: damp inside the solve (D = c M)",
+        ),
     ],
     strength: Some("rate"),
     build: build_ether_drag,
@@ -76,27 +70,55 @@ const PBD: Model = Model {
     name: pbd::NAME,
     summary: "position-based-dynamics damping: each component's velocities pulled towards \
               its best rigid motion (Mueller et al. 2007)",
-    parameters: &[Parameter {
-        name: "factor",
-        unit: "1",
-        kind: Kind::Number,
-        requirement: Requirement::Required,
-        maximum: Some(1.0),
-        doc: "in [0, 1]: the fraction of the non-rigid velocity removed per step",
-    }],
+    parameters: &[number(
+        "factor",
+        "1",
+        Requirement::Required,
+        Some(1.0),
+        "in [0, 1]: the fraction of the non-rigid velocity removed per step",
+    )],
     strength: Some("factor"),
     build: |arguments| Ok(Box::new(PbdDamping::new(arguments.required("factor")?)?)),
 };
 
+/// A number parameter: name, SI unit, requirement, largest value, doc.
+const fn number(
+    name: &'static str,
+    unit: &'static str,
+    requirement: Requirement,
+    maximum: Option<f64>,
+    doc: &'static str,
+) -> Parameter {
+    Parameter {
+        name,
+        unit,
+        kind: Kind::Number,
+        requirement,
+        maximum,
+        doc,
+    }
+}
+
+/// A flag parameter, `false` unless given.
+const fn flag(name: &'static str, doc: &'static str) -> Parameter {
+    Parameter {
+        name,
+        unit: "",
+        kind: Kind::Flag,
+        requirement: Requirement::Default(Value::Flag(false)),
+        maximum: None,
+        doc,
+    }
+}
+
 /// `mass` (a1) as lagged Rayleigh and Laplacian damping both declare it.
-const MASS: Parameter = Parameter {
-    name: "mass",
-    unit: "1/s",
-    kind: Kind::Number,
-    requirement: Requirement::Default(Value::Number(0.0)),
-    maximum: None,
-    doc: ">= 0: a1, the a1 M part of D",
-};
+const MASS: Parameter = number(
+    "mass",
+    "1/s",
+    Requirement::Default(Value::Number(0.0)),
+    None,
+    ">= 0: a1, the a1 M part of D",
+);
 
 const RAYLEIGH_LAGGED: Model = Model {
     name: rayleigh_lagged::NAME,
@@ -104,14 +126,13 @@ const RAYLEIGH_LAGGED: Model = Model {
               of each step (refactored every step)",
     parameters: &[
         MASS,
-        Parameter {
-            name: "stiffness",
-            unit: "s",
-            kind: Kind::Number,
-            requirement: Requirement::Required,
-            maximum: None,
-            doc: ">= 0: a2, times the elastic Hessian K(x_n)",
-        },
+        number(
+            "stiffness",
+            "s",
+            Requirement::Required,
+            None,
+            ">= 0: a2, times the elastic Hessian K(x_n)",
+        ),
     ],
     strength: Some("stiffness"),
     build: |arguments| {
@@ -126,23 +147,18 @@ const LAPLACIAN: Model = Model {
     name: laplacian::NAME,
     summary: "the paper's Laplacian damping D = a2 L_d + a1 M, constant, factored once",
     parameters: &[
-        Parameter {
-            name: "stiffness",
-            unit: "s",
-            kind: Kind::Number,
-            requirement: Requirement::Required,
-            maximum: None,
-            doc: ">= 0: a2, times the damping Laplacian L_d",
-        },
+        number(
+            "stiffness",
+            "s",
+            Requirement::Required,
+            None,
+            ">= 0: a2, times the damping Laplacian L_d",
+        ),
         MASS,
-        Parameter {
-            name: "preserve_rotation",
-            unit: "",
-            kind: Kind::Flag,
-            requirement: Requirement::Default(Value::Flag(false)),
-            maximum: None,
-            doc: "give back, per free body, the angular momentum the damping removed",
-        },
+        flag(
+            "preserve_rotation",
+            "give back, per free body, the angular momentum the damping removed",
+        ),
     ],
     strength: Some("stiffness"),
     build: |arguments| {
