@@ -150,16 +150,8 @@ pub fn read_tetgen_surface(node: &Path, face: &Path) -> Result<Mesh> {
             "the number of boundary markers must be 0 or 1, found {num_markers}"
         )));
     }
-    if num_faces == 0 {
-        return Err(header.error("the header declares no faces".into()));
-    }
-    let faces = CellSection {
-        what: "face",
-        plural: "faces",
-        count: num_faces,
-        header_line: header.line,
-        extra: (num_markers == 1).then_some(Extra::BoundaryMarker),
-    };
+    let extra = (num_markers == 1).then_some(Extra::BoundaryMarker);
+    let faces = CellSection::new(&header, ("face", "faces"), num_faces, extra)?;
     let (triangles, face_lines) = faces.read(&mut lines, &nodes, node, |line, index, face| {
         check_distinct(line, face, &format!("face {index}"), nodes.first_index)
     })?;
@@ -311,17 +303,8 @@ fn read_elements(path: &Path, node_path: &Path, nodes: &Nodes) -> Result<Vec<[us
             "the number of region attributes must be 0 or 1, found {num_regions}"
         )));
     }
-    if num_tets == 0 {
-        return Err(header.error("the header declares no tetrahedra".into()));
-    }
-
-    let tetrahedra = CellSection {
-        what: "tetrahedron",
-        plural: "tetrahedra",
-        count: num_tets,
-        header_line: header.line,
-        extra: (num_regions == 1).then_some(Extra::RegionAttribute),
-    };
+    let extra = (num_regions == 1).then_some(Extra::RegionAttribute);
+    let tetrahedra = CellSection::new(&header, ("tetrahedron", "tetrahedra"), num_tets, extra)?;
     let (tets, _) = tetrahedra.read(&mut lines, nodes, node_path, |_, _, _| Ok(()))?;
     Ok(tets)
 }
@@ -348,6 +331,29 @@ struct CellSection {
 }
 
 impl CellSection {
+    /// The section of `count` elements declared on `header`; `names` are an
+    /// element's and the elements' names in messages.
+    ///
+    /// # Errors
+    /// A header that declares no elements.
+    fn new(
+        header: &Line<'_>,
+        (what, plural): (&'static str, &'static str),
+        count: usize,
+        extra: Option<Extra>,
+    ) -> Result<Self> {
+        if count == 0 {
+            return Err(header.error(format!("the header declares no {plural}")));
+        }
+        Ok(Self {
+            what,
+            plural,
+            count,
+            header_line: header.line,
+            extra,
+        })
+    }
+
     /// Reads the elements as 0-based vertex indices of `nodes` (read from
     /// `node_path`), with the line of each; `check` sees every element,
     /// with its file index, before the next line is read.
