@@ -27,7 +27,7 @@ fn phases(c: &mut Criterion) {
                 threads,
                 ..Beam::default()
             }
-            .simulation("none", "be")
+            .simulation(pd_damping::registry::UNDAMPED, "be")
             .expect("beam builds");
             sim.run(2).expect("the beam steps");
             group.bench_function(format!("local/{threads}-threads"), |b| {

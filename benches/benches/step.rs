@@ -13,7 +13,8 @@
 use std::time::{Duration, Instant};
 
 use criterion::{Criterion, SamplingMode, criterion_group, criterion_main};
-use pd_benches::{Beam, DAMPING_MODELS, INTEGRATORS};
+use pd_benches::{Beam, INTEGRATORS, damping_models};
+use pd_damping::registry::UNDAMPED;
 
 fn step(c: &mut Criterion) {
     for (cells, label) in pd_benches::selected_sizes() {
@@ -34,12 +35,16 @@ fn step(c: &mut Criterion) {
         };
         for integrator in INTEGRATORS {
             let start = {
-                let mut sim = beam.simulation("none", integrator).expect("beam builds");
+                let mut sim = beam.simulation(UNDAMPED, integrator).expect("beam builds");
                 sim.run(5).expect("the beam steps");
                 sim.state().clone()
             };
-            for model in DAMPING_MODELS {
-                if model == "rayleigh-lagged" && label == "100k" {
+            for model in damping_models() {
+                let lagged = pd_benches::damping(model)
+                    .expect("a registry preset")
+                    .implicit_matrix()
+                    .is_lagged();
+                if lagged && label == "100k" {
                     continue;
                 }
                 let mut sim = beam.simulation(model, integrator).expect("beam builds");

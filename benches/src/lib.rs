@@ -9,18 +9,27 @@
 //!
 //! ```
 //! let sim = pd_benches::Beam { cells: [4, 1, 1], ..pd_benches::Beam::default() }
-//!     .simulation("laplacian", "be")
+//!     .simulation(pd_damping::registry::UNDAMPED, "be")
 //!     .unwrap();
 //! assert_eq!(sim.model().num_vertices(), 20);
 //! ```
 
-use pd_damping::{Damping, EtherDrag, LaplacianDamping, NoDamping, PbdDamping, RayleighLagged};
+use pd_damping::Damping;
+use pd_damping::registry;
 use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
 use pd_mesh::{Mesh, Point};
 use pd_solver::{Model, Settings, Simulation};
 
-/// The damping models every benchmark runs, by their scene names.
-pub const DAMPING_MODELS: [&str; 5] = ["none", "ether-drag", "pbd", "rayleigh-lagged", "laplacian"];
+/// The damping models every benchmark runs: the main preset of each model
+/// of `pd_damping::registry`, by name, in registry order (the undamped
+/// baseline, [`registry::UNDAMPED`], first).
+pub fn damping_models() -> Vec<&'static str> {
+    registry::presets()
+        .iter()
+        .filter(|p| p.is_main())
+        .map(|p| p.name)
+        .collect()
+}
 
 /// The integrators the benchmarks run: backward Euler and implicit midpoint.
 pub const INTEGRATORS: [&str; 2] = ["be", "im"];
@@ -52,29 +61,24 @@ pub fn selected_sizes() -> Vec<([usize; 3], &'static str)> {
         .collect()
 }
 
-/// The damping model `name` with the coefficients of the benchmarks
-/// (`docs/performance.md`): ether drag at a rate of 1/s (explicit), PBD
-/// with factor 0.05, lagged Rayleigh and Laplacian damping with a stiffness
-/// coefficient of 0.003 s.
+/// The damping model of the registry's preset `name`, with the
+/// coefficients of the benchmarks (`docs/performance.md`): ether drag at a
+/// rate of 1/s (explicit), PBD with factor 0.05, lagged Rayleigh and
+/// Laplacian damping with a stiffness coefficient of 0.003 s.
 ///
 /// # Errors
 /// An unknown name.
 pub fn damping(name: &str) -> Result<Box<dyn Damping>, String> {
-    let model: Box<dyn Damping> = match name {
-        "none" => Box::new(NoDamping),
-        "ether-drag" => Box::new(EtherDrag::rate(1.0).map_err(|e| e.to_string())?),
-        "pbd" => Box::new(PbdDamping::new(0.05).map_err(|e| e.to_string())?),
-        "rayleigh-lagged" => Box::new(RayleighLagged::new(0.003, 0.0).map_err(|e| e.to_string())?),
-        "laplacian" => {
-            Box::new(LaplacianDamping::new(0.003, 0.0, false).map_err(|e| e.to_string())?)
-        }
-        other => {
-            return Err(format!(
-                "unknown damping model {other:?}; expected one of {DAMPING_MODELS:?}"
-            ));
-        }
-    };
-    Ok(model)
+    let preset = registry::preset(name).ok_or_else(|| {
+        format!(
+            "unknown damping model {name:?}; expected one of {:?}",
+            registry::preset_names()
+        )
+    })?;
+    preset
+        .spec()
+        .and_then(|spec| spec.create())
+        .map_err(|e| e.to_string())
 }
 
 /// The integrator `name`: `be` (backward Euler), `im` (implicit midpoint)
@@ -248,7 +252,7 @@ mod tests {
             cells: [3, 1, 1],
             ..Beam::default()
         };
-        for model in DAMPING_MODELS {
+        for model in damping_models() {
             for integrator in INTEGRATORS {
                 let mut sim = beam.simulation(model, integrator).unwrap();
                 sim.step().unwrap();
@@ -265,7 +269,7 @@ mod tests {
             clamp: Clamp::SoftLikeReference,
             ..Beam::default()
         };
-        let sim = beam.simulation("none", "be").unwrap();
+        let sim = beam.simulation(registry::UNDAMPED, "be").unwrap();
         assert_eq!(sim.num_free_vertices(), sim.model().num_vertices());
     }
 }

@@ -200,7 +200,7 @@ pub fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
                         "0.01",
                         "--soft-clamp",
                         "--model",
-                        "none",
+                        pd_damping::registry::UNDAMPED,
                         "--integrator",
                         "be",
                     ]),

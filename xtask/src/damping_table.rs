@@ -19,53 +19,9 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
 
+use pd_damping::registry;
 use pd_damping::rigid::RigidFit;
 use pd_io::scene::{DampingSpec, IntegratorKind, Scene};
-
-/// The models of the table, with the coefficients it uses.
-fn models() -> Vec<(&'static str, DampingSpec)> {
-    vec![
-        ("none", DampingSpec::None),
-        (
-            "ether-drag, rate 1/s",
-            DampingSpec::EtherRate {
-                rate: 1.0,
-                implicit: false,
-            },
-        ),
-        (
-            "ether-drag, implicit 1/s",
-            DampingSpec::EtherRate {
-                rate: 1.0,
-                implicit: true,
-            },
-        ),
-        ("pbd, factor 0.05", DampingSpec::Pbd { factor: 0.05 }),
-        (
-            "rayleigh-lagged, 0.003 s",
-            DampingSpec::RayleighLagged {
-                mass: 0.0,
-                stiffness: 0.003,
-            },
-        ),
-        (
-            "laplacian, 0.003 s",
-            DampingSpec::Laplacian {
-                stiffness: 0.003,
-                mass: 0.0,
-                preserve_rotation: false,
-            },
-        ),
-        (
-            "laplacian, 0.003 s, preserve_rotation",
-            DampingSpec::Laplacian {
-                stiffness: 0.003,
-                mass: 0.0,
-                preserve_rotation: true,
-            },
-        ),
-    ]
-}
 
 struct Row {
     momentum_kept: f64,
@@ -173,7 +129,12 @@ pub fn run(root: &Path, quick: bool) -> Result<std::path::PathBuf, String> {
         .expect("infallible");
         writeln!(out, "|---|---|---|---|---|---|---|").expect("infallible");
         let mut baseline = None;
-        for (label, spec) in models() {
+        // Every preset of the registry, labelled with its coefficients.
+        for preset in registry::presets() {
+            let label = preset.label();
+            let spec = preset
+                .spec()
+                .map_err(|e| format!("preset {}: {e}", preset.name))?;
             eprintln!("{} + {label}", integrator.name());
             let row = measure(root, integrator, &spec, quick)?;
             let base = *baseline.get_or_insert(row.fastest_step_ms);

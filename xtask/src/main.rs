@@ -1,6 +1,6 @@
 //! Project chores, run as `cargo xtask NAME` (matklad's xtask convention).
 //!
-//! - `ci`: what `.ci/run` runs (format check, clippy, tests);
+//! - `ci`: what `.ci/run` runs (format check, clippy, docs, tests);
 //! - `damping-table [--quick]`: measures every damping model with every
 //!   integrator on the bundled scenes and writes `docs/damping-table.md`;
 //! - `bench-report [--quick]`: speed, accuracy, scaling and memory,
@@ -33,21 +33,13 @@ fn main() -> ExitCode {
                 "-D",
                 "warnings",
             ],
+            &["doc", "--workspace", "--no-deps"],
             &["test", "--workspace"],
         ]),
-        Some("damping-table") => {
-            let quick = args.iter().any(|a| a == "--quick");
-            match damping_table::run(&workspace_root(), quick) {
-                Ok(path) => {
-                    eprintln!("wrote {}", path.display());
-                    ExitCode::SUCCESS
-                }
-                Err(e) => {
-                    eprintln!("error: {e}");
-                    ExitCode::FAILURE
-                }
-            }
-        }
+        Some("damping-table") => report(damping_table::run(
+            &workspace_root(),
+            args.iter().any(|a| a == "--quick"),
+        )),
         Some("bench-report") => report(bench_report::run(
             &workspace_root(),
             args.iter().any(|a| a == "--quick"),
@@ -56,15 +48,16 @@ fn main() -> ExitCode {
         Some("stability") => stability::main(&workspace_root(), &args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md\n  bench-report [--quick]    speed/accuracy/scaling report: docs/bench-report.md\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N]\n                            pd vs the C++ reference: docs/cpp-comparison.md\n  stability [--quick]       run the matrix of extreme parameters, write docs/stability.md (use --release)"
+                "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy and docs (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md\n  bench-report [--quick]    speed/accuracy/scaling report: docs/bench-report.md\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N]\n                            pd vs the C++ reference: docs/cpp-comparison.md\n  stability [--quick]       run the matrix of extreme parameters, write docs/stability.md (use --release)"
             );
             ExitCode::from(2)
         }
     }
 }
 
-/// Prints where a report went, or the error.
-fn report(result: Result<PathBuf, String>) -> ExitCode {
+/// Prints where a report went, or the error: the ending of every task
+/// that writes a report.
+pub(crate) fn report(result: Result<PathBuf, String>) -> ExitCode {
     match result {
         Ok(path) => {
             eprintln!("wrote {}", path.display());
@@ -89,7 +82,13 @@ fn run_all(commands: &[&[&str]]) -> ExitCode {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     for args in commands {
         eprintln!("$ cargo {}", args.join(" "));
-        match Command::new(&cargo).args(*args).status() {
+        let mut command = Command::new(&cargo);
+        command.args(*args);
+        if args.first() == Some(&"doc") {
+            // Broken links and malformed docs are errors, as in `.ci/run`.
+            command.env("RUSTDOCFLAGS", "-D warnings");
+        }
+        match command.status() {
             Ok(status) if status.success() => {}
             Ok(_) => return ExitCode::FAILURE,
             Err(e) => {

@@ -39,6 +39,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 use std::sync::Mutex;
 
+use pd_damping::registry::{self, Preset, Value};
 use pd_io::scene::{ConstraintSpec, DampingSpec, IntegratorKind, MassSpec, Scene, Syntax};
 use pd_solver::{SolverError, State};
 
@@ -72,16 +73,7 @@ pub fn main(root: &Path, args: &[String]) -> ExitCode {
             }
         };
     }
-    match run(root, quick) {
-        Ok(path) => {
-            eprintln!("wrote {}", path.display());
-            ExitCode::SUCCESS
-        }
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::FAILURE
-        }
-    }
+    crate::report(run(root, quick))
 }
 
 const BEAM: &str = r#"
@@ -154,44 +146,31 @@ impl Start {
     }
 }
 
-/// The damping models of the matrix, named as the report names them.
-const MODELS: [&str; 7] = [
-    "none",
-    "ether-drag (rate)",
-    "ether-drag (implicit)",
-    "pbd",
-    "rayleigh-lagged",
-    "laplacian",
-    "laplacian, preserve_rotation",
-];
+/// The damping models of the matrix: every preset of the registry, named
+/// by its preset name, its strength parameter set to the coefficient.
+fn presets() -> &'static [Preset] {
+    registry::presets()
+}
 
-fn damping(model: &str, c: f64) -> DampingSpec {
-    match model {
-        "none" => DampingSpec::None,
-        "ether-drag (rate)" => DampingSpec::EtherRate {
-            rate: c,
-            implicit: false,
-        },
-        "ether-drag (implicit)" => DampingSpec::EtherRate {
-            rate: c,
-            implicit: true,
-        },
-        "pbd" => DampingSpec::Pbd { factor: c.min(1.0) },
-        "rayleigh-lagged" => DampingSpec::RayleighLagged {
-            mass: 0.0,
-            stiffness: c,
-        },
-        "laplacian" => DampingSpec::Laplacian {
-            stiffness: c,
-            mass: 0.0,
-            preserve_rotation: false,
-        },
-        _ => DampingSpec::Laplacian {
-            stiffness: c,
-            mass: 0.0,
-            preserve_rotation: true,
-        },
+/// Preset `preset` with its model's strength parameter (`rate`, `factor`,
+/// `stiffness`) set to `c`, clamped to the parameter's maximum (PBD's
+/// factor: `min(c, 1)`); a model without one (`none`) as it is.
+fn damping(preset: &Preset, c: f64) -> Result<DampingSpec, String> {
+    let spec = preset.spec().map_err(|e| e.to_string())?;
+    let model = spec.model();
+    match model.strength.and_then(|name| model.parameter(name)) {
+        None => Ok(spec),
+        Some(parameter) => {
+            let value = parameter.maximum.map_or(c, |maximum| c.min(maximum));
+            spec.with(parameter.name, Value::Number(value))
+                .map_err(|e| e.to_string())
+        }
     }
+}
+
+/// Whether the matrix's coefficient axis applies to preset `index`.
+fn has_strength(index: usize) -> bool {
+    registry::model(presets()[index].model).is_some_and(|m| m.strength.is_some())
 }
 
 /// One run of the matrix.
@@ -219,7 +198,7 @@ impl Case {
         format!(
             "{} | {} | {:e} | {:e} | {:e} | {:e} | {} | {} | {}",
             self.integrator.name(),
-            MODELS[self.model],
+            presets()[self.model].name,
             self.coefficient,
             self.stiffness,
             self.dt,
@@ -286,7 +265,7 @@ fn run_case(case: &Case) -> Ending {
         scene.settings.iterations = case.iterations;
         scene.settings.threads = 1;
         scene.integrator = case.integrator;
-        scene.damping = damping(MODELS[case.model], case.coefficient);
+        scene.damping = damping(&presets()[case.model], case.coefficient)?;
         scene.bodies[0].mass = MassSpec::Density(case.density);
         scene.bodies[0].constraints = vec![ConstraintSpec::TetStrain {
             stiffness: case.stiffness,
@@ -391,12 +370,12 @@ impl Axes {
     fn cases(&self) -> Vec<Case> {
         let mut cases = Vec::new();
         for integrator in IntegratorKind::ALL {
-            for model in 0..MODELS.len() {
+            for model in 0..presets().len() {
                 // The coefficient does not apply to `none`: one value.
-                let coefficients = if model == 0 {
-                    &self.coefficient[..1]
-                } else {
+                let coefficients = if has_strength(model) {
                     &self.coefficient[..]
+                } else {
+                    &self.coefficient[..1]
                 };
                 for &stiffness in &self.stiffness {
                     for &dt in &self.dt {
@@ -482,7 +461,7 @@ impl Tally {
 }
 
 fn row_label(integrator: IntegratorKind, model: usize) -> String {
-    format!("{} | {}", integrator.name(), MODELS[model])
+    format!("{} | {}", integrator.name(), presets()[model].name)
 }
 
 /// Writes one table: rows integrator x model, a column per value of an axis.
@@ -497,7 +476,7 @@ fn axis_table(
     writeln!(out, "| integrator | model | {} |", labels.join(" | ")).expect("infallible");
     writeln!(out, "|---|---|{}", "---|".repeat(labels.len())).expect("infallible");
     for integrator in IntegratorKind::ALL {
-        for model in 0..MODELS.len() {
+        for model in 0..presets().len() {
             let mut tallies = vec![Tally::default(); labels.len()];
             for (case, ending) in results {
                 if case.integrator == integrator && case.model == model {
@@ -629,7 +608,7 @@ fn run(root: &Path, quick: bool) -> Result<PathBuf, String> {
     )
     .expect("infallible");
     for integrator in IntegratorKind::ALL {
-        for model in 0..MODELS.len() {
+        for model in 0..presets().len() {
             let mut t = Tally::default();
             for (case, ending) in &results {
                 if case.integrator == integrator && case.model == model {

@@ -14,7 +14,8 @@
 use std::process::ExitCode;
 use std::time::Instant;
 
-use pd_benches::{Beam, Clamp, DAMPING_MODELS, peak_memory_bytes};
+use pd_benches::{Beam, Clamp, damping_models, peak_memory_bytes};
+use pd_damping::registry::UNDAMPED;
 use pd_io::recorder::median;
 use pd_mesh::Point;
 use pd_solver::Simulation;
@@ -117,7 +118,7 @@ fn ms(seconds: f64) -> f64 {
 /// `steps` steps from rest; medians of the step and of its phases, like the
 /// C++ reference's `run`.
 fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
-    let model = options.value("--model").unwrap_or("none");
+    let model = options.value("--model").unwrap_or(UNDAMPED);
     let integrator = options.value("--integrator").unwrap_or("be");
     let steps: usize = options.parse("--steps", 10)?;
     let mesh = match options.value("--mesh") {
@@ -166,7 +167,8 @@ fn overhead(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     let integrator = options.value("--integrator").unwrap_or("be");
     let rounds: usize = options.parse("--rounds", 15)?;
     let warmup: usize = options.parse("--warmup", 10)?;
-    let mut sims: Vec<Simulation> = DAMPING_MODELS
+    let models = damping_models();
+    let mut sims: Vec<Simulation> = models
         .iter()
         .map(|m| beam.simulation(m, integrator))
         .collect::<Result<_, _>>()?;
@@ -183,7 +185,7 @@ fn overhead(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         }
     }
     let none = median(&samples[0]);
-    let models: Vec<Value> = DAMPING_MODELS
+    let models: Vec<Value> = models
         .iter()
         .zip(&samples)
         .map(|(name, s)| {
@@ -209,7 +211,7 @@ fn overhead(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
 /// The phases alone, each repeated `reps` times: local step, global solve
 /// (right-hand side and solve), numeric factorisation.
 fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
-    let model = options.value("--model").unwrap_or("none");
+    let model = options.value("--model").unwrap_or(UNDAMPED);
     let reps: usize = options.parse("--reps", 10)?;
     let factor_reps: usize = options.parse("--factor-reps", 3)?;
     let mut sim = beam.simulation(model, "be")?;
@@ -258,7 +260,7 @@ fn total_energy(sim: &Simulation) -> f64 {
 /// time per step.
 fn accuracy(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     let integrator = options.value("--integrator").unwrap_or("be");
-    let model = options.value("--model").unwrap_or("none");
+    let model = options.value("--model").unwrap_or(UNDAMPED);
     let time: f64 = options.parse("--time", 0.5)?;
     let reference_tolerance: f64 = options.parse("--reference-tolerance", 1e-9)?;
     let reference_max: usize = options.parse("--reference-max-iters", 2000)?;

@@ -1,52 +1,52 @@
 //! `pd compare`: one scene, several damping models or integrators.
 //!
-//! Short damping names stand for the parameters of the measured table in
-//! `docs/damping-table.md`: `none`; `ether-drag` = explicit rate 1/s;
-//! `pbd` = factor 0.05; `rayleigh-lagged` = stiffness 0.003 s, mass 0;
-//! `laplacian` = stiffness 0.003 s, mass 0; `laplacian-rot` = the same with
-//! `preserve_rotation`. Integrators keep the scene's damping model.
+//! Damping models are named by the presets of `pd_damping::registry`: each
+//! model's main preset (named as the model) and variants such as
+//! `laplacian-rot`, with the coefficients of the measured table in
+//! `docs/damping-table.md`. Integrators keep the scene's damping model.
 
 use pd_io::recorder::median;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use pd_io::scene::{DampingSpec, FrameFormat, IntegratorKind};
+use pd_damping::registry;
+use pd_io::scene::{DampingSpec, FrameFormat, IntegratorKind, Scene};
 use pd_viz::plot::Plot;
 use serde_json::json;
 use tracing::{info, warn};
 
 use crate::Failure;
-use crate::pictures::{Metrics, RenderOptions, render, write_plot};
-use crate::run::{LoadedScene, Overrides, load_scene, run_loaded};
+use crate::pictures::{self, RenderOptions, read_metrics, render, write_plot};
+use crate::run::{LoadedScene, SceneOptions, load_scene, run_loaded};
 
-/// The damping model a short name stands for.
-pub(crate) fn damping_of(name: &str) -> Option<DampingSpec> {
-    Some(match name {
-        "none" => DampingSpec::None,
-        "ether-drag" => DampingSpec::EtherRate {
-            rate: 1.0,
-            implicit: false,
-        },
-        "pbd" => DampingSpec::Pbd { factor: 0.05 },
-        "rayleigh-lagged" => DampingSpec::RayleighLagged {
-            mass: 0.0,
-            stiffness: 0.003,
-        },
-        "laplacian" => DampingSpec::Laplacian {
-            stiffness: 0.003,
-            mass: 0.0,
-            preserve_rotation: false,
-        },
-        "laplacian-rot" => DampingSpec::Laplacian {
-            stiffness: 0.003,
-            mass: 0.0,
-            preserve_rotation: true,
-        },
-        _ => return None,
-    })
+/// The help of `--damping`: every preset with its coefficients.
+pub(crate) fn damping_help() -> String {
+    let presets: Vec<String> = registry::presets()
+        .iter()
+        .map(|p| match (p.description.is_empty(), p.is_main()) {
+            (true, _) => p.name.to_string(),
+            (false, true) => format!("{} ({})", p.name, p.description),
+            (false, false) => format!("{} ({})", p.name, p.label()),
+        })
+        .collect();
+    format!(
+        "Damping models, comma separated, by preset: {}",
+        presets.join("; ")
+    )
 }
 
-const DAMPING_NAMES: &str = "none, ether-drag, pbd, rayleigh-lagged, laplacian, laplacian-rot";
+/// The damping model a preset name stands for.
+fn damping_of(name: &str) -> Result<DampingSpec, Failure> {
+    let preset = registry::preset(name).ok_or_else(|| {
+        Failure::Input(format!(
+            "--damping: unknown model {name:?}; expected one of: {}",
+            registry::preset_names().join(", ")
+        ))
+    })?;
+    preset
+        .spec()
+        .map_err(|e| Failure::Input(format!("--damping {name}: {e}")))
+}
 
 /// One row of the comparison table.
 struct Row {
@@ -62,10 +62,6 @@ struct Row {
     final_angular_momentum: f64,
 }
 
-fn norm(x: f64, y: f64, z: f64) -> f64 {
-    (x * x + y * y + z * z).sqrt()
-}
-
 /// `|final| / |initial|`, or `None` when the initial value is below 0.1%
 /// of the largest during the run: then there was nothing to keep (a body
 /// starting at rest), and the ratio would only measure round-off growth.
@@ -74,24 +70,19 @@ fn kept(initial: f64, last: f64, largest: f64) -> Option<f64> {
 }
 
 fn row_of(name: &str, status: String, dir: &Path) -> Result<Row, Failure> {
-    let path = dir.join("metrics.csv");
-    let m = Metrics::read(&path)?;
-    let col = |c: &str| m.column(c, &path);
-    let total = col("total")?;
-    let (px, py, pz) = (col("px")?, col("py")?, col("pz")?);
-    let (jx, jy, jz) = (col("jx")?, col("jy")?, col("jz")?);
-    let last = total.len() - 1;
-    let p = |i: usize| norm(px[i], py[i], pz[i]);
-    let j = |i: usize| norm(jx[i], jy[i], jz[i]);
+    let rows = read_metrics(dir)?;
+    let last = rows.len() - 1;
+    let p = |i: usize| rows[i].linear_momentum().norm();
+    let j = |i: usize| rows[i].angular_momentum().norm();
     // Row 0 is the initial state and has no step time.
-    let step_ms = col("step_ms")?;
+    let step_ms: Vec<f64> = rows[1..].iter().map(|r| r.step_ms).collect();
     Ok(Row {
         name: name.to_string(),
         status,
-        median_step_ms: median(&step_ms[1..]),
+        median_step_ms: median(&step_ms),
         steps: last,
-        initial_energy: total[0],
-        final_energy: total[last],
+        initial_energy: rows[0].total,
+        final_energy: rows[last].total,
         momentum_kept: kept(p(0), p(last), (0..=last).map(p).fold(0.0, f64::max)),
         angular_momentum_kept: kept(j(0), j(last), (0..=last).map(j).fold(0.0, f64::max)),
         final_momentum: p(last),
@@ -105,21 +96,54 @@ fn fmt_opt(v: Option<f64>) -> String {
 
 /// `pd compare`.
 pub(crate) fn compare(
-    scene_path: Option<&Path>,
+    options: &SceneOptions,
     damping: &[String],
     integrators: &[String],
-    out: Option<PathBuf>,
-    overrides: &Overrides,
     quiet: bool,
 ) -> Result<(), Failure> {
-    let loaded = load_scene(scene_path, overrides)?;
+    let loaded = load_scene(options)?;
+    let variants = variants(&loaded, damping, integrators)?;
+    let out = options
+        .out
+        .clone()
+        .unwrap_or_else(|| Path::new("out").join(format!("compare-{}", loaded.name)));
+
+    let mut rows = Vec::new();
+    let mut diverged = Vec::new();
+    for (name, scene) in variants {
+        let dir = out.join(&name);
+        let status = run_variant(&loaded, &name, scene, &dir, quiet)?;
+        if status == "diverged" {
+            diverged.push(name.clone());
+        }
+        rows.push((row_of(&name, status.to_string(), &dir)?, dir));
+    }
+    write_pictures(&rows, &out)?;
+    write_table(&rows, &loaded, &out)?;
+    info!(
+        "comparison.md, comparison.json, energy.png/svg and render/ in {}",
+        out.display()
+    );
+    if diverged.is_empty() {
+        Ok(())
+    } else {
+        Err(Failure::Diverged(format!(
+            "variants diverged: {} (the comparison is written to {})",
+            diverged.join(", "),
+            out.display()
+        )))
+    }
+}
+
+/// The scene once per damping preset or integrator, each with its name.
+fn variants(
+    loaded: &LoadedScene,
+    damping: &[String],
+    integrators: &[String],
+) -> Result<Vec<(String, Scene)>, Failure> {
     let mut variants = Vec::new();
     for name in damping {
-        let spec = damping_of(name).ok_or_else(|| {
-            Failure::Input(format!(
-                "--damping: unknown model {name:?}; expected one of: {DAMPING_NAMES}"
-            ))
-        })?;
+        let spec = damping_of(name)?;
         let mut scene = loaded.scene.clone();
         scene.damping = spec;
         variants.push((name.clone(), scene));
@@ -127,7 +151,8 @@ pub(crate) fn compare(
     for name in integrators {
         let kind = IntegratorKind::parse(name).ok_or_else(|| {
             Failure::Input(format!(
-                "--integrator: unknown integrator {name:?}; expected one of: backward-euler, implicit-midpoint, bdf2"
+                "--integrator: unknown integrator {name:?}; expected one of: {}",
+                IntegratorKind::ALL.map(IntegratorKind::name).join(", ")
             ))
         })?;
         let mut scene = loaded.scene.clone();
@@ -147,38 +172,42 @@ pub(crate) fn compare(
     {
         return Err(Failure::Input(format!("variant {name:?} is given twice")));
     }
-    let out = out.unwrap_or_else(|| Path::new("out").join(format!("compare-{}", loaded.name)));
+    Ok(variants)
+}
 
-    let mut rows = Vec::new();
-    let mut diverged = Vec::new();
-    for (name, mut scene) in variants {
-        // Frames are needed for the animation.
-        if scene.output.every == 0 {
-            scene.output.every = (scene.steps / 40).max(1);
-        }
-        if !scene.output.formats.contains(&FrameFormat::Obj) {
-            scene.output.formats.push(FrameFormat::Obj);
-        }
-        let dir = out.join(&name);
-        info!("variant {name}: running into {}", dir.display());
-        let variant = LoadedScene {
-            scene,
-            text: loaded.text.clone(),
-            name: name.clone(),
-        };
-        let status = match run_loaded(&variant, &dir, 0, quiet) {
-            Ok(_) => "completed".to_string(),
-            Err(Failure::Diverged(message)) => {
-                warn!("variant {name} diverged: {message}");
-                diverged.push(name.clone());
-                "diverged".to_string()
-            }
-            Err(other) => return Err(other),
-        };
-        rows.push((row_of(&name, status, &dir)?, dir));
+/// Runs one variant into `dir`, with OBJ frames for the animation;
+/// `completed` or `diverged` (any other failure ends the comparison).
+fn run_variant(
+    loaded: &LoadedScene,
+    name: &str,
+    mut scene: Scene,
+    dir: &Path,
+    quiet: bool,
+) -> Result<&'static str, Failure> {
+    if scene.output.every == 0 {
+        scene.output.every = (scene.steps / 40).max(1);
     }
+    if !scene.output.formats.contains(&FrameFormat::Obj) {
+        scene.output.formats.push(FrameFormat::Obj);
+    }
+    info!("variant {name}: running into {}", dir.display());
+    let variant = LoadedScene {
+        scene,
+        text: loaded.text.clone(),
+        name: name.to_string(),
+    };
+    match run_loaded(&variant, dir, 0, quiet) {
+        Ok(_) => Ok("completed"),
+        Err(Failure::Diverged(message)) => {
+            warn!("variant {name} diverged: {message}");
+            Ok("diverged")
+        }
+        Err(other) => Err(other),
+    }
+}
 
-    // The animation and the energy plot.
+/// The side-by-side animation (`render/`) and the energy plot.
+fn write_pictures(rows: &[(Row, PathBuf)], out: &Path) -> Result<(), Failure> {
     let panels: Vec<(String, PathBuf)> = rows
         .iter()
         .map(|(row, dir)| (row.name.clone(), dir.clone()))
@@ -195,9 +224,10 @@ pub(crate) fn compare(
         },
     )?;
     let mut series = Vec::new();
-    for (row, dir) in &rows {
-        let path = dir.join("metrics.csv");
-        series.push(Metrics::read(&path)?.series("total", &row.name, &path)?);
+    for (row, dir) in rows {
+        series.push(pictures::series(&read_metrics(dir)?, &row.name, |r| {
+            r.total
+        }));
     }
     write_plot(
         &Plot {
@@ -206,11 +236,13 @@ pub(crate) fn compare(
             y_label: "kinetic + elastic + gravity (J)".into(),
             series,
         },
-        &out,
+        out,
         "energy",
-    )?;
+    )
+}
 
-    // The table.
+/// `comparison.md` and `comparison.json`.
+fn write_table(rows: &[(Row, PathBuf)], loaded: &LoadedScene, out: &Path) -> Result<(), Failure> {
     let base = rows[0].0.median_step_ms;
     let mut md = String::new();
     let _ = writeln!(
@@ -220,7 +252,7 @@ pub(crate) fn compare(
     );
     let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|");
     let mut json_rows = Vec::new();
-    for (row, _) in &rows {
+    for (row, _) in rows {
         let overhead = row.median_step_ms / base - 1.0;
         let _ = writeln!(
             md,
@@ -265,20 +297,7 @@ pub(crate) fn compare(
     write(
         "comparison.json",
         &(serde_json::to_string_pretty(&table).expect("a JSON value serialises") + "\n"),
-    )?;
-    info!(
-        "comparison.md, comparison.json, energy.png/svg and render/ in {}",
-        out.display()
-    );
-    if diverged.is_empty() {
-        Ok(())
-    } else {
-        Err(Failure::Diverged(format!(
-            "variants diverged: {} (the comparison is written to {})",
-            diverged.join(", "),
-            out.display()
-        )))
-    }
+    )
 }
 
 fn finite(v: f64) -> Option<f64> {

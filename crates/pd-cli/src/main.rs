@@ -43,18 +43,8 @@ struct Cli {
 enum Command {
     /// Run a scene and write its results.
     Run {
-        /// Scene file (.toml or .json). Without one, runs the bundled
-        /// cantilever beam.
-        scene: Option<PathBuf>,
-        /// Output folder [default: out/<scene name>].
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Override the scene's number of steps.
-        #[arg(long)]
-        steps: Option<usize>,
-        /// Threads for the local step (0: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
+        #[command(flatten)]
+        scene: run::SceneOptions,
         /// Write `checkpoint.json` into the output folder every K steps
         /// (0: never), for `pd resume`.
         #[arg(long, value_name = "K", default_value_t = 0)]
@@ -100,25 +90,19 @@ enum Command {
     /// Run a scene once per damping model or integrator and compare them:
     /// a side-by-side animation, a plot of total energy, and a table.
     Compare {
-        /// Scene file (.toml or .json); without one, the bundled cantilever.
-        scene: Option<PathBuf>,
-        /// Damping models, comma separated (short names with default
-        /// parameters: none, ether-drag, pbd, rayleigh-lagged, laplacian).
-        #[arg(long, value_delimiter = ',', conflicts_with = "integrator")]
+        #[command(flatten)]
+        scene: run::SceneOptions,
+        #[arg(
+            long,
+            value_delimiter = ',',
+            conflicts_with = "integrator",
+            help = compare::damping_help()
+        )]
         damping: Vec<String>,
         /// Integrators, comma separated (backward-euler, implicit-midpoint,
         /// bdf2).
         #[arg(long, value_delimiter = ',')]
         integrator: Vec<String>,
-        /// Output folder [default: out/compare-<scene name>].
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Override the scene's number of steps.
-        #[arg(long)]
-        steps: Option<usize>,
-        /// Threads for the local step (0: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
     },
 }
 
@@ -167,17 +151,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Run {
             scene,
-            out,
-            steps,
-            threads,
             checkpoint_every,
-        } => run::run(
-            scene.as_deref(),
-            out,
-            &run::Overrides { steps, threads },
-            checkpoint_every,
-            quiet,
-        ),
+        } => run::run(&scene, checkpoint_every, quiet),
         Command::Resume { dir } => run::resume(&dir, quiet),
         Command::Render {
             dir,
@@ -211,17 +186,7 @@ fn main() -> ExitCode {
             scene,
             damping,
             integrator,
-            out,
-            steps,
-            threads,
-        } => compare::compare(
-            scene.as_deref(),
-            &damping,
-            &integrator,
-            out,
-            &run::Overrides { steps, threads },
-            quiet,
-        ),
+        } => compare::compare(&scene, &damping, &integrator, quiet),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -2,6 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
+use pd_io::recorder::MetricsRow;
 use pd_viz::image::{write_gif, write_png};
 use pd_viz::obj::read_obj;
 use pd_viz::plot::{Plot, Series};
@@ -110,67 +111,17 @@ pub(crate) fn render(
     Ok(())
 }
 
-/// A run's `metrics.csv`: column names and numeric rows.
-pub(crate) struct Metrics {
-    columns: Vec<String>,
-    rows: Vec<Vec<f64>>,
+/// A run's `metrics.csv` rows; a malformed file is bad input, named with
+/// its line.
+pub(crate) fn read_metrics(dir: &Path) -> Result<Vec<MetricsRow>, Failure> {
+    MetricsRow::read_all(&dir.join(MetricsRow::FILE)).map_err(|e| Failure::Input(e.to_string()))
 }
 
-impl Metrics {
-    /// Reads `metrics.csv`; a malformed file is bad input, named with its
-    /// line.
-    pub(crate) fn read(path: &Path) -> Result<Self, Failure> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| Failure::Input(format!("{}: {e}", path.display())))?;
-        let mut lines = text.lines();
-        let columns: Vec<String> = lines
-            .next()
-            .ok_or_else(|| Failure::Input(format!("{}: empty file", path.display())))?
-            .split(',')
-            .map(str::to_owned)
-            .collect();
-        let mut rows = Vec::new();
-        for (i, line) in lines.enumerate() {
-            let row = line
-                .split(',')
-                .map(|f| f.parse::<f64>())
-                .collect::<Result<Vec<_>, _>>()
-                .ok()
-                .filter(|r| r.len() == columns.len())
-                .ok_or_else(|| {
-                    Failure::Input(format!(
-                        "{}:{}: expected {} numbers",
-                        path.display(),
-                        i + 2,
-                        columns.len()
-                    ))
-                })?;
-            rows.push(row);
-        }
-        if rows.is_empty() {
-            return Err(Failure::Input(format!("{}: no rows", path.display())));
-        }
-        Ok(Self { columns, rows })
-    }
-
-    /// A column's values.
-    pub(crate) fn column(&self, name: &str, path: &Path) -> Result<Vec<f64>, Failure> {
-        let index = self
-            .columns
-            .iter()
-            .position(|c| c == name)
-            .ok_or_else(|| Failure::Input(format!("{}: no column `{name}`", path.display())))?;
-        Ok(self.rows.iter().map(|r| r[index]).collect())
-    }
-
-    /// `(time, column)` points.
-    pub(crate) fn series(&self, name: &str, label: &str, path: &Path) -> Result<Series, Failure> {
-        let t = self.column("time", path)?;
-        let y = self.column(name, path)?;
-        Ok(Series {
-            label: label.to_string(),
-            points: t.into_iter().zip(y).collect(),
-        })
+/// `(time, value)` points of one quantity of the rows.
+pub(crate) fn series(rows: &[MetricsRow], label: &str, value: fn(&MetricsRow) -> f64) -> Series {
+    Series {
+        label: label.to_string(),
+        points: rows.iter().map(|r| (r.time, value(r))).collect(),
     }
 }
 
@@ -190,46 +141,45 @@ pub(crate) fn write_plot(plot: &Plot, dir: &Path, stem: &str) -> Result<(), Fail
 
 /// `pd plot DIR`.
 pub(crate) fn plot(dir: &Path) -> Result<(), Failure> {
-    let path = dir.join("metrics.csv");
-    let metrics = Metrics::read(&path)?;
+    let rows = read_metrics(dir)?;
     let out = dir.join("plots");
     std::fs::create_dir_all(&out)
         .map_err(|e| Failure::Output(format!("{}: {e}", out.display())))?;
-    let plots = [
+    type Curves<'a> = &'a [(&'a str, fn(&MetricsRow) -> f64)];
+    let plots: [(&str, &str, &str, Curves<'_>); 3] = [
         (
             "energy",
             "Energy",
             "energy (J)",
             &[
-                ("kinetic", "kinetic"),
-                ("elastic", "elastic"),
-                ("gravity", "gravity"),
-                ("total", "total"),
-            ][..],
+                ("kinetic", |r| r.kinetic),
+                ("elastic", |r| r.elastic),
+                ("gravity", |r| r.gravity),
+                ("total", |r| r.total),
+            ],
         ),
         (
             "linear_momentum",
             "Linear momentum",
             "momentum (kg m/s)",
-            &[("px", "p_x"), ("py", "p_y"), ("pz", "p_z")][..],
+            &[("p_x", |r| r.px), ("p_y", |r| r.py), ("p_z", |r| r.pz)],
         ),
         (
             "angular_momentum",
             "Angular momentum about the origin",
             "angular momentum (kg m^2/s)",
-            &[("jx", "L_x"), ("jy", "L_y"), ("jz", "L_z")][..],
+            &[("L_x", |r| r.jx), ("L_y", |r| r.jy), ("L_z", |r| r.jz)],
         ),
     ];
-    for (stem, title, y_label, columns) in plots {
-        let series = columns
-            .iter()
-            .map(|(column, label)| metrics.series(column, label, &path))
-            .collect::<Result<Vec<_>, _>>()?;
+    for (stem, title, y_label, curves) in plots {
         let plot = Plot {
             title: title.to_string(),
             x_label: "time (s)".into(),
             y_label: y_label.to_string(),
-            series,
+            series: curves
+                .iter()
+                .map(|&(label, value)| series(&rows, label, value))
+                .collect(),
         };
         write_plot(&plot, &out, stem)?;
     }

@@ -18,9 +18,25 @@ use crate::Failure;
 const DEFAULT_SCENE: &str = include_str!("../../../scenes/cantilever.toml");
 const DEFAULT_SCENE_NAME: &str = "cantilever (built in: scenes/cantilever.toml)";
 
-/// Command-line overrides of a scene's values.
-pub(crate) struct Overrides {
+/// The scene options `pd run` and `pd compare` share: which scene, where
+/// to write, and the command line's overrides of the scene's values.
+#[derive(clap::Args)]
+pub(crate) struct SceneOptions {
+    /// Scene file (.toml or .json). Without one, runs the bundled
+    /// cantilever beam.
+    pub scene: Option<PathBuf>,
+    // The help is an attribute, not a doc comment, so rustdoc does not read
+    // `<scene name>` as an HTML tag.
+    #[arg(
+        long,
+        help = "Output folder [default: out/<scene name>; for compare, out/compare-<scene name>]"
+    )]
+    pub out: Option<PathBuf>,
+    /// Override the scene's number of steps.
+    #[arg(long)]
     pub steps: Option<usize>,
+    /// Threads for the local step (0: all cores).
+    #[arg(long)]
     pub threads: Option<usize>,
 }
 
@@ -31,12 +47,10 @@ pub(crate) struct LoadedScene {
     pub name: String,
 }
 
-/// Reads and validates a scene file, or the bundled cantilever.
-pub(crate) fn load_scene(
-    path: Option<&Path>,
-    overrides: &Overrides,
-) -> Result<LoadedScene, Failure> {
-    let (text, name) = match path {
+/// Reads and validates the scene file of `options`, or the bundled
+/// cantilever, and applies the overrides.
+pub(crate) fn load_scene(options: &SceneOptions) -> Result<LoadedScene, Failure> {
+    let (text, name) = match options.scene.as_deref() {
         Some(path) => {
             let text = std::fs::read_to_string(path)
                 .map_err(|e| Failure::Input(format!("{}: {e}", path.display())))?;
@@ -66,10 +80,10 @@ pub(crate) fn load_scene(
     };
     let mut scene = Scene::parse(&text.text, text.syntax, &text.source)
         .map_err(|e| Failure::Input(e.to_string()))?;
-    if let Some(steps) = overrides.steps {
+    if let Some(steps) = options.steps {
         scene.steps = steps;
     }
-    if let Some(threads) = overrides.threads {
+    if let Some(threads) = options.threads {
         scene.settings.threads = threads;
     }
     Ok(LoadedScene { scene, text, name })
@@ -94,14 +108,15 @@ pub(crate) fn build(scene: &Scene) -> Result<Simulation, Failure> {
 
 /// `pd run`.
 pub(crate) fn run(
-    scene_path: Option<&Path>,
-    out: Option<PathBuf>,
-    overrides: &Overrides,
+    options: &SceneOptions,
     checkpoint_every: usize,
     quiet: bool,
 ) -> Result<(), Failure> {
-    let loaded = load_scene(scene_path, overrides)?;
-    let out = out.unwrap_or_else(|| Path::new("out").join(&loaded.name));
+    let loaded = load_scene(options)?;
+    let out = options
+        .out
+        .clone()
+        .unwrap_or_else(|| Path::new("out").join(&loaded.name));
     run_loaded(&loaded, &out, checkpoint_every, quiet)
 }
 

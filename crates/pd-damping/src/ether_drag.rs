@@ -4,6 +4,9 @@
 use crate::error::{non_negative, unit_interval};
 use crate::{Damping, DampingContext, DampingError, DampingMatrix, Point};
 
+/// The name scenes, the command line and the registry use for this model.
+pub const NAME: &str = "ether-drag";
+
 /// Ether drag, in one of three forms:
 /// - [`EtherDrag::factor`]: explicit, `v <- (1 - k) v` after each step (the
 ///   effect per second depends on `h`);
@@ -89,7 +92,7 @@ impl EtherDrag {
 
 impl Damping for EtherDrag {
     fn name(&self) -> &'static str {
-        "ether-drag"
+        NAME
     }
 
     fn implicit_matrix(&self) -> DampingMatrix {

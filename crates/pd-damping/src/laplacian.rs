@@ -7,6 +7,9 @@ use crate::{
     Damping, DampingError, DampingMatrix, DampingReport, DampingTargets, Point, StepContext,
 };
 
+/// The name scenes, the command line and the registry use for this model.
+pub const NAME: &str = "laplacian";
+
 /// Laplacian damping `D = stiffness L_d + mass M` ("Laplacian-Rayleigh" when
 /// `mass > 0`), `L_d` the damping Laplacian of the translation-invariant
 /// constraints.
@@ -55,7 +58,7 @@ impl LaplacianDamping {
 
 impl Damping for LaplacianDamping {
     fn name(&self) -> &'static str {
-        "laplacian"
+        NAME
     }
 
     fn implicit_matrix(&self) -> DampingMatrix {

@@ -24,7 +24,7 @@
 //! ```
 //! use pd_damping::{Damping, NoDamping};
 //! let none = NoDamping;
-//! assert_eq!(none.name(), "none");
+//! assert_eq!(none.name(), pd_damping::registry::UNDAMPED);
 //! assert!(none.implicit_matrix().is_zero());
 //! ```
 
@@ -34,6 +34,7 @@ mod laplacian;
 mod none;
 mod pbd;
 mod rayleigh_lagged;
+pub mod registry;
 pub mod rigid;
 mod rotation_preserving;
 

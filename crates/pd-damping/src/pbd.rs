@@ -6,6 +6,9 @@ use crate::error::unit_interval;
 use crate::rigid::RigidFit;
 use crate::{Damping, DampingContext, DampingError, Point};
 
+/// The name scenes, the command line and the registry use for this model.
+pub const NAME: &str = "pbd";
+
 /// PBD damping with factor `k`: per connected component, with the rigid fit
 /// `v_cm + omega x r_i` of [`RigidFit`],
 /// `v_i <- v_i + k (v_cm + omega x r_i - v_i)`.
@@ -53,7 +56,7 @@ impl PbdDamping {
 
 impl Damping for PbdDamping {
     fn name(&self) -> &'static str {
-        "pbd"
+        NAME
     }
 
     /// Cost: two passes over each component plus one 3 x 3 eigendecomposition

@@ -4,6 +4,9 @@
 use crate::error::non_negative;
 use crate::{Damping, DampingError, DampingMatrix};
 
+/// The name scenes, the command line and the registry use for this model.
+pub const NAME: &str = "rayleigh-lagged";
+
 /// Lagged Rayleigh damping `D_n = mass M + stiffness K(x_n)`, `K(x_n)` the
 /// elastic Hessian at the start of the step, projected to PSD per element.
 /// The solver assembles `K(x_n)` and refactors the 3n x 3n system every step
@@ -43,7 +46,7 @@ impl RayleighLagged {
 
 impl Damping for RayleighLagged {
     fn name(&self) -> &'static str {
-        "rayleigh-lagged"
+        NAME
     }
 
     fn implicit_matrix(&self) -> DampingMatrix {

@@ -40,7 +40,7 @@ use pd_mesh::Point;
 use pd_solver::{Checkpoint, State};
 use serde::{Deserialize, Serialize};
 
-use crate::frames::write_atomically;
+use crate::atomic::write_atomically;
 use crate::scene::Syntax;
 use crate::{Error, Result};
 

@@ -1,21 +1,21 @@
 //! Writers for simulation frames: legacy ASCII VTK (for ParaView and VisIt)
 //! and Wavefront OBJ (for anything else).
 //!
-//! Every file this crate writes is replaced atomically: the text goes to a
-//! hidden temporary file beside the target, which is flushed and renamed
-//! over the target, so a run that is interrupted (Ctrl-C, a crash,
-//! a full disk) never leaves a half-written frame under the final name.
+//! Every file this crate writes is replaced atomically (the crate's
+//! `atomic` module): the text goes to a hidden temporary file beside the
+//! target, which is flushed and renamed over the target, so a run that is
+//! interrupted (Ctrl-C, a crash, a full disk) never leaves a half-written
+//! frame under the final name.
 //! Floats are written so that parsing them gives back the same `f64` bit for
 //! bit.
 
-use std::ffi::OsString;
 use std::fmt;
-use std::fs::File;
-use std::io::{self, BufWriter, Write};
-use std::path::{Path, PathBuf};
+use std::io::{self, Write};
+use std::path::Path;
 
 use pd_mesh::Point;
 
+use crate::atomic::write_atomically;
 use crate::error::{Error, Result};
 
 /// The elements of a frame, as indices into its positions. Any of the three
@@ -31,11 +31,34 @@ pub struct Cells<'a> {
 }
 
 /// VTK cell type of a linear tetrahedron (`VTK_TETRA`).
-pub(crate) const VTK_TETRA: u8 = 10;
+const VTK_TETRA: u8 = 10;
 /// VTK cell type of a triangle (`VTK_TRIANGLE`).
-pub(crate) const VTK_TRIANGLE: u8 = 5;
+const VTK_TRIANGLE: u8 = 5;
 /// VTK cell type of a line segment (`VTK_LINE`).
-pub(crate) const VTK_LINE: u8 = 3;
+const VTK_LINE: u8 = 3;
+
+impl Cells<'_> {
+    /// The number of cells of every kind.
+    pub fn len(&self) -> usize {
+        self.tets.len() + self.triangles.len() + self.lines.len()
+    }
+
+    /// Whether there are no cells.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// `(vertices, VTK cell type)` of every cell, in the order the VTK
+    /// writers write them: tetrahedra, then triangles, then lines.
+    pub(crate) fn vtk_types(&self) -> impl Iterator<Item = (usize, u8)> {
+        let repeat = |count: usize, size: usize, cell_type: u8| {
+            std::iter::repeat_n((size, cell_type), count)
+        };
+        repeat(self.tets.len(), 4, VTK_TETRA)
+            .chain(repeat(self.triangles.len(), 3, VTK_TRIANGLE))
+            .chain(repeat(self.lines.len(), 2, VTK_LINE))
+    }
+}
 
 /// The checks every VTK-family frame writer makes before it writes:
 /// finite positions and velocities, one velocity per position, and cells
@@ -112,23 +135,17 @@ pub fn write_vtk(
         writeln!(w, "POINTS {} double", positions.len())?;
         write_vectors(w, positions)?;
 
-        let num_cells = cells.tets.len() + cells.triangles.len() + cells.lines.len();
+        let num_cells = cells.len();
         // The size of the CELLS list counts every index plus each cell's
         // leading vertex count.
-        let list_size = 5 * cells.tets.len() + 4 * cells.triangles.len() + 3 * cells.lines.len();
+        let list_size: usize = cells.vtk_types().map(|(size, _)| size + 1).sum();
         writeln!(w, "CELLS {num_cells} {list_size}")?;
         write_vtk_cells(w, cells.tets)?;
         write_vtk_cells(w, cells.triangles)?;
         write_vtk_cells(w, cells.lines)?;
         writeln!(w, "CELL_TYPES {num_cells}")?;
-        for (count, cell_type) in [
-            (cells.tets.len(), VTK_TETRA),
-            (cells.triangles.len(), VTK_TRIANGLE),
-            (cells.lines.len(), VTK_LINE),
-        ] {
-            for _ in 0..count {
-                writeln!(w, "{cell_type}")?;
-            }
+        for (_, cell_type) in cells.vtk_types() {
+            writeln!(w, "{cell_type}")?;
         }
 
         if let Some(velocities) = velocities {
@@ -180,55 +197,6 @@ pub fn write_obj(
         }
         Ok(())
     })
-}
-
-/// Writes a file atomically: `write` fills a buffered temporary file
-/// `.NAME.tmp` in the target's directory, which is then flushed and renamed
-/// to `path`. If `write` or any step fails, the temporary file is removed
-/// and an existing file at `path` is left untouched.
-///
-/// The rename makes the write atomic with respect to crashes and
-/// interruptions of this process; the data is not `fsync`ed, because doing
-/// so for every frame costs far more than it protects against (a power cut
-/// mid-run loses the run anyway). Two writers must not target the same path
-/// at the same time, as they would share the temporary name.
-///
-/// # Errors
-/// [`Error::Io`] naming `path` (not the temporary file), for any failure.
-pub(crate) fn write_atomically(
-    path: &Path,
-    write: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
-) -> Result<()> {
-    let temporary = temporary_path(path)?;
-    let result = File::create(&temporary).and_then(|file| {
-        let mut writer = BufWriter::new(file);
-        write(&mut writer)?;
-        writer
-            .into_inner()
-            .map_err(io::IntoInnerError::into_error)?;
-        std::fs::rename(&temporary, path)
-    });
-    result.map_err(|source| {
-        // Best effort: the temporary may not exist if creating it failed,
-        // and the error that matters is the one we return.
-        let _ = std::fs::remove_file(&temporary);
-        Error::io(path, source)
-    })
-}
-
-/// `dir/.NAME.tmp` for `dir/NAME`: hidden, in the same directory (so the
-/// final rename never crosses file systems).
-fn temporary_path(path: &Path) -> Result<PathBuf> {
-    let Some(name) = path.file_name() else {
-        return Err(Error::io(
-            path,
-            io::Error::new(io::ErrorKind::InvalidInput, "not a file name"),
-        ));
-    };
-    let mut temporary_name = OsString::from(".");
-    temporary_name.push(name);
-    temporary_name.push(".tmp");
-    Ok(path.with_file_name(temporary_name))
 }
 
 /// Displays an `f64` so that parsing the text gives back the same bits, in
@@ -303,13 +271,6 @@ pub(crate) fn check_cells<const K: usize>(
 mod tests {
     use super::*;
 
-    fn scratch_dir(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("pd-io-frames-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
-    }
-
     #[test]
     fn float_text_round_trips_and_avoids_long_spellings() {
         let values = [
@@ -338,41 +299,5 @@ mod tests {
         assert_eq!(Float(0.25).to_string(), "0.25");
         assert_eq!(Float(-3.0).to_string(), "-3");
         assert_eq!(Float(2e300).to_string(), "2e300");
-    }
-
-    #[test]
-    fn failed_write_keeps_the_old_file_and_leaves_no_temporary() {
-        let dir = scratch_dir("failed-write");
-        let path = dir.join("frame.obj");
-        std::fs::write(&path, "old contents\n").unwrap();
-        let err = write_atomically(&path, |w| {
-            w.write_all(b"half a fra")?;
-            Err(io::Error::other("interrupted"))
-        })
-        .unwrap_err();
-        assert!(
-            matches!(&err, Error::Io { path: p, .. } if *p == path),
-            "{err}"
-        );
-        assert_eq!(std::fs::read_to_string(&path).unwrap(), "old contents\n");
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
-        std::fs::remove_dir_all(&dir).unwrap();
-    }
-
-    #[test]
-    fn successful_write_replaces_the_old_file() {
-        let dir = scratch_dir("replace");
-        let path = dir.join("state.json");
-        std::fs::write(&path, "old").unwrap();
-        write_atomically(&path, |w| w.write_all(b"new")).unwrap();
-        assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
-        std::fs::remove_dir_all(&dir).unwrap();
-    }
-
-    #[test]
-    fn a_path_without_file_name_is_an_io_error() {
-        let err = write_atomically(Path::new("/"), |_| Ok(())).unwrap_err();
-        assert!(matches!(err, Error::Io { .. }), "{err}");
     }
 }

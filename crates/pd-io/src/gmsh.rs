@@ -48,8 +48,8 @@ use std::path::Path;
 use pd_mesh::{Mesh, Point};
 
 use crate::error::{Error, Result};
+use crate::lines::{DataLines, Line, read_text};
 use crate::readers::{build_mesh, check_distinct, finite_point};
-use crate::tetgen::{DataLines, Line, read_text};
 
 /// Reads a Gmsh 4.1 ASCII `.msh` file (see the [module docs](self)).
 ///

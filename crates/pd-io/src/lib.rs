@@ -37,10 +37,12 @@
 //! assert!(err.to_string().contains("bad.toml:4"), "{err}");
 //! ```
 
+mod atomic;
 pub mod checkpoint;
 mod error;
 pub mod frames;
 pub mod gmsh;
+mod lines;
 pub mod medit;
 pub mod obj;
 pub mod ply;

@@ -39,8 +39,8 @@ use std::path::Path;
 use pd_mesh::{Mesh, Point};
 
 use crate::error::Result;
+use crate::lines::{DataLines, Line, read_text};
 use crate::readers::{build_mesh, check_distinct, finite_point, vertex_index};
-use crate::tetgen::{DataLines, Line, read_text};
 
 /// Reads a Medit `.mesh` file (see the [module docs](self)).
 ///
@@ -61,10 +61,7 @@ pub fn read_medit(path: &Path) -> Result<Mesh> {
     let mut version_seen = false;
     let mut dimension_seen = false;
     let mut points: Option<Vec<Point>> = None;
-    let mut tets = Vec::new();
-    let mut tet_lines = Vec::new();
-    let mut triangles = Vec::new();
-    let mut triangle_lines = Vec::new();
+    let mut elements = Elements::default();
 
     while let Some(line) = lines.next_line() {
         let keyword = line.fields[0];
@@ -105,16 +102,7 @@ pub fn read_medit(path: &Path) -> Result<Mesh> {
                 if points.is_some() {
                     return Err(line.error("a second `Vertices` table".into()));
                 }
-                let (count_line, field) = value(&mut lines, line, keyword)?;
-                let count = count_line.unsigned(field, "number of vertices")?;
-                let mut table = Vec::with_capacity(count.min(1 << 20));
-                for k in 0..count {
-                    let record = record(&mut lines, &count_line, count, k, "vertex")?;
-                    record.expect_fields(4, "x, y, z, reference")?;
-                    table.push(finite_point(&record, 0, &format!("vertex {}", k + 1))?);
-                    record.signed(3, "reference")?;
-                }
-                points = Some(table);
+                points = Some(read_vertices(&mut lines, line)?);
             }
             "Tetrahedra" | "Triangles" => {
                 let Some(vertices) = &points else {
@@ -122,46 +110,13 @@ pub fn read_medit(path: &Path) -> Result<Mesh> {
                         "`{keyword}` before `Vertices`: the vertices must come first"
                     )));
                 };
-                let corners = if keyword == "Tetrahedra" { 4 } else { 3 };
-                let what = if corners == 4 {
-                    "tetrahedron"
-                } else {
-                    "triangle"
-                };
-                let (count_line, field) = value(&mut lines, line, keyword)?;
-                let count = count_line.unsigned(field, &format!("number of {what} records"))?;
-                for k in 0..count {
-                    let record = record(&mut lines, &count_line, count, k, what)?;
-                    record.expect_fields(corners + 1, "vertex indices, reference")?;
-                    let name = format!("{what} {}", k + 1);
-                    let mut element = [0; 4];
-                    for (c, v) in element.iter_mut().take(corners).enumerate() {
-                        *v = vertex_index(&record, c, 1, vertices.len(), &name)?;
-                    }
-                    record.signed(corners, "reference")?;
-                    check_distinct(&record, &element[..corners], &name, 1)?;
-                    if corners == 4 {
-                        tets.push(element);
-                        tet_lines.push(record.line);
-                    } else {
-                        triangles.push([element[0], element[1], element[2]]);
-                        triangle_lines.push(record.line);
-                    }
-                }
+                elements.read(&mut lines, line, keyword, vertices.len())?;
             }
             _ => {
                 let Some(fields) = skipped_layout(keyword) else {
                     return Err(line.error(unsupported(keyword)));
                 };
-                let (count_line, field) = value(&mut lines, line, keyword)?;
-                let count = count_line.unsigned(field, &format!("number of {keyword} records"))?;
-                for k in 0..count {
-                    let record = record(&mut lines, &count_line, count, k, keyword)?;
-                    record.expect_fields(fields, keyword)?;
-                    for f in 0..fields {
-                        record.number(f, "value")?;
-                    }
-                }
+                skip_table(&mut lines, line, keyword, fields)?;
             }
         }
     }
@@ -173,6 +128,12 @@ pub fn read_medit(path: &Path) -> Result<Mesh> {
     let Some(points) = points else {
         return Err(lines.error_at_end("the file has no `Vertices` table".into()));
     };
+    let Elements {
+        tets,
+        tet_lines,
+        triangles,
+        triangle_lines,
+    } = elements;
     if !tets.is_empty() {
         build_mesh(path, points, tets, Vec::new(), None, &tet_lines)
     } else if !triangles.is_empty() {
@@ -180,6 +141,91 @@ pub fn read_medit(path: &Path) -> Result<Mesh> {
     } else {
         Err(lines.error_at_end("the file has no `Tetrahedra` and no `Triangles`".into()))
     }
+}
+
+/// The `Vertices` table whose keyword is on `line`: `x y z reference` per
+/// vertex.
+fn read_vertices<'a>(lines: &mut DataLines<'a>, line: Line<'a>) -> Result<Vec<Point>> {
+    let (count_line, field) = value(lines, line, "Vertices")?;
+    let count = count_line.unsigned(field, "number of vertices")?;
+    let mut table = Vec::with_capacity(count.min(1 << 20));
+    for k in 0..count {
+        let record = record(lines, &count_line, count, k, "vertex")?;
+        record.expect_fields(4, "x, y, z, reference")?;
+        table.push(finite_point(&record, 0, &format!("vertex {}", k + 1))?);
+        record.signed(3, "reference")?;
+    }
+    Ok(table)
+}
+
+/// The tetrahedra and triangles read so far, with the line of each.
+#[derive(Default)]
+struct Elements {
+    tets: Vec<[usize; 4]>,
+    tet_lines: Vec<usize>,
+    triangles: Vec<[usize; 3]>,
+    triangle_lines: Vec<usize>,
+}
+
+impl Elements {
+    /// The `Tetrahedra` or `Triangles` table (`keyword`) whose keyword is
+    /// on `line`: 1-based vertex indices below `num_vertices`, then a
+    /// reference, per element.
+    fn read<'a>(
+        &mut self,
+        lines: &mut DataLines<'a>,
+        line: Line<'a>,
+        keyword: &str,
+        num_vertices: usize,
+    ) -> Result<()> {
+        let corners = if keyword == "Tetrahedra" { 4 } else { 3 };
+        let what = if corners == 4 {
+            "tetrahedron"
+        } else {
+            "triangle"
+        };
+        let (count_line, field) = value(lines, line, keyword)?;
+        let count = count_line.unsigned(field, &format!("number of {what} records"))?;
+        for k in 0..count {
+            let record = record(lines, &count_line, count, k, what)?;
+            record.expect_fields(corners + 1, "vertex indices, reference")?;
+            let name = format!("{what} {}", k + 1);
+            let mut element = [0; 4];
+            for (c, v) in element.iter_mut().take(corners).enumerate() {
+                *v = vertex_index(&record, c, 1, num_vertices, &name)?;
+            }
+            record.signed(corners, "reference")?;
+            check_distinct(&record, &element[..corners], &name, 1)?;
+            if corners == 4 {
+                self.tets.push(element);
+                self.tet_lines.push(record.line);
+            } else {
+                self.triangles.push([element[0], element[1], element[2]]);
+                self.triangle_lines.push(record.line);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A table this reader checks but does not use (`keyword` on `line`):
+/// `fields` numbers per record.
+fn skip_table<'a>(
+    lines: &mut DataLines<'a>,
+    line: Line<'a>,
+    keyword: &str,
+    fields: usize,
+) -> Result<()> {
+    let (count_line, field) = value(lines, line, keyword)?;
+    let count = count_line.unsigned(field, &format!("number of {keyword} records"))?;
+    for k in 0..count {
+        let record = record(lines, &count_line, count, k, keyword)?;
+        record.expect_fields(fields, keyword)?;
+        for f in 0..fields {
+            record.number(f, "value")?;
+        }
+    }
+    Ok(())
 }
 
 /// The value of a keyword: on its own line (`Dimension 3`) or on the next

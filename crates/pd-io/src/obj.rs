@@ -29,8 +29,8 @@ use std::path::Path;
 use pd_mesh::{Mesh, Point};
 
 use crate::error::Result;
+use crate::lines::{DataLines, Line, read_text};
 use crate::readers::{build_mesh, check_distinct, finite_point};
-use crate::tetgen::{DataLines, Line, read_text};
 
 /// Reads a Wavefront OBJ file (see the [module docs](self)).
 ///

@@ -27,8 +27,9 @@ use std::path::Path;
 
 use pd_mesh::Point;
 
+use crate::atomic::write_atomically;
 use crate::error::{Error, Result};
-use crate::frames::{Float, check_cells, check_points, write_atomically};
+use crate::frames::{Float, check_cells, check_points};
 
 /// Writes one frame as an ASCII PLY file (see the [module docs](self)):
 /// `positions` (m), `triangles` (pass the boundary surface of a volume

@@ -6,7 +6,7 @@ use std::path::Path;
 use pd_mesh::{Mesh, MeshError, Point};
 
 use crate::error::{Error, Result};
-use crate::tetgen::Line;
+use crate::lines::Line;
 
 /// Fields `start..start + 3` of `line` as a finite point; `what` names the
 /// vertex in messages (e.g. `vertex 3`).

@@ -3,7 +3,8 @@
 //! - `metrics.csv`: one row per step (row 0 is the initial state) with
 //!   `step,time,kinetic,elastic,gravity,total,px,py,pz,jx,jy,jz,iterations,step_ms,local_ms,global_ms`
 //!   (energies in J, linear momentum in kg m/s, angular momentum about the
-//!   origin in kg m^2/s, times in ms);
+//!   origin in kg m^2/s, times in ms), the format of [`MetricsRow`], which
+//!   also reads it back;
 //! - `probes.csv`: `step,time` and `x_I,y_I,z_I,vx_I,vy_I,vz_I` per probed
 //!   vertex `I`, every step;
 //! - `frames/frame_NNNNN.vtk` / `.vtu` / `.obj` / `.ply` every `output.every`
@@ -17,7 +18,10 @@
 //! Rows are flushed every step, so a run that stops early (divergence, a
 //! signal) keeps every row written before it.
 
+mod metrics;
 mod resume;
+
+pub use metrics::MetricsRow;
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -126,13 +130,9 @@ impl Recorder {
             let frames = dir.join("frames");
             std::fs::create_dir_all(&frames).map_err(|e| Error::io(&frames, e))?;
         }
-        let metrics_path = dir.join("metrics.csv");
+        let metrics_path = dir.join(MetricsRow::FILE);
         let mut metrics = create(&metrics_path)?;
-        writeln!(
-            metrics,
-            "step,time,kinetic,elastic,gravity,total,px,py,pz,jx,jy,jz,iterations,step_ms,local_ms,global_ms"
-        )
-        .map_err(|e| Error::io(&metrics_path, e))?;
+        MetricsRow::write_header(&mut metrics).map_err(|e| Error::io(&metrics_path, e))?;
         let probes = if scene.output.probes.is_empty() {
             None
         } else {
@@ -252,44 +252,15 @@ impl Recorder {
         )?;
         let path = self.dir.join("summary.json");
         let text = serde_json::to_string_pretty(&summary).expect("a JSON value always serialises");
-        crate::frames::write_atomically(&path, |w| writeln!(w, "{text}"))?;
+        crate::atomic::write_atomically(&path, |w| writeln!(w, "{text}"))?;
         Ok(path)
     }
 
     fn write_rows(&mut self, sim: &Simulation, stats: Option<&StepStats>) -> Result<()> {
-        let e = sim.energies();
-        let p = sim.linear_momentum();
-        let j = sim.angular_momentum();
-        let (iterations, step, local, global) = stats.map_or((0, 0.0, 0.0, 0.0), |s| {
-            (
-                s.iterations,
-                s.total_seconds * 1e3,
-                s.local_seconds * 1e3,
-                s.global_seconds * 1e3,
-            )
-        });
-        writeln!(
-            self.metrics,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{:.4},{:.4},{:.4}",
-            sim.steps(),
-            sim.time(),
-            e.kinetic,
-            e.elastic,
-            e.gravity,
-            e.total(),
-            p.x,
-            p.y,
-            p.z,
-            j.x,
-            j.y,
-            j.z,
-            iterations,
-            step,
-            local,
-            global
-        )
-        .and_then(|()| self.metrics.flush())
-        .map_err(|err| Error::io(&self.metrics_path, err))?;
+        MetricsRow::of(sim, stats)
+            .write(&mut self.metrics)
+            .and_then(|()| self.metrics.flush())
+            .map_err(|err| Error::io(&self.metrics_path, err))?;
         if let Some((file, path)) = &mut self.probes {
             let state = sim.state();
             let mut row = format!("{},{}", sim.steps(), sim.time());

@@ -27,8 +27,8 @@ use std::path::Path;
 use pd_mesh::Point;
 use serde::{Deserialize, Serialize};
 
+use crate::atomic::write_atomically;
 use crate::error::{Error, Result};
-use crate::frames::write_atomically;
 
 /// The contents of a state file, as read; [`read_state`] has checked that
 /// every number is finite and that there is one velocity per position.

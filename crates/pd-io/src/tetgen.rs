@@ -26,12 +26,14 @@
 use std::ffi::OsString;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::str::FromStr;
 
 use pd_mesh::{Mesh, Point};
 
+use crate::atomic::write_atomically;
 use crate::error::{Error, Result};
-use crate::frames::{Float, write_atomically};
+use crate::frames::Float;
+use crate::lines::{DataLines, Line, read_text};
+use crate::readers::{build_mesh, check_distinct};
 
 /// Reads a tetrahedral mesh from a TetGen `.node` file and its `.ele` file.
 ///
@@ -148,47 +150,12 @@ pub fn read_tetgen_surface(node: &Path, face: &Path) -> Result<Mesh> {
             "the number of boundary markers must be 0 or 1, found {num_markers}"
         )));
     }
-    if num_faces == 0 {
-        return Err(header.error("the header declares no faces".into()));
-    }
-    let num_points = nodes.points.len();
-    let first_node = nodes.first_index;
-    let layout = if num_markers == 1 {
-        "index, 3 nodes, boundary marker"
-    } else {
-        "index, 3 nodes"
-    };
-    let mut triangles = Vec::with_capacity(num_faces.min(1 << 20));
-    let mut face_lines = Vec::with_capacity(num_faces.min(1 << 20));
-    let mut first_index = 0;
-    for position in 0..num_faces {
-        let line = lines.data_line(header.line, position, num_faces, "face")?;
-        line.expect_fields(4 + num_markers, layout)?;
-        let index = line.sequence_index(position, &mut first_index, "face")?;
-        let mut triangle = [0; 3];
-        for (corner, vertex) in triangle.iter_mut().enumerate() {
-            let node_index = line.unsigned(1 + corner, "node index")?;
-            *vertex = node_index
-                .checked_sub(first_node)
-                .filter(|&v| v < num_points)
-                .ok_or_else(|| {
-                    line.error(format!(
-                        "face {index} refers to node {node_index}, but {} has {num_points} \
-                         nodes numbered {first_node} to {}",
-                        node.display(),
-                        first_node + num_points - 1
-                    ))
-                })?;
-        }
-        if num_markers == 1 {
-            line.signed(4, "boundary marker")?;
-        }
-        crate::readers::check_distinct(&line, &triangle, &format!("face {index}"), first_node)?;
-        triangles.push(triangle);
-        face_lines.push(line.line);
-    }
-    lines.expect_end(header.line, num_faces, "faces")?;
-    crate::readers::build_mesh(face, nodes.points, Vec::new(), triangles, None, &face_lines)
+    let extra = (num_markers == 1).then_some(Extra::BoundaryMarker);
+    let faces = CellSection::new(&header, ("face", "faces"), num_faces, extra)?;
+    let (triangles, face_lines) = faces.read(&mut lines, &nodes, node, |line, index, face| {
+        check_distinct(line, face, &format!("face {index}"), nodes.first_index)
+    })?;
+    build_mesh(face, nodes.points, Vec::new(), triangles, None, &face_lines)
 }
 
 /// Reads `BASE.node` and `BASE.face` with [`read_tetgen_surface`]; `base`
@@ -197,32 +164,32 @@ pub fn read_tetgen_surface(node: &Path, face: &Path) -> Result<Mesh> {
 /// # Errors
 /// As [`read_tetgen_surface`].
 pub fn read_tetgen_surface_base(base: &Path) -> Result<Mesh> {
-    let stem = match base.extension().and_then(|e| e.to_str()) {
-        Some("node" | "face") => base.with_extension(""),
-        _ => base.to_path_buf(),
-    };
-    let with_suffix = |suffix: &str| {
-        let mut name = OsString::from(stem.as_os_str());
-        name.push(suffix);
-        PathBuf::from(name)
-    };
-    read_tetgen_surface(&with_suffix(".node"), &with_suffix(".face"))
+    let (node, face) = file_pair(base, "face");
+    read_tetgen_surface(&node, &face)
 }
 
 /// `(BASE.node, BASE.ele)` for a base with or without one of the two
-/// extensions. Appends rather than using `Path::with_extension`, which would
-/// turn TetGen's `bar.1` into `bar.node`.
+/// extensions.
 fn tetgen_paths(base: &Path) -> (PathBuf, PathBuf) {
+    file_pair(base, "ele")
+}
+
+/// `(BASE.node, BASE.<elements>)` for a base that ends in `.node`, in
+/// `.<elements>` or in neither. Appends rather than using
+/// `Path::with_extension`, which would turn TetGen's `bar.1` into
+/// `bar.node`.
+fn file_pair(base: &Path, elements: &str) -> (PathBuf, PathBuf) {
     let stem = match base.extension().and_then(|e| e.to_str()) {
-        Some("node" | "ele") => base.with_extension(""),
+        Some(e) if e == "node" || e == elements => base.with_extension(""),
         _ => base.to_path_buf(),
     };
     let with_suffix = |suffix: &str| {
         let mut name = OsString::from(stem.as_os_str());
+        name.push(".");
         name.push(suffix);
         PathBuf::from(name)
     };
-    (with_suffix(".node"), with_suffix(".ele"))
+    (with_suffix("node"), with_suffix(elements))
 }
 
 /// The nodes of a `.node` file.
@@ -336,229 +303,112 @@ fn read_elements(path: &Path, node_path: &Path, nodes: &Nodes) -> Result<Vec<[us
             "the number of region attributes must be 0 or 1, found {num_regions}"
         )));
     }
-    if num_tets == 0 {
-        return Err(header.error("the header declares no tetrahedra".into()));
-    }
-
-    let num_points = nodes.points.len();
-    let first_node = nodes.first_index;
-    let layout = if num_regions == 1 {
-        "index, 4 nodes, region attribute"
-    } else {
-        "index, 4 nodes"
-    };
-    let mut tets = Vec::with_capacity(num_tets.min(1 << 20));
-    let mut first_index = 0;
-    for position in 0..num_tets {
-        let line = lines.data_line(header.line, position, num_tets, "tetrahedron")?;
-        line.expect_fields(5 + num_regions, layout)?;
-        let index = line.sequence_index(position, &mut first_index, "tetrahedron")?;
-        let mut tet = [0; 4];
-        for (corner, vertex) in tet.iter_mut().enumerate() {
-            let node = line.unsigned(1 + corner, "node index")?;
-            *vertex = node
-                .checked_sub(first_node)
-                .filter(|&v| v < num_points)
-                .ok_or_else(|| {
-                    line.error(format!(
-                        "tetrahedron {index} refers to node {node}, but {} has {num_points} \
-                         nodes numbered {first_node} to {}",
-                        node_path.display(),
-                        first_node + num_points - 1
-                    ))
-                })?;
-        }
-        if num_regions == 1 {
-            line.number(5, "region attribute")?;
-        }
-        tets.push(tet);
-    }
-    lines.expect_end(header.line, num_tets, "tetrahedra")?;
+    let extra = (num_regions == 1).then_some(Extra::RegionAttribute);
+    let tetrahedra = CellSection::new(&header, ("tetrahedron", "tetrahedra"), num_tets, extra)?;
+    let (tets, _) = tetrahedra.read(&mut lines, nodes, node_path, |_, _, _| Ok(()))?;
     Ok(tets)
 }
 
-/// Reads a whole file as UTF-8, reporting invalid bytes at their line.
-pub(crate) fn read_text(path: &Path) -> Result<String> {
-    let bytes = std::fs::read(path).map_err(|source| Error::io(path, source))?;
-    String::from_utf8(bytes).map_err(|err| {
-        let valid = &err.as_bytes()[..err.utf8_error().valid_up_to()];
-        Error::Parse {
-            path: path.to_path_buf(),
-            line: 1 + valid.iter().filter(|&&b| b == b'\n').count(),
-            message: "the file is not valid UTF-8 text".into(),
-        }
-    })
+/// The optional last field of an element line.
+#[derive(Debug, Clone, Copy)]
+enum Extra {
+    /// A `.ele` region attribute: any number.
+    RegionAttribute,
+    /// A `.face` boundary marker: an integer.
+    BoundaryMarker,
 }
 
-/// The non-blank lines of a file, comments stripped, split into fields.
-pub(crate) struct DataLines<'a> {
-    path: &'a Path,
-    lines: std::iter::Enumerate<std::str::Lines<'a>>,
-    /// Number of the last line of the file (1 for an empty file), where a
-    /// truncated file is reported.
-    last_line: usize,
+/// The data lines of an element file (`.ele` or `.face`) after its header:
+/// `<index> <n_0> ... <n_N-1> [extra]` per element, `count` of them.
+struct CellSection {
+    /// An element, in messages (`tetrahedron`).
+    what: &'static str,
+    /// Elements, in messages (`tetrahedra`).
+    plural: &'static str,
+    count: usize,
+    header_line: usize,
+    extra: Option<Extra>,
 }
 
-/// One non-blank line: its 1-based number and its fields.
-pub(crate) struct Line<'a> {
-    path: &'a Path,
-    pub(crate) line: usize,
-    pub(crate) fields: Vec<&'a str>,
-}
-
-impl<'a> DataLines<'a> {
-    pub(crate) fn new(path: &'a Path, text: &'a str) -> Self {
-        Self {
-            path,
-            lines: text.lines().enumerate(),
-            last_line: text.lines().count().max(1),
-        }
-    }
-
-    pub(crate) fn next_line(&mut self) -> Option<Line<'a>> {
-        for (number, text) in self.lines.by_ref() {
-            let data = text.split_once('#').map_or(text, |(data, _comment)| data);
-            let fields: Vec<&str> = data.split_whitespace().collect();
-            if !fields.is_empty() {
-                return Some(Line {
-                    path: self.path,
-                    line: number + 1,
-                    fields,
-                });
-            }
-        }
-        None
-    }
-
-    pub(crate) fn error_at_end(&self, message: String) -> Error {
-        Error::Parse {
-            path: self.path.to_path_buf(),
-            line: self.last_line,
-            message,
-        }
-    }
-
-    /// The header line, which must have exactly `num_fields` fields.
-    fn header(&mut self, layout: &str, num_fields: usize) -> Result<Line<'a>> {
-        let header = self.next_line().ok_or_else(|| {
-            self.error_at_end(format!("the header is missing: expected `{layout}`"))
-        })?;
-        if header.fields.len() != num_fields {
-            return Err(header.error(format!(
-                "the header must have {num_fields} fields `{layout}`, found {}",
-                header.fields.len()
-            )));
-        }
-        Ok(header)
-    }
-
-    /// Data line number `position` (0-based) of `count` declared on line
-    /// `header_line`.
-    fn data_line(
-        &mut self,
-        header_line: usize,
-        position: usize,
+impl CellSection {
+    /// The section of `count` elements declared on `header`; `names` are an
+    /// element's and the elements' names in messages.
+    ///
+    /// # Errors
+    /// A header that declares no elements.
+    fn new(
+        header: &Line<'_>,
+        (what, plural): (&'static str, &'static str),
         count: usize,
-        what: &str,
-    ) -> Result<Line<'a>> {
-        self.next_line().ok_or_else(|| {
-            self.error_at_end(format!(
-                "the file is truncated: the header on line {header_line} declares {count} \
-                 {what} lines, found {position}"
-            ))
+        extra: Option<Extra>,
+    ) -> Result<Self> {
+        if count == 0 {
+            return Err(header.error(format!("the header declares no {plural}")));
+        }
+        Ok(Self {
+            what,
+            plural,
+            count,
+            header_line: header.line,
+            extra,
         })
     }
 
-    /// Fails if any data is left after the `count` declared lines.
-    fn expect_end(&mut self, header_line: usize, count: usize, what: &str) -> Result<()> {
-        match self.next_line() {
-            Some(extra) => Err(extra.error(format!(
-                "unexpected data after the {count} {what} declared by the header on line \
-                 {header_line}"
-            ))),
-            None => Ok(()),
-        }
-    }
-}
-
-impl Line<'_> {
-    pub(crate) fn error(&self, message: String) -> Error {
-        Error::Parse {
-            path: self.path.to_path_buf(),
-            line: self.line,
-            message,
-        }
-    }
-
-    pub(crate) fn expect_fields(&self, count: usize, layout: &str) -> Result<()> {
-        if self.fields.len() == count {
-            Ok(())
-        } else {
-            Err(self.error(format!(
-                "expected {count} fields ({layout}), found {}",
-                self.fields.len()
-            )))
-        }
-    }
-
-    /// The index in the first field of data line `position` (0-based) of a
-    /// `what` section: the first line's index, 0 or 1, is stored in
-    /// `first_index`, and the others must follow it consecutively.
-    fn sequence_index(
+    /// Reads the elements as 0-based vertex indices of `nodes` (read from
+    /// `node_path`), with the line of each; `check` sees every element,
+    /// with its file index, before the next line is read.
+    fn read<const N: usize>(
         &self,
-        position: usize,
-        first_index: &mut usize,
-        what: &str,
-    ) -> Result<usize> {
-        let index = self.unsigned(0, &format!("{what} index"))?;
-        if position == 0 {
-            if index > 1 {
-                return Err(self.error(format!(
-                    "{what} indices must start at 0 or 1, found {index}"
-                )));
+        lines: &mut DataLines<'_>,
+        nodes: &Nodes,
+        node_path: &Path,
+        check: impl Fn(&Line<'_>, usize, &[usize; N]) -> Result<()>,
+    ) -> Result<(Vec<[usize; N]>, Vec<usize>)> {
+        let what = self.what;
+        let (num_points, first_node) = (nodes.points.len(), nodes.first_index);
+        let layout = match self.extra {
+            None => format!("index, {N} nodes"),
+            Some(Extra::RegionAttribute) => format!("index, {N} nodes, region attribute"),
+            Some(Extra::BoundaryMarker) => format!("index, {N} nodes, boundary marker"),
+        };
+        // Capped: the header's count is not trusted until the lines are there.
+        let mut cells = Vec::with_capacity(self.count.min(1 << 20));
+        let mut cell_lines = Vec::with_capacity(self.count.min(1 << 20));
+        let mut first_index = 0;
+        for position in 0..self.count {
+            let line = lines.data_line(self.header_line, position, self.count, what)?;
+            line.expect_fields(1 + N + usize::from(self.extra.is_some()), &layout)?;
+            let index = line.sequence_index(position, &mut first_index, what)?;
+            let mut cell = [0; N];
+            for (corner, vertex) in cell.iter_mut().enumerate() {
+                let node = line.unsigned(1 + corner, "node index")?;
+                *vertex = node
+                    .checked_sub(first_node)
+                    .filter(|&v| v < num_points)
+                    .ok_or_else(|| {
+                        line.error(format!(
+                            "{what} {index} refers to node {node}, but {} has {num_points} \
+                             nodes numbered {first_node} to {}",
+                            node_path.display(),
+                            first_node + num_points - 1
+                        ))
+                    })?;
             }
-            *first_index = index;
-        } else if index != *first_index + position {
-            return Err(self.error(format!(
-                "{what} index {index} out of sequence: expected {} (indices must be \
-                 consecutive)",
-                *first_index + position
-            )));
+            match self.extra {
+                Some(Extra::RegionAttribute) => {
+                    line.number(1 + N, "region attribute")?;
+                }
+                Some(Extra::BoundaryMarker) => {
+                    line.signed(1 + N, "boundary marker")?;
+                }
+                None => {}
+            }
+            check(&line, index, &cell)?;
+            cells.push(cell);
+            cell_lines.push(line.line);
         }
-        Ok(index)
-    }
-
-    /// Field `index` as a count or an index. Integers must be written as
-    /// integers (`3`, not `3.0`), as TetGen writes them.
-    pub(crate) fn unsigned(&self, index: usize, what: &str) -> Result<usize> {
-        let value = self.parse(index, what, "a non-negative integer");
-        let text = self.text(index);
-        if value.is_err() && !text.is_empty() && text.bytes().all(|b| b.is_ascii_digit()) {
-            return Err(self.error(format!("the {what} `{text}` is too large")));
-        }
-        value
-    }
-
-    /// Field `index` as a signed integer (boundary markers may be negative).
-    pub(crate) fn signed(&self, index: usize, what: &str) -> Result<i64> {
-        self.parse(index, what, "an integer")
-    }
-
-    /// Field `index` as a number; `inf` and `nan` parse, so callers that
-    /// need finite values check them.
-    pub(crate) fn number(&self, index: usize, what: &str) -> Result<f64> {
-        self.parse(index, what, "a number")
-    }
-
-    /// The text of field `index`, empty if there is no such field.
-    pub(crate) fn text(&self, index: usize) -> &str {
-        self.fields.get(index).copied().unwrap_or_default()
-    }
-
-    fn parse<T: FromStr>(&self, index: usize, what: &str, expected: &str) -> Result<T> {
-        let text = self.text(index);
-        text.parse()
-            .map_err(|_| self.error(format!("the {what} must be {expected}, found `{text}`")))
+        lines.expect_end(self.header_line, self.count, self.plural)?;
+        Ok((cells, cell_lines))
     }
 }
 
@@ -576,20 +426,5 @@ mod tests {
             assert_eq!(node, Path::new("meshes/bar.node"), "{base}");
             assert_eq!(ele, Path::new("meshes/bar.ele"), "{base}");
         }
-    }
-
-    #[test]
-    fn comments_and_blank_lines_are_skipped_and_lines_numbered_from_one() {
-        let text = "# header comment\n\n  3 4 0 # trailing\n\t\n1 2 3 4 5#x\n#\n";
-        let mut lines = DataLines::new(Path::new("t.ele"), text);
-        let first = lines.next_line().unwrap();
-        assert_eq!((first.line, first.fields), (3, vec!["3", "4", "0"]));
-        let second = lines.next_line().unwrap();
-        assert_eq!(
-            (second.line, second.fields),
-            (5, vec!["1", "2", "3", "4", "5"])
-        );
-        assert!(lines.next_line().is_none());
-        assert_eq!(lines.last_line, 6);
     }
 }

@@ -13,10 +13,9 @@ use std::path::Path;
 
 use pd_mesh::Point;
 
+use crate::atomic::write_atomically;
 use crate::error::{Error, Result};
-use crate::frames::{
-    Cells, Float, VTK_LINE, VTK_TETRA, VTK_TRIANGLE, check_frame, write_atomically,
-};
+use crate::frames::{Cells, Float, check_frame};
 
 /// Writes one frame as a VTK XML unstructured grid: `Points` (m), the cells
 /// (tetrahedra, then triangles, then lines, as VTK types 10, 5 and 3), and,
@@ -52,7 +51,7 @@ pub fn write_vtu(
     strain: Option<&[f64]>,
 ) -> Result<()> {
     check_frame(path, positions, cells, velocities)?;
-    let num_cells = cells.tets.len() + cells.triangles.len() + cells.lines.len();
+    let num_cells = cells.len();
     if let Some(strain) = strain {
         if strain.len() != num_cells {
             return Err(content(
@@ -117,29 +116,17 @@ pub fn write_vtu(
             r#"        <DataArray type="Int64" Name="offsets" format="ascii">"#
         )?;
         let mut offset = 0;
-        for (count, size) in [
-            (cells.tets.len(), 4),
-            (cells.triangles.len(), 3),
-            (cells.lines.len(), 2),
-        ] {
-            for _ in 0..count {
-                offset += size;
-                writeln!(w, "{offset}")?;
-            }
+        for (size, _) in cells.vtk_types() {
+            offset += size;
+            writeln!(w, "{offset}")?;
         }
         writeln!(w, "        </DataArray>")?;
         writeln!(
             w,
             r#"        <DataArray type="UInt8" Name="types" format="ascii">"#
         )?;
-        for (count, cell_type) in [
-            (cells.tets.len(), VTK_TETRA),
-            (cells.triangles.len(), VTK_TRIANGLE),
-            (cells.lines.len(), VTK_LINE),
-        ] {
-            for _ in 0..count {
-                writeln!(w, "{cell_type}")?;
-            }
+        for (_, cell_type) in cells.vtk_types() {
+            writeln!(w, "{cell_type}")?;
         }
         writeln!(w, "        </DataArray>")?;
         writeln!(w, "      </Cells>")?;

@@ -67,7 +67,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         rate: 2.0,
     };
     for (label, damping) in [
-        ("none", Box::new(NoDamping) as Box<dyn Damping>),
+        ("undamped", Box::new(NoDamping) as Box<dyn Damping>),
         ("vertical drag, 2/s", Box::new(drag)),
     ] {
         let mut sim = thrown(damping)?;

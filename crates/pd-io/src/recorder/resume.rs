@@ -6,8 +6,8 @@ use std::path::Path;
 
 use pd_solver::Simulation;
 
-use super::{Recorder, Topology};
-use crate::frames::write_atomically;
+use super::{MetricsRow, Recorder, Topology};
+use crate::atomic::write_atomically;
 use crate::scene::{FrameFormat, Scene};
 use crate::vtu::{PvdEntry, write_pvd};
 use crate::{Error, Result};
@@ -25,41 +25,17 @@ impl Recorder {
     /// checkpoint's step or rows out of order; [`Error::Io`].
     pub fn resume(dir: &Path, scene: &Scene, sim: &Simulation) -> Result<Self> {
         let steps = sim.steps();
-        let metrics_path = dir.join("metrics.csv");
+        let metrics_path = dir.join(MetricsRow::FILE);
         let kept = truncate_rows(&metrics_path, steps)?;
-        let mut step_ms = Vec::new();
-        let mut local_ms = Vec::new();
-        let mut global_ms = Vec::new();
-        // Simulated time of every kept step (column 2, written with `{}` so
-        // it parses back exactly), for rebuilding `frames.pvd`.
-        let mut times = Vec::new();
-        for (row, line) in kept.lines().skip(1).enumerate() {
-            let time = line
-                .split(',')
-                .nth(1)
-                .and_then(|f| f.parse::<f64>().ok())
-                .ok_or_else(|| Error::Content {
-                    path: metrics_path.clone(),
-                    message: format!("row {row} has no time in column 2"),
-                })?;
-            times.push(time);
-        }
-        // Rows after row 0 carry the timings of their step (columns 13-15).
-        for (row, line) in kept.lines().skip(2).enumerate() {
-            let fields: Vec<&str> = line.split(',').collect();
-            let parse = |i: usize| -> Result<f64> {
-                fields
-                    .get(i)
-                    .and_then(|f| f.parse().ok())
-                    .ok_or_else(|| Error::Content {
-                        path: metrics_path.clone(),
-                        message: format!("row {} has no number in column {}", row + 1, i + 1),
-                    })
-            };
-            step_ms.push(parse(13)?);
-            local_ms.push(parse(14)?);
-            global_ms.push(parse(15)?);
-        }
+        let rows = MetricsRow::parse_all(&kept, &metrics_path)?;
+        // Simulated time of every kept step (written with `{}` so it parses
+        // back exactly), for rebuilding `frames.pvd`.
+        let times: Vec<f64> = rows.iter().map(|r| r.time).collect();
+        // Rows after row 0 carry the timings of their step.
+        let timings = &rows[1.min(rows.len())..];
+        let step_ms = timings.iter().map(|r| r.step_ms).collect();
+        let local_ms = timings.iter().map(|r| r.local_ms).collect();
+        let global_ms = timings.iter().map(|r| r.global_ms).collect();
         let metrics = append(&metrics_path)?;
         let probes = if scene.output.probes.is_empty() {
             None

@@ -1,0 +1,227 @@
+//! The entries of the registry: one [`Model`] per damping model (its
+//! parameters and the `build` function that calls its constructor), and the
+//! presets. Adding a model is one entry in `MODELS` here (and a preset in
+//! `PRESETS` if the comparisons should run it).
+
+use super::{Arguments, Kind, Model, Parameter, Preset, Requirement, Value};
+use crate::{
+    Damping, DampingError, EtherDrag, LaplacianDamping, NoDamping, PbdDamping, RayleighLagged,
+    ether_drag, laplacian, none, pbd, rayleigh_lagged,
+};
+
+pub(super) const NONE: Model = Model {
+    name: none::NAME,
+    summary: "no damping (backward Euler's own numerical damping remains)",
+    parameters: &[],
+    strength: None,
+    build: |_| Ok(Box::new(NoDamping)),
+};
+
+const ETHER_DRAG: Model = Model {
+    name: ether_drag::NAME,
+    summary: "every velocity decays towards zero, as in a viscous medium at rest \
+              (rigid motion too)",
+    parameters: &[
+        number(
+            "factor",
+            "1",
+            Requirement::Optional,
+            Some(1.0),
+            "in [0, 1]: v <- (1 - k) v after each step (give factor or rate)",
+        ),
+        number(
+            "rate",
+            "1/s",
+            Requirement::Optional,
+            None,
+            ">= 0: v <- exp(-c h) v after each step, or D = c M inside the solve \
+                  with implicit",
+        ),
+        flag(
+            "implicit",
+            "only with rate: damp inside the solve (D = c M)",
+        ),
+    ],
+    strength: Some("rate"),
+    build: build_ether_drag,
+};
+
+fn build_ether_drag(arguments: &Arguments<'_>) -> Result<Box<dyn Damping>, DampingError> {
+    let implicit = arguments.flag("implicit").unwrap_or(false);
+    match (arguments.number("factor"), arguments.number("rate")) {
+        (Some(_), None) if implicit => Err(DampingError::Conflict {
+            parameter: "implicit",
+            reason: "implicit ether drag takes a rate (1/s), not a per-step factor".into(),
+        }),
+        (Some(factor), None) => Ok(Box::new(EtherDrag::factor(factor)?)),
+        (None, Some(rate)) if implicit => Ok(Box::new(EtherDrag::implicit(rate)?)),
+        (None, Some(rate)) => Ok(Box::new(EtherDrag::rate(rate)?)),
+        _ => Err(DampingError::Conflict {
+            parameter: "factor",
+            reason: format!(
+                "{} needs exactly one of factor (per step) or rate (1/s)",
+                ether_drag::NAME
+            ),
+        }),
+    }
+}
+
+const PBD: Model = Model {
+    name: pbd::NAME,
+    summary: "position-based-dynamics damping: each component's velocities pulled towards \
+              its best rigid motion (Mueller et al. 2007)",
+    parameters: &[number(
+        "factor",
+        "1",
+        Requirement::Required,
+        Some(1.0),
+        "in [0, 1]: the fraction of the non-rigid velocity removed per step",
+    )],
+    strength: Some("factor"),
+    build: |arguments| Ok(Box::new(PbdDamping::new(arguments.required("factor")?)?)),
+};
+
+/// A number parameter: name, SI unit, requirement, largest value, doc.
+const fn number(
+    name: &'static str,
+    unit: &'static str,
+    requirement: Requirement,
+    maximum: Option<f64>,
+    doc: &'static str,
+) -> Parameter {
+    Parameter {
+        name,
+        unit,
+        kind: Kind::Number,
+        requirement,
+        maximum,
+        doc,
+    }
+}
+
+/// A flag parameter, `false` unless given.
+const fn flag(name: &'static str, doc: &'static str) -> Parameter {
+    Parameter {
+        name,
+        unit: "",
+        kind: Kind::Flag,
+        requirement: Requirement::Default(Value::Flag(false)),
+        maximum: None,
+        doc,
+    }
+}
+
+/// `mass` (a1) as lagged Rayleigh and Laplacian damping both declare it.
+const MASS: Parameter = number(
+    "mass",
+    "1/s",
+    Requirement::Default(Value::Number(0.0)),
+    None,
+    ">= 0: a1, the a1 M part of D",
+);
+
+const RAYLEIGH_LAGGED: Model = Model {
+    name: rayleigh_lagged::NAME,
+    summary: "lagged Rayleigh damping D = a1 M + a2 K(x_n), the elastic Hessian at the start \
+              of each step (refactored every step)",
+    parameters: &[
+        MASS,
+        number(
+            "stiffness",
+            "s",
+            Requirement::Required,
+            None,
+            ">= 0: a2, times the elastic Hessian K(x_n)",
+        ),
+    ],
+    strength: Some("stiffness"),
+    build: |arguments| {
+        Ok(Box::new(RayleighLagged::new(
+            arguments.required("stiffness")?,
+            arguments.required("mass")?,
+        )?))
+    },
+};
+
+const LAPLACIAN: Model = Model {
+    name: laplacian::NAME,
+    summary: "the paper's Laplacian damping D = a2 L_d + a1 M, constant, factored once",
+    parameters: &[
+        number(
+            "stiffness",
+            "s",
+            Requirement::Required,
+            None,
+            ">= 0: a2, times the damping Laplacian L_d",
+        ),
+        MASS,
+        flag(
+            "preserve_rotation",
+            "give back, per free body, the angular momentum the damping removed",
+        ),
+    ],
+    strength: Some("stiffness"),
+    build: |arguments| {
+        Ok(Box::new(LaplacianDamping::new(
+            arguments.required("stiffness")?,
+            arguments.required("mass")?,
+            arguments.flag("preserve_rotation").unwrap_or(false),
+        )?))
+    },
+};
+
+/// Every model, in the order messages and tables list them.
+pub(super) const MODELS: &[Model] = &[NONE, ETHER_DRAG, PBD, RAYLEIGH_LAGGED, LAPLACIAN];
+
+/// The coefficients of the measured comparisons (`docs/damping-table.md`,
+/// `docs/performance.md`), in table order.
+pub(super) const PRESETS: &[Preset] = &[
+    Preset {
+        name: none::NAME,
+        model: none::NAME,
+        arguments: &[],
+        description: "",
+    },
+    Preset {
+        name: ether_drag::NAME,
+        model: ether_drag::NAME,
+        arguments: &[("rate", Value::Number(1.0))],
+        description: "rate 1/s",
+    },
+    Preset {
+        name: "ether-drag-implicit",
+        model: ether_drag::NAME,
+        arguments: &[
+            ("rate", Value::Number(1.0)),
+            ("implicit", Value::Flag(true)),
+        ],
+        description: "implicit 1/s",
+    },
+    Preset {
+        name: pbd::NAME,
+        model: pbd::NAME,
+        arguments: &[("factor", Value::Number(0.05))],
+        description: "factor 0.05",
+    },
+    Preset {
+        name: rayleigh_lagged::NAME,
+        model: rayleigh_lagged::NAME,
+        arguments: &[("stiffness", Value::Number(0.003))],
+        description: "0.003 s",
+    },
+    Preset {
+        name: laplacian::NAME,
+        model: laplacian::NAME,
+        arguments: &[("stiffness", Value::Number(0.003))],
+        description: "0.003 s",
+    },
+    Preset {
+        name: "laplacian-rot",
+        model: laplacian::NAME,
+        arguments: &[
+            ("stiffness", Value::Number(0.003)),
+            ("preserve_rotation", Value::Flag(true)),
+        ],
+        description: "0.003 s, preserve_rotation",
+    },
+];
