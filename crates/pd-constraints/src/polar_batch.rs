@@ -14,21 +14,10 @@
 
 use nalgebra::Matrix3;
 
-use crate::polar::{
-    CONVERGED_CHANGE_SQUARED, MAX_ITERATIONS, MIN_SHAPE, SCALE_WHILE_CHANGE_SQUARED,
-    closest_rotation,
-};
-use crate::signed_svd::rescaling;
+use crate::polar::closest_rotation;
 
 /// Matrices per batch: four f64 lanes fill one 256-bit register.
 pub const LANES: usize = 4;
-
-/// One value per lane.
-type Lanes = [f64; LANES];
-
-/// One 3 x 3 matrix per lane; entry `(r, c)` at index `3 c + r`
-/// (column-major, as nalgebra stores it).
-type Batch = [Lanes; 9];
 
 /// The proper rotations closest to each of `f`, bit-identical to
 /// [`closest_rotation`] applied to each.
@@ -51,120 +40,177 @@ type Batch = [Lanes; 9];
 /// }
 /// ```
 pub fn closest_rotations(f: &[Matrix3<f64>; LANES]) -> [Matrix3<f64>; LANES] {
-    pulp::Arch::new().dispatch(
-        #[inline(always)]
-        || closest_rotations_inline(f),
-    )
+    #[cfg(target_arch = "x86_64")]
+    if let Some(simd) = Simd::try_new() {
+        struct Op<'a>(Simd, &'a [Matrix3<f64>; LANES]);
+        impl pulp::WithSimd for Op<'_> {
+            type Output = [Matrix3<f64>; LANES];
+            #[inline(always)]
+            fn with_simd<S: pulp::Simd>(self, _: S) -> Self::Output {
+                closest_rotations_inline(self.0, self.1)
+            }
+        }
+        return pulp::Simd::vectorize(simd, Op(simd, f));
+    }
+    f.map(|f| closest_rotation(&f))
 }
 
+/// The 4-lane f64 instruction set the batched path needs (AVX2 on x86-64;
+/// `None` elsewhere or on older CPUs, where callers project one at a time).
+#[cfg(target_arch = "x86_64")]
+pub(crate) type Simd = pulp::x86::V3;
+
 /// [`closest_rotations`] without the dispatch, for callers that dispatch
-/// once around a loop of batches.
+/// once around a loop of batches (`simd.vectorize`). Everything here is
+/// `inline(always)` so that it is compiled inside the dispatcher's
+/// `#[target_feature]` function.
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
-pub(crate) fn closest_rotations_inline(f: &[Matrix3<f64>; LANES]) -> [Matrix3<f64>; LANES] {
-    let (x, converged) = newton_polar_lanes(f);
+pub(crate) fn closest_rotations_inline(
+    simd: Simd,
+    f: &[Matrix3<f64>; LANES],
+) -> [Matrix3<f64>; LANES] {
+    let (x, converged) = lanes::newton_polar(simd, f);
+    let lane = |v: pulp::f64x4, l: usize| [v.0, v.1, v.2, v.3][l];
     std::array::from_fn(|l| {
         if converged[l] {
-            Matrix3::from_fn(|r, c| x[3 * c + r][l])
+            Matrix3::from_fn(|r, c| lane(x[3 * c + r], l))
         } else {
             closest_rotation(&f[l])
         }
     })
 }
 
-#[inline(always)]
-fn lanewise(op: impl Fn(usize) -> f64) -> Lanes {
-    std::array::from_fn(op)
-}
+#[cfg(target_arch = "x86_64")]
+mod lanes {
+    use nalgebra::Matrix3;
+    use pulp::{f64x4, m64, m64x4};
 
-/// `|X|_F^2` as nalgebra sums it: per column `(a a + b b) + c c`, columns
-/// added in order onto 0.
-#[inline(always)]
-fn norm_squared(x: &Batch) -> Lanes {
-    lanewise(|l| {
-        let column = |c: usize| {
-            let (a, b, d) = (x[3 * c][l], x[3 * c + 1][l], x[3 * c + 2][l]);
-            a * a + b * b + d * d
-        };
-        let mut sum = 0.0;
-        sum += column(0);
-        sum += column(1);
-        sum += column(2);
+    use super::{LANES, Simd};
+    use crate::polar::{
+        CONVERGED_CHANGE_SQUARED, MAX_ITERATIONS, MIN_SHAPE, SCALE_WHILE_CHANGE_SQUARED,
+    };
+    use crate::signed_svd::rescaling;
+
+    /// One 3 x 3 matrix per lane; entry `(r, c)` at index `3 c + r`
+    /// (column-major, as nalgebra stores it).
+    type Batch = [f64x4; 9];
+
+    /// `|X|_F^2` as nalgebra sums it: per column `(a a + b b) + c c`,
+    /// columns added in order onto 0.
+    #[inline(always)]
+    fn norm_squared(s: Simd, x: &Batch) -> f64x4 {
+        let mut sum = s.splat_f64x4(0.0);
+        for c in 0..3 {
+            let (a, b, d) = (x[3 * c], x[3 * c + 1], x[3 * c + 2]);
+            let column = s.add_f64x4(
+                s.add_f64x4(s.mul_f64x4(a, a), s.mul_f64x4(b, b)),
+                s.mul_f64x4(d, d),
+            );
+            sum = s.add_f64x4(sum, column);
+        }
         sum
-    })
-}
-
-/// The cofactor matrix `det(X) X^-T`, each entry computed as
-/// `polar::cofactor` does (products commute exactly in IEEE arithmetic).
-#[inline(always)]
-fn cofactor(x: &Batch) -> Batch {
-    let at = |r: usize, c: usize| &x[3 * (c % 3) + r % 3];
-    std::array::from_fn(|index| {
-        let (r, c) = (index % 3, index / 3);
-        let (a, b) = (at(r + 1, c + 1), at(r + 2, c + 2));
-        let (d, e) = (at(r + 1, c + 2), at(r + 2, c + 1));
-        lanewise(|l| a[l] * b[l] - d[l] * e[l])
-    })
-}
-
-/// Laplace expansion along the first column.
-#[inline(always)]
-fn determinant(x: &Batch, cof: &Batch) -> Lanes {
-    lanewise(|l| x[0][l] * cof[0][l] + x[1][l] * cof[1][l] + x[2][l] * cof[2][l])
-}
-
-/// Higham's scale `(|cof X|_F / (det X |X|_F))^(1/2)` (`polar`).
-#[inline(always)]
-fn frobenius_scale(x: &Batch, cof: &Batch, det: &Lanes) -> Lanes {
-    let (x2, c2) = (norm_squared(x), norm_squared(cof));
-    lanewise(|l| (c2[l].sqrt() / (det[l] * x2[l].sqrt())).sqrt())
-}
-
-/// The scaled Newton polar iteration on every lane: the final iterates and
-/// whether each lane converged (`polar::newton_polar` answered `Some`).
-#[inline(always)]
-fn newton_polar_lanes(f: &[Matrix3<f64>; LANES]) -> (Batch, [bool; LANES]) {
-    let scaled: [Matrix3<f64>; LANES] = std::array::from_fn(|l| f[l] * rescaling(f[l].amax()));
-    let mut x: Batch = std::array::from_fn(|i| lanewise(|l| scaled[l][i]));
-    let norm = lanewise(|l| norm_squared(&x)[l].sqrt());
-    let mut cof = cofactor(&x);
-    let mut det = determinant(&x, &cof);
-    // Also rejects NaN.
-    let mut running: [bool; LANES] =
-        std::array::from_fn(|l| det[l] > MIN_SHAPE * norm[l] * norm[l] * norm[l]);
-    let mut converged = [false; LANES];
-    let mut scale = frobenius_scale(&x, &cof, &det);
-    for _ in 0..MAX_ITERATIONS {
-        if !running.contains(&true) {
-            break;
-        }
-        let (a, b) = (
-            lanewise(|l| 0.5 * scale[l]),
-            lanewise(|l| 0.5 / (scale[l] * det[l])),
-        );
-        let next: Batch = std::array::from_fn(|i| lanewise(|l| x[i][l] * a[l] + cof[i][l] * b[l]));
-        let step: Batch = std::array::from_fn(|i| lanewise(|l| next[i][l] - x[i][l]));
-        let change = norm_squared(&step);
-        for i in 0..9 {
-            x[i] = lanewise(|l| if running[l] { next[i][l] } else { x[i][l] });
-        }
-        for l in 0..LANES {
-            let done = running[l] && change[l] < CONVERGED_CHANGE_SQUARED;
-            converged[l] |= done;
-            running[l] &= !done;
-        }
-        cof = cofactor(&x);
-        det = determinant(&x, &cof);
-        let rescaled = frobenius_scale(&x, &cof, &det);
-        for l in 0..LANES {
-            running[l] &= det[l] > 0.0;
-            scale[l] = if change[l] > SCALE_WHILE_CHANGE_SQUARED {
-                rescaled[l]
-            } else {
-                1.0
-            };
-        }
     }
-    (x, converged)
+
+    /// The cofactor matrix `det(X) X^-T`, each entry computed as
+    /// `polar::cofactor` does (products commute exactly in IEEE arithmetic).
+    #[inline(always)]
+    fn cofactor(s: Simd, x: &Batch) -> Batch {
+        let at = |r: usize, c: usize| x[3 * (c % 3) + r % 3];
+        std::array::from_fn(|index| {
+            let (r, c) = (index % 3, index / 3);
+            s.sub_f64x4(
+                s.mul_f64x4(at(r + 1, c + 1), at(r + 2, c + 2)),
+                s.mul_f64x4(at(r + 1, c + 2), at(r + 2, c + 1)),
+            )
+        })
+    }
+
+    /// Laplace expansion along the first column.
+    #[inline(always)]
+    fn determinant(s: Simd, x: &Batch, cof: &Batch) -> f64x4 {
+        s.add_f64x4(
+            s.add_f64x4(s.mul_f64x4(x[0], cof[0]), s.mul_f64x4(x[1], cof[1])),
+            s.mul_f64x4(x[2], cof[2]),
+        )
+    }
+
+    /// Higham's scale `(|cof X|_F / (det X |X|_F))^(1/2)` (`polar`).
+    #[inline(always)]
+    fn frobenius_scale(s: Simd, x: &Batch, cof: &Batch, det: f64x4) -> f64x4 {
+        let x_norm = s.sqrt_f64x4(norm_squared(s, x));
+        let cof_norm = s.sqrt_f64x4(norm_squared(s, cof));
+        s.sqrt_f64x4(s.div_f64x4(cof_norm, s.mul_f64x4(det, x_norm)))
+    }
+
+    fn mask_bits(mask: m64x4) -> [bool; LANES] {
+        [
+            mask.0.is_set(),
+            mask.1.is_set(),
+            mask.2.is_set(),
+            mask.3.is_set(),
+        ]
+    }
+
+    /// The scaled Newton polar iteration of `polar::newton_polar` on every
+    /// lane: the final iterates and whether each lane converged (the scalar
+    /// iteration answered `Some`, with bit-identical values).
+    #[inline(always)]
+    pub(super) fn newton_polar(s: Simd, f: &[Matrix3<f64>; LANES]) -> (Batch, [bool; LANES]) {
+        // `rescaling(f.amax())` per lane. The largest |entry| is the same in
+        // any order; NaN entries may give another value than nalgebra's
+        // fold, but such a lane's determinant is NaN, Newton declines it and
+        // the scalar path recomputes it.
+        let scaled = f.map(|f| {
+            let mut largest = 0.0f64;
+            for i in 0..9 {
+                largest = largest.max(f[i].abs());
+            }
+            f * rescaling(largest)
+        });
+        let mut x: Batch =
+            std::array::from_fn(|i| f64x4(scaled[0][i], scaled[1][i], scaled[2][i], scaled[3][i]));
+        let norm = s.sqrt_f64x4(norm_squared(s, &x));
+        let mut cof = cofactor(s, &x);
+        let mut det = determinant(s, &x, &cof);
+        // `det > MIN_SHAPE |X|^3`, evaluated left to right; also rejects NaN
+        // (an ordered comparison).
+        let shape = s.mul_f64x4(
+            s.mul_f64x4(s.mul_f64x4(s.splat_f64x4(MIN_SHAPE), norm), norm),
+            norm,
+        );
+        let mut running = s.cmp_gt_f64x4(det, shape);
+        let mut converged = s.splat_m64x4(m64::new(false));
+        let mut scale = frobenius_scale(s, &x, &cof, det);
+        let (half, one) = (s.splat_f64x4(0.5), s.splat_f64x4(1.0));
+        for _ in 0..MAX_ITERATIONS {
+            if !mask_bits(running).contains(&true) {
+                break;
+            }
+            let a = s.mul_f64x4(half, scale);
+            let b = s.div_f64x4(half, s.mul_f64x4(scale, det));
+            let mut step = [s.splat_f64x4(0.0); 9];
+            for i in 0..9 {
+                let next = s.add_f64x4(s.mul_f64x4(x[i], a), s.mul_f64x4(cof[i], b));
+                step[i] = s.sub_f64x4(next, x[i]);
+                // A converged or declined lane keeps its iterate.
+                x[i] = s.select_f64x4(running, next, x[i]);
+            }
+            let change = norm_squared(s, &step);
+            let done = s.and_m64x4(
+                running,
+                s.cmp_lt_f64x4(change, s.splat_f64x4(CONVERGED_CHANGE_SQUARED)),
+            );
+            converged = s.or_m64x4(converged, done);
+            running = s.and_m64x4(running, s.not_m64x4(done));
+            cof = cofactor(s, &x);
+            det = determinant(s, &x, &cof);
+            running = s.and_m64x4(running, s.cmp_gt_f64x4(det, s.splat_f64x4(0.0)));
+            let far = s.cmp_gt_f64x4(change, s.splat_f64x4(SCALE_WHILE_CHANGE_SQUARED));
+            scale = s.select_f64x4(far, frobenius_scale(s, &x, &cof, det), one);
+        }
+        (x, mask_bits(converged))
+    }
 }
 
 #[cfg(test)]
