@@ -1,8 +1,9 @@
-//! `cargo xtask cpp-compare --reference PATH [--quick] [--repeat N]`: runs pd
+//! `cargo xtask cpp-compare --reference PATH [--quick] [--repeat N] [--mesh BASE]...`: runs pd
 //! (`pd-probe step`, release build) and the C++ reference `pdref` (Eigen
 //! SimplicialLLT and CHOLMOD supernodal back ends; built outside this
 //! repository, see docs/performance.md) on the same TetGen meshes with the
-//! same settings, 1 and 2 threads, and writes `docs/cpp-comparison.md` plus
+//! same settings, 1 and 2 threads (generated beams, then each `--mesh`
+//! TetGen base, the shared armadillo by default), and writes `docs/cpp-comparison.md` plus
 //! the raw numbers in `docs/bench-report/cpp-comparison.json`.
 //!
 //! Same settings means the reference's formulation: every vertex is an
@@ -100,6 +101,32 @@ fn blas_of(program: &Path) -> String {
     std::fs::canonicalize(path).map_or_else(|_| path.to_string(), |p| p.display().to_string())
 }
 
+/// The reference's source, identified by the SHA-256 of `pdref.cpp` beside
+/// the binary (or of the binary itself when the source is not there).
+fn reference_source(program: &Path) -> String {
+    let source = program.with_file_name("pdref.cpp");
+    let file = if source.is_file() {
+        source
+    } else {
+        program.to_path_buf()
+    };
+    let hash = Command::new("sha256sum")
+        .arg(&file)
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .and_then(|o| {
+            String::from_utf8_lossy(&o.stdout)
+                .split_whitespace()
+                .next()
+                .map(str::to_string)
+        });
+    match hash {
+        Some(hash) => format!("{} (sha256 {hash})", file.display()),
+        None => format!("{} (not hashed)", file.display()),
+    }
+}
+
 /// Keeps the run with the lower median step time.
 fn keep_faster(best: Option<Value>, candidate: Value) -> Value {
     match best {
@@ -120,7 +147,10 @@ pub fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
         .position(|a| a == "--reference")
         .and_then(|i| args.get(i + 1))
         .map(PathBuf::from)
-        .ok_or("usage: cargo xtask cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N]")?;
+        .ok_or(
+            "usage: cargo xtask cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N] \
+             [--mesh BASE]...",
+        )?;
     let repeat = match args.iter().position(|a| a == "--repeat") {
         None => 1,
         Some(i) => args
@@ -141,12 +171,34 @@ pub fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
     let (commit, date) = provenance(root);
     let machine_before = machine();
 
+    // The generated beams, then the TetGen meshes of `--mesh BASE`
+    // (repeatable; the shared armadillo by default).
+    let mut inputs: Vec<(String, Option<[usize; 3]>, PathBuf, usize)> = meshes(quick)
+        .into_iter()
+        .map(|(label, cells, steps)| (label.to_string(), Some(cells), work.join(label), steps))
+        .collect();
+    let mut files: Vec<PathBuf> = args
+        .windows(2)
+        .filter(|w| w[0] == "--mesh")
+        .map(|w| PathBuf::from(&w[1]))
+        .collect();
+    if files.is_empty() {
+        files = crate::bench_limits::default_meshes(root);
+    }
+    for base in files {
+        let label = base.file_name().map_or_else(
+            || base.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        inputs.push((label, None, base, if quick { 3 } else { 5 }));
+    }
     let mut rows = Vec::new();
-    for (label, cells, steps) in meshes(quick) {
-        let base = work.join(label);
-        let mesh =
-            pd_mesh::generators::box_tets([1.0, 0.2, 0.2], cells).map_err(|e| e.to_string())?;
-        pd_io::tetgen::write_tetgen(&base, &mesh).map_err(|e| e.to_string())?;
+    for (label, cells, base, steps) in inputs {
+        if let Some(cells) = cells {
+            let mesh =
+                pd_mesh::generators::box_tets([1.0, 0.2, 0.2], cells).map_err(|e| e.to_string())?;
+            pd_io::tetgen::write_tetgen(&base, &mesh).map_err(|e| e.to_string())?;
+        }
         let base_arg = base.display().to_string();
         for threads in [1, 2] {
             let common = |extra: &[&str]| -> Vec<String> {
@@ -224,6 +276,7 @@ pub fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
         "machine": machine_before,
         "machine_after": machine(),
         "reference": reference.display().to_string(),
+        "reference_source": reference_source(&reference),
         "reference_blas": blas_of(&reference),
         "repeat": repeat,
         "rows": rows,
@@ -264,19 +317,21 @@ fn markdown(r: &Value) -> String {
     );
     let _ = writeln!(
         md,
-        "Same TetGen mesh (written by pd-io), same formulation (every vertex free, the clamped \
+        "Same TetGen mesh (the beams written by pd-io, `--mesh` files as given), same formulation (every vertex free, the clamped \
          end attached with weight 1e6 mean(m)/h^2), stiffness 1e5, rho 1000, h = 0.01 s, 10 \
          iterations, backward Euler, no damping; median step time over the steps run from \
          rest (local + global: the two phases summed over the 10 iterations). Factor: symbolic \
          + numeric factorisation. Ratio: pd / reference (below 1: pd is faster). Memory: peak \
          resident set (`VmHWM`) of each process. Each program ran {} time(s) per row, \
-         alternating, and the run with the lowest median step is shown. CHOLMOD's BLAS: `{}`.\n",
+         alternating, and the run with the lowest median step is shown. CHOLMOD's BLAS: `{}`. \
+         Reference source: `{}`.\n",
         r["repeat"].as_u64().unwrap_or(1),
         r["reference_blas"].as_str().unwrap_or("not recorded"),
+        r["reference_source"].as_str().unwrap_or("not recorded"),
     );
     let _ = writeln!(
         md,
-        "| mesh | vertices | threads | steps | pd step [ms] (local + global) | Eigen step [ms] (local + global) | CHOLMOD step [ms] (local + global) | pd/Eigen | pd/CHOLMOD | factor pd / Eigen / CHOLMOD [ms] | nnz(L) pd / Eigen / CHOLMOD [M] | peak memory pd / Eigen / CHOLMOD [MB] | pd/CHOLMOD memory | max centroid difference pd - Eigen [m] |"
+        "| mesh | vertices | threads | steps | pd step [ms] (local + global) | Eigen step [ms] (local + global) | CHOLMOD step [ms] (local + global) | pd/Eigen | pd/CHOLMOD | factor pd / Eigen / CHOLMOD [ms] | nnz(L) pd (stored values) / Eigen / CHOLMOD [M] | peak memory pd / Eigen / CHOLMOD [MB] | pd/CHOLMOD memory | max centroid difference pd - Eigen [m] |"
     );
     let _ = writeln!(
         md,
@@ -292,7 +347,7 @@ fn markdown(r: &Value) -> String {
             .fold(0.0, f64::max);
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {} | {:.1} ({:.1} + {:.1}) | {:.1} ({:.1} + {:.1}) | {:.1} ({:.1} + {:.1}) | {:.2} | {:.2} | {:.0} / {:.0} / {:.0} | {:.2} / {:.2} / {:.2} | {:.0} / {:.0} / {:.0} | {:.2} | {:.1e} |",
+            "| {} | {} | {} | {} | {:.1} ({:.1} + {:.1}) | {:.1} ({:.1} + {:.1}) | {:.1} ({:.1} + {:.1}) | {:.2} | {:.2} | {:.0} / {:.0} / {:.0} | {:.2} ({:.2}) / {:.2} / {:.2} | {:.0} / {:.0} / {:.0} | {:.2} | {:.1e} |",
             row["mesh"].as_str().unwrap_or("?"),
             pd["n_verts"],
             row["threads"],
@@ -311,6 +366,9 @@ fn markdown(r: &Value) -> String {
             f(&pd["factor_ms"]),
             f(&eigen["factor_ms"]),
             f(&cholmod["factor_ms"]),
+            // Structural non-zeros, as Eigen and CHOLMOD (`lnz`) count them;
+            // the stored values add faer's supernode padding.
+            f(&pd["nnz_L_exact"]) / 1e6,
             f(&pd["nnz_L_factor"]) / 1e6,
             f(&eigen["nnz_L_factor"]) / 1e6,
             f(&cholmod["nnz_L_factor"]) / 1e6,

@@ -200,7 +200,9 @@ fn f(value: &Value) -> f64 {
 }
 
 /// Runs every measurement and writes the report; returns the Markdown path.
-pub fn run(root: &Path, quick: bool) -> Result<PathBuf, String> {
+/// Runs every measurement; `meshes` are TetGen bases (`.node`/`.ele`)
+/// measured in the "Real meshes" section (the armadillo by default).
+pub fn run(root: &Path, quick: bool, meshes: &[PathBuf]) -> Result<PathBuf, String> {
     let started = Instant::now();
     let plan = Plan::new(quick);
     let probe_path = build_probe(root)?;
@@ -277,7 +279,11 @@ pub fn run(root: &Path, quick: bool) -> Result<PathBuf, String> {
             "speedup": f(&pair[0]["local_ms_median"]) / f(&pair[1]["local_ms_median"]) }));
     }
 
+    eprintln!("limits and real meshes...");
+    let limits = crate::bench_limits::measure(&p, quick, meshes)?;
+
     let report = json!({
+        "limits": limits,
         "mode": if quick { "quick" } else { "full" },
         "commit": commit,
         "date": date,
@@ -570,6 +576,10 @@ fn markdown(r: &Value) -> String {
             f(&pair["two"]["local_ms_median"]),
             f(&pair["speedup"])
         );
+    }
+    if !r["limits"].is_null() {
+        let _ = writeln!(md);
+        md.push_str(&crate::bench_limits::markdown(&r["limits"]));
     }
     md
 }

@@ -3,15 +3,18 @@
 //! - `ci`: what `.ci/run` runs (format check, clippy, docs, tests);
 //! - `damping-table [--quick]`: measures every damping model with every
 //!   integrator on the bundled scenes and writes `docs/damping-table.md`;
-//! - `bench-report [--quick]`: speed, accuracy, scaling and memory,
+//! - `bench-report [--quick] [--mesh BASE]...`: speed, accuracy, scaling,
+//!   memory, the machine's limits and real TetGen meshes,
 //!   written to `docs/bench-report.md` (+ JSON and PNG figures);
 //! - `cpp-compare --reference PATH [--quick] [--repeat N]`: pd against the C++ Eigen /
 //!   CHOLMOD reference on the same TetGen meshes, written to
 //!   `docs/cpp-comparison.md`;
-//! - `stability [--quick]`: runs every integrator and damping model over a
-//!   matrix of extreme parameters and writes `docs/stability.md`.
+//! - `stability [--quick] [--shard I/N [--out DIR] | --merge DIR]`: runs
+//!   every integrator and damping model over a matrix of extreme parameters
+//!   (or one shard of it; docs/tools.md) and writes `docs/stability.md`.
 
 mod bench_cpp;
+mod bench_limits;
 mod bench_plot;
 mod bench_report;
 mod damping_table;
@@ -40,15 +43,29 @@ fn main() -> ExitCode {
             &workspace_root(),
             args.iter().any(|a| a == "--quick"),
         )),
-        Some("bench-report") => report(bench_report::run(
-            &workspace_root(),
-            args.iter().any(|a| a == "--quick"),
-        )),
+        Some("bench-report") => {
+            let root = workspace_root();
+            // `--mesh BASE` (repeatable): TetGen meshes for the "Real meshes"
+            // section; the shared armadillo by default.
+            let mut meshes: Vec<PathBuf> = args
+                .windows(2)
+                .filter(|w| w[0] == "--mesh")
+                .map(|w| PathBuf::from(&w[1]))
+                .collect();
+            if meshes.is_empty() {
+                meshes = bench_limits::default_meshes(&root);
+            }
+            report(bench_report::run(
+                &root,
+                args.iter().any(|a| a == "--quick"),
+                &meshes,
+            ))
+        }
         Some("cpp-compare") => report(bench_cpp::run(&workspace_root(), &args[1..])),
         Some("stability") => stability::main(&workspace_root(), &args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy and docs (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md\n  bench-report [--quick]    speed/accuracy/scaling report: docs/bench-report.md\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N]\n                            pd vs the C++ reference: docs/cpp-comparison.md\n  stability [--quick]       run the matrix of extreme parameters, write docs/stability.md (use --release)"
+                "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy and docs (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md\n  bench-report [--quick] [--mesh BASE]...\n                            speed/accuracy/scaling/limits report: docs/bench-report.md\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N] [--mesh BASE]...\n                            pd vs the C++ reference: docs/cpp-comparison.md\n  stability [--quick] [--shard I/N [--out DIR] | --merge DIR]\n                            run the matrix of extreme parameters (or one shard of it, or merge shards), write docs/stability.md (use --release)"
             );
             ExitCode::from(2)
         }

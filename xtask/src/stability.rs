@@ -43,6 +43,8 @@ use pd_damping::registry::{self, Preset, Value};
 use pd_io::scene::{ConstraintSpec, DampingSpec, IntegratorKind, MassSpec, Scene, Syntax};
 use pd_solver::{SolverError, State};
 
+mod shard;
+
 /// Steps per run: enough for an instability that grows by 5 % per step to
 /// grow a hundredfold, which 10 steps (the first version of this map) were
 /// not.
@@ -56,13 +58,18 @@ const RISE_REPORTED: f64 = 0.01;
 /// build, runs the matrix and writes `docs/stability.md`.
 pub fn main(root: &Path, args: &[String]) -> ExitCode {
     let quick = args.iter().any(|a| a == "--quick");
+    let mode = match shard::Mode::parse(root, args) {
+        Ok(mode) => mode,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
     if cfg!(debug_assertions) {
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
         let mut command = Command::new(&cargo);
         command.args(["run", "--release", "--package", "xtask", "--", "stability"]);
-        if quick {
-            command.arg("--quick");
-        }
+        command.args(args);
         eprintln!("re-running as a release build");
         return match command.status() {
             Ok(status) if status.success() => ExitCode::SUCCESS,
@@ -73,7 +80,7 @@ pub fn main(root: &Path, args: &[String]) -> ExitCode {
             }
         };
     }
-    crate::report(run(root, quick))
+    crate::report(run(root, quick, &mode))
 }
 
 const BEAM: &str = r#"
@@ -508,11 +515,16 @@ fn labels<T: std::fmt::LowerExp>(values: &[T]) -> Vec<String> {
 
 /// Runs the matrix on every core and writes the report; returns its path,
 /// or an error naming the number of bugs found.
-fn run(root: &Path, quick: bool) -> Result<PathBuf, String> {
+fn run(root: &Path, quick: bool, mode: &shard::Mode) -> Result<PathBuf, String> {
     let axes = Axes::new(quick);
     let cases = axes.cases();
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    eprintln!("{} runs on {threads} threads", cases.len());
+    let mine: Vec<usize> = (0..cases.len()).filter(|&i| mode.runs(i)).collect();
+    eprintln!(
+        "{} of {} runs on {threads} threads",
+        mine.len(),
+        cases.len()
+    );
     let started = std::time::Instant::now();
     let next = Mutex::new(0usize);
     let results = Mutex::new(Vec::with_capacity(cases.len()));
@@ -526,8 +538,8 @@ fn run(root: &Path, quick: bool) -> Result<PathBuf, String> {
                         *next += 1;
                         index
                     };
-                    let Some(case) = cases.get(index) else { break };
-                    let ending = run_case(case);
+                    let Some(&index) = mine.get(index) else { break };
+                    let ending = run_case(&cases[index]);
                     results
                         .lock()
                         .expect("no thread panics holding it")
@@ -538,11 +550,18 @@ fn run(root: &Path, quick: bool) -> Result<PathBuf, String> {
     });
     let mut results = results.into_inner().expect("threads joined");
     results.sort_by_key(|(index, _)| *index);
+    let mut seconds = started.elapsed().as_secs_f64();
+    match mode {
+        shard::Mode::Whole => {}
+        shard::Mode::Shard { .. } => {
+            return shard::write(mode, quick, cases.len(), seconds, &results);
+        }
+        shard::Mode::Merge(dir) => (results, seconds) = shard::read(dir, quick, cases.len())?,
+    }
     let results: Vec<(Case, Ending)> = results
         .into_iter()
         .map(|(index, ending)| (cases[index], ending))
         .collect();
-    let seconds = started.elapsed().as_secs_f64();
 
     let mut out = String::new();
     writeln!(

@@ -8,6 +8,7 @@
 //! pd-probe overhead [beam options] [--integrator be|im] [--rounds R] [--warmup W]
 //! pd-probe phases   [beam options] [--model M] [--reps R]
 //! pd-probe accuracy [beam options] [--integrator be|im] [--time T] [--iters-list 1,2,...]
+//! pd-probe bandwidth [--mib M] [--reps R]
 //! beam options: --cells NX,NY,NZ --iters K --threads T --dt H --stiffness PA --soft-clamp
 //! ```
 
@@ -107,8 +108,44 @@ fn run(args: &[String]) -> Result<Value, String> {
         Some("overhead") => overhead(&options, &beam),
         Some("phases") => phases(&options, &beam),
         Some("accuracy") => accuracy(&options, &beam),
-        _ => Err("usage: pd-probe step|overhead|phases|accuracy [options] (see the source)".into()),
+        Some("bandwidth") => bandwidth(&options),
+        _ => Err(
+            "usage: pd-probe step|overhead|phases|accuracy|bandwidth [options] (see the source)"
+                .into(),
+        ),
     }
+}
+
+/// Single-thread streaming read bandwidth: the best of `--reps` sums of a
+/// `--mib` MiB array of f64 (far larger than the caches), in bytes per
+/// second. A triangular solve streams its factor much like this read, so
+/// this is the bound `cargo xtask bench-report` compares solves with.
+fn bandwidth(options: &Options<'_>) -> Result<Value, String> {
+    let mib: usize = options.parse("--mib", 512)?;
+    let reps: usize = options.parse("--reps", 7)?;
+    let len = mib * 1024 * 1024 / 8;
+    let data: Vec<f64> = (0..len).map(|i| (i % 7) as f64).collect();
+    let mut best = f64::INFINITY;
+    let mut checksum = 0.0;
+    for _ in 0..reps.max(1) {
+        let t = Instant::now();
+        // Eight independent sums: the adds never limit the read.
+        let mut sums = [0.0f64; 8];
+        for chunk in data.chunks_exact(8) {
+            for (s, x) in sums.iter_mut().zip(chunk) {
+                *s += x;
+            }
+        }
+        checksum += std::hint::black_box(sums.iter().sum::<f64>());
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    Ok(json!({
+        "bytes": len * 8,
+        "reps": reps,
+        "best_seconds": best,
+        "bytes_per_second": (len * 8) as f64 / best,
+        "checksum": checksum,
+    }))
 }
 
 fn ms(seconds: f64) -> f64 {
@@ -142,6 +179,7 @@ fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         "n_tets": n_tets,
         "n_free": sim.num_free_vertices(),
         "nnz_L_factor": sim.factor_len(),
+        "nnz_L_exact": sim.factor_nnz(),
         "symbolic_ms": ms(setup.analysis_seconds),
         "factor_ms": ms(setup.analysis_seconds + setup.factor_seconds),
         "numeric_factor_ms": ms(setup.factor_seconds),

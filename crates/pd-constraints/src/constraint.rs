@@ -33,6 +33,19 @@ pub trait Constraint: Clone + std::fmt::Debug + Send + Sync + 'static {
     /// writing `ROWS` rows into `out`.
     fn project(&self, gx: &[Point], out: &mut [Point]);
 
+    /// The local step for a run of constraints: projects each of
+    /// `constraints` at the positions `q`, writing its `ROWS` rows into
+    /// `out` (`out.len() == constraints.len() * ROWS`). The default
+    /// projects one at a time; a kind overrides it to batch several into
+    /// SIMD lanes (tet strain), with results identical to the default.
+    fn project_many(constraints: &[Self], q: &[Point], out: &mut [Point]) {
+        let mut gx = [Point::zeros(); crate::MAX_ROWS];
+        for (c, rows) in constraints.iter().zip(out.chunks_exact_mut(Self::ROWS)) {
+            apply_operator(c, q, &mut gx[..Self::ROWS]);
+            c.project(&gx[..Self::ROWS], rows);
+        }
+    }
+
     /// Hessian of `w/2 |gx - P(gx)|^2` with respect to `gx`: a
     /// `3 ROWS x 3 ROWS` row-major matrix, index `3 r + a` for row `r`, axis
     /// `a`, written into `out`. With `project_psd` its negative eigenvalues

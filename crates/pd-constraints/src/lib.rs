@@ -30,6 +30,7 @@ pub mod assembly;
 mod attachment;
 mod constraint;
 pub mod polar;
+pub mod polar_batch;
 mod set;
 pub mod signed_svd;
 mod sparse;

@@ -27,21 +27,21 @@ use crate::signed_svd::{rescaling, signed_svd};
 /// the scaled iteration converges within 6 iterations (measured over 20,000
 /// random stretches per ratio) and the cofactor inverse loses at most that
 /// ratio's worth of digits (still near 1e-14).
-const MIN_SHAPE: f64 = 1e-3;
+pub(crate) const MIN_SHAPE: f64 = 1e-3;
 
 /// Stop when the squared change `|X_{k+1} - X_k|_F^2` falls below this: the
 /// change estimates the error of `X_k`, and the next error is about half its
 /// square (quadratic convergence), so `|change| < 1.5e-8` leaves an error
 /// near `1e-16`, the working precision.
-const CONVERGED_CHANGE_SQUARED: f64 = 2.0e-16;
+pub(crate) const CONVERGED_CHANGE_SQUARED: f64 = 2.0e-16;
 
 /// Above this squared change the iterate is still far from orthogonal and is
 /// rescaled; below it the plain iteration converges quadratically anyway.
-const SCALE_WHILE_CHANGE_SQUARED: f64 = 1e-4;
+pub(crate) const SCALE_WHILE_CHANGE_SQUARED: f64 = 1e-4;
 
 /// More than enough for the admitted stretch ratios (see `MIN_SHAPE`); a run
 /// that does not converge within it falls back to the SVD.
-const MAX_ITERATIONS: usize = 20;
+pub(crate) const MAX_ITERATIONS: usize = 20;
 
 /// The proper rotation closest to `f` in the Frobenius norm.
 ///

@@ -167,14 +167,7 @@ impl<C: Constraint> ConstraintBlock for ConstraintSet<C> {
 
     fn project_range(&self, q: &[Point], first: usize, out: &mut [Point]) {
         let count = out.len() / C::ROWS;
-        let mut gx = [Point::zeros(); MAX_ROWS];
-        for (c, rows) in self.constraints[first..first + count]
-            .iter()
-            .zip(out.chunks_exact_mut(C::ROWS))
-        {
-            apply_operator(c, q, &mut gx[..C::ROWS]);
-            c.project(&gx[..C::ROWS], rows);
-        }
+        C::project_many(&self.constraints[first..first + count], q, out);
     }
 
     fn energy_range(&self, q: &[Point], range: Range<usize>) -> f64 {

@@ -5,7 +5,10 @@
 use nalgebra::Matrix3;
 use pd_mesh::Point;
 
+use crate::constraint::apply_operator;
 use crate::polar::closest_rotation;
+#[cfg(target_arch = "x86_64")]
+use crate::polar_batch::{LANES, Simd, closest_rotations_inline};
 use crate::signed_svd::signed_svd;
 use crate::{Constraint, ConstraintError};
 
@@ -71,6 +74,30 @@ impl TetStrain {
         })
     }
 
+    /// The deformation gradient `F` at `q`: its columns are the rows of
+    /// `G q`, summed in the order of `apply_operator` (bit-identical to it).
+    #[inline(always)]
+    fn gradient(&self, q: &[Point]) -> Matrix3<f64> {
+        let x = [
+            q[self.vertices[0]],
+            q[self.vertices[1]],
+            q[self.vertices[2]],
+            q[self.vertices[3]],
+        ];
+        let column = |g: &[f64; 4]| {
+            let mut acc = Point::zeros();
+            for k in 0..4 {
+                acc += x[k] * g[k];
+            }
+            acc
+        };
+        Matrix3::from_columns(&[
+            column(&self.operator[0]),
+            column(&self.operator[1]),
+            column(&self.operator[2]),
+        ])
+    }
+
     /// The stretch limits, if any.
     pub fn limits(&self) -> Option<(f64, f64)> {
         self.limits
@@ -120,6 +147,77 @@ impl Constraint for TetStrain {
 
     fn gx_hessian(&self, gx: &[Point], project_psd: bool, out: &mut [f64]) {
         crate::tet_hessian::strain_hessian(self, gx, project_psd, out);
+    }
+
+    /// Batches of [`LANES`] elements without strain limits go through the
+    /// SIMD polar iteration of [`crate::polar_batch`] (bit-identical to
+    /// [`Self::project`]); the rest, one at a time.
+    fn project_many(constraints: &[Self], q: &[Point], out: &mut [Point]) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(simd) = Simd::try_new() {
+            pulp::Simd::vectorize(
+                simd,
+                ProjectBatched {
+                    simd,
+                    constraints,
+                    q,
+                    out,
+                },
+            );
+            return;
+        }
+        project_one_by_one(constraints, q, out);
+    }
+}
+
+/// [`TetStrain::project_many`]'s loop as a `pulp` operation: `with_simd` is
+/// inlined, with everything it calls in the hot path, into the
+/// dispatcher's `#[target_feature]` function.
+#[cfg(target_arch = "x86_64")]
+struct ProjectBatched<'a> {
+    simd: Simd,
+    constraints: &'a [TetStrain],
+    q: &'a [Point],
+    out: &'a mut [Point],
+}
+
+#[cfg(target_arch = "x86_64")]
+impl pulp::WithSimd for ProjectBatched<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        let Self {
+            simd,
+            constraints,
+            q,
+            out,
+        } = self;
+        let batches = constraints.chunks_exact(LANES);
+        let rest = batches.remainder();
+        let mut out_batches = out.chunks_exact_mut(LANES * 3);
+        for (batch, rows) in batches.zip(&mut out_batches) {
+            if batch.iter().any(|c| c.limits.is_some()) {
+                project_one_by_one(batch, q, rows);
+                continue;
+            }
+            let f: [Matrix3<f64>; LANES] = std::array::from_fn(|l| batch[l].gradient(q));
+            let targets = closest_rotations_inline(simd, &f);
+            for (target, rows) in targets.iter().zip(rows.chunks_exact_mut(3)) {
+                for (row, p) in rows.iter_mut().enumerate() {
+                    *p = target.column(row).into_owned();
+                }
+            }
+        }
+        project_one_by_one(rest, q, out_batches.into_remainder());
+    }
+}
+
+fn project_one_by_one(constraints: &[TetStrain], q: &[Point], out: &mut [Point]) {
+    let mut gx = [Point::zeros(); 3];
+    for (c, rows) in constraints.iter().zip(out.chunks_exact_mut(3)) {
+        apply_operator(c, q, &mut gx);
+        c.project(&gx, rows);
     }
 }
 
@@ -210,6 +308,48 @@ mod tests {
         crate::constraint::apply_operator(&c, &deformed, &mut gx);
         let f = Matrix3::from_columns(&gx);
         assert!((f - a).norm() < 1e-12, "{f} vs {a}");
+    }
+
+    #[test]
+    fn batched_projection_is_bit_identical_to_one_by_one() {
+        // 11 elements (two full batches and a remainder of 3), one with
+        // strain limits, positions perturbed so that some elements invert
+        // or flatten: the batched path must reproduce `project` exactly.
+        let rest = vec![
+            Point::new(0.0, 0.0, 0.0),
+            Point::new(1.0, 0.0, 0.0),
+            Point::new(0.0, 1.0, 0.0),
+            Point::new(0.0, 0.0, 1.0),
+            Point::new(1.0, 1.0, 1.0),
+        ];
+        let tets = [[0, 1, 2, 3], [1, 2, 3, 4], [0, 1, 2, 3], [1, 2, 3, 4]];
+        let constraints: Vec<TetStrain> = (0..11)
+            .map(|i| {
+                let limits = (i == 6).then_some((0.9, 1.1));
+                TetStrain::new(&rest, tets[i % 4], 1e5, limits).unwrap()
+            })
+            .collect();
+        let deformations = [
+            Matrix3::identity(),
+            Matrix3::new(1.1, 0.2, -0.3, 0.0, 0.9, 0.4, 0.5, -0.1, 1.3),
+            Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, -1.0)),
+            Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 0.0)),
+        ];
+        for a in deformations {
+            let q: Vec<Point> = rest
+                .iter()
+                .map(|x| a * x + Point::new(0.1, 0.0, -0.2))
+                .collect();
+            let mut batched = vec![Point::zeros(); 33];
+            TetStrain::project_many(&constraints, &q, &mut batched);
+            let mut gx = [Point::zeros(); 3];
+            for (c, rows) in constraints.iter().zip(batched.chunks_exact(3)) {
+                crate::constraint::apply_operator(c, &q, &mut gx);
+                let mut one = [Point::zeros(); 3];
+                c.project(&gx, &mut one);
+                assert_eq!(rows, &one[..], "F = {a}");
+            }
+        }
     }
 
     #[test]

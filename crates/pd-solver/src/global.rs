@@ -174,6 +174,12 @@ impl GlobalSystem {
         self.symbolic.factor_len()
     }
 
+    /// Structural non-zeros of one Cholesky factor (see
+    /// `SymbolicFactor::factor_nnz`).
+    pub fn factor_nnz(&self) -> usize {
+        self.symbolic.factor_nnz()
+    }
+
     /// Index in the cache of the factorisation for `coefficients`,
     /// factorising (and returning `true`) only if it is not cached yet.
     pub fn prepare_factor(

@@ -454,6 +454,12 @@ impl Simulation {
         self.global.factor_len()
     }
 
+    /// Structural non-zeros of the Cholesky factor `L` (diagonal included,
+    /// supernode padding excluded): the count CHOLMOD reports as `lnz`.
+    pub fn factor_nnz(&self) -> usize {
+        self.global.factor_nnz()
+    }
+
     /// Kinetic, elastic and gravitational energy of the current state (J).
     /// The elastic part costs one projection of every constraint.
     pub fn energies(&self) -> Energies {

@@ -114,6 +114,12 @@ impl GlobalStep {
         self.system.factor_len()
     }
 
+    /// Structural non-zeros of one Cholesky factor of the scalar system
+    /// (the count CHOLMOD reports as `lnz`).
+    pub fn factor_nnz(&self) -> usize {
+        self.system.factor_nnz()
+    }
+
     /// Makes the matrix of the coming step ready: the cached factor of a
     /// constant matrix (factorising only on a cache miss), or a fresh
     /// numeric factorisation of the lagged system with `K` at `positions`.

@@ -1,0 +1,321 @@
+//! The "limits" and "meshes" sections of `cargo xtask bench-report`: how
+//! far the step is from what the machine allows, whether the run was quiet
+//! enough for any verdict, and the step on real (TetGen) meshes.
+//!
+//! - Streaming bandwidth: `pd-probe bandwidth` (best single-thread read of
+//!   a 512 MiB array).
+//! - The solve bound: a forward and a backward substitution each read the
+//!   whole factor once (all three right-hand-side columns at a time), so a
+//!   solve cannot take less than `2 x 8 bytes x stored values / bandwidth`.
+//!   The report divides the global step's time per iteration (the solve plus
+//!   the right-hand side's assembly) by it.
+//! - Local step: ns per tet per iteration, at 1 and 2 threads.
+//! - Noise: CPU pressure (`/proc/pressure/cpu`, `some avg10`) above
+//!   [`PRESSURE_NOISY`] % before or after, a 2-thread speed-up above
+//!   [`SPEEDUP_NOISY`] (impossible on 2 cores without interference) or a
+//!   spread of repeated runs above [`SPREAD_NOISY`] flags the report as
+//!   noisy, with the reasons.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use serde_json::{Value, json};
+
+/// `some avg10` CPU pressure (%) above which a run is flagged.
+const PRESSURE_NOISY: f64 = 5.0;
+/// A 2-thread speed-up above this is interference, not parallelism.
+const SPEEDUP_NOISY: f64 = 2.05;
+/// Spread `(max - min) / min` of repeated step times above this is noise.
+const SPREAD_NOISY: f64 = 0.05;
+
+/// The beam of issue 18 (1 x 0.2 x 0.2 m in the issue; 80 x 14 x 14 cells,
+/// 94,080 tets) or a smaller one for `--quick`.
+fn cells(quick: bool) -> [usize; 3] {
+    if quick { [35, 7, 7] } else { [80, 14, 14] }
+}
+
+/// The standard real mesh, if the shared meshes sit beside the repository.
+pub fn default_meshes(root: &Path) -> Vec<PathBuf> {
+    let armadillo = root.join("../shared/meshes/armadillo/armadillo");
+    if armadillo.with_extension("node").exists() {
+        vec![armadillo]
+    } else {
+        Vec::new()
+    }
+}
+
+/// `some avg10` of `/proc/pressure/cpu`, if the kernel reports it.
+fn cpu_pressure() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/pressure/cpu").ok()?;
+    let some = text.lines().find(|l| l.starts_with("some"))?;
+    some.split_whitespace()
+        .find_map(|field| field.strip_prefix("avg10="))?
+        .parse()
+        .ok()
+}
+
+fn f(value: &Value) -> f64 {
+    value.as_f64().unwrap_or(f64::NAN)
+}
+
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// Runs the measurements with `probe` (one `pd-probe` invocation per call).
+pub fn measure(
+    probe: &dyn Fn(Vec<String>) -> Result<Value, String>,
+    quick: bool,
+    meshes: &[PathBuf],
+) -> Result<Value, String> {
+    let strings = |list: &[&str]| list.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+    let pressure_before = cpu_pressure();
+    let bandwidth = probe(strings(&[
+        "bandwidth",
+        "--mib",
+        if quick { "256" } else { "512" },
+    ]))?;
+    let bytes_per_second = f(&bandwidth["bytes_per_second"]);
+    let cells = cells(quick);
+    let cells_arg = format!("{},{},{}", cells[0], cells[1], cells[2]);
+    let repeats = if quick { 2 } else { 3 };
+    let mut per_threads = Vec::new();
+    for threads in ["1", "2"] {
+        let mut runs = Vec::new();
+        for _ in 0..repeats {
+            runs.push(probe(strings(&[
+                "step",
+                "--cells",
+                &cells_arg,
+                "--steps",
+                "5",
+                "--threads",
+                threads,
+            ]))?);
+        }
+        let pick = |key: &str| median(runs.iter().map(|r| f(&r[key])).collect());
+        let steps: Vec<f64> = runs.iter().map(|r| f(&r["step_ms_median"])).collect();
+        let low = steps.iter().copied().fold(f64::INFINITY, f64::min);
+        let high = steps.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let (iters, tets) = (f(&runs[0]["iters"]), f(&runs[0]["n_tets"]));
+        let factor_bytes = 8.0 * f(&runs[0]["nnz_L_factor"]);
+        let bound_ms = 2.0 * factor_bytes / bytes_per_second * 1e3;
+        let global_per_iteration = pick("global_ms_median") / iters;
+        per_threads.push(json!({
+            "threads": threads,
+            "step_ms": pick("step_ms_median"),
+            "local_ns_per_tet_iteration": pick("local_ms_median") * 1e6 / (iters * tets),
+            "global_ms_per_iteration": global_per_iteration,
+            "factor_bytes": factor_bytes,
+            "solve_bound_ms": bound_ms,
+            "ratio_to_bound": global_per_iteration / bound_ms,
+            "spread": (high - low) / low,
+            "n_tets": tets,
+            "iters": iters,
+        }));
+    }
+    let step_speedup = f(&per_threads[0]["step_ms"]) / f(&per_threads[1]["step_ms"]);
+    let local_speedup = f(&per_threads[0]["local_ns_per_tet_iteration"])
+        / f(&per_threads[1]["local_ns_per_tet_iteration"]);
+
+    let mut mesh_rows = Vec::new();
+    for base in meshes {
+        for threads in ["1", "2"] {
+            let base_text = base.to_string_lossy();
+            let mut run = probe(strings(&[
+                "step",
+                "--mesh",
+                &base_text,
+                "--steps",
+                "5",
+                "--threads",
+                threads,
+            ]))?;
+            run["mesh"] = json!(base_text);
+            mesh_rows.push(run);
+        }
+    }
+
+    let pressure_after = cpu_pressure();
+    let mut reasons = Vec::new();
+    for (when, pressure) in [("before", pressure_before), ("after", pressure_after)] {
+        if let Some(p) = pressure.filter(|&p| p > PRESSURE_NOISY) {
+            reasons.push(format!(
+                "CPU pressure {p:.1} % {when} (> {PRESSURE_NOISY} %)"
+            ));
+        }
+    }
+    for (name, speedup) in [("step", step_speedup), ("local step", local_speedup)] {
+        if speedup > SPEEDUP_NOISY {
+            reasons.push(format!(
+                "2-thread {name} speed-up {speedup:.2} (> {SPEEDUP_NOISY})"
+            ));
+        }
+    }
+    for run in &per_threads {
+        let spread = f(&run["spread"]);
+        if spread > SPREAD_NOISY {
+            reasons.push(format!(
+                "spread of repeated runs {:.1} % at {} thread(s) (> {:.0} %)",
+                100.0 * spread,
+                run["threads"].as_str().unwrap_or("?"),
+                100.0 * SPREAD_NOISY
+            ));
+        }
+    }
+    Ok(json!({
+        "bandwidth": bandwidth,
+        "cells": cells,
+        "by_threads": per_threads,
+        "step_speedup": step_speedup,
+        "local_speedup": local_speedup,
+        "pressure_before": pressure_before,
+        "pressure_after": pressure_after,
+        "noisy": !reasons.is_empty(),
+        "noise_reasons": reasons,
+        "meshes": mesh_rows,
+    }))
+}
+
+/// The Markdown of the two sections.
+pub fn markdown(limits: &Value) -> String {
+    let mut md = String::new();
+    let empty = Vec::new();
+    let _ = writeln!(md, "## Limits: the step against the machine\n");
+    if limits["noisy"].as_bool() == Some(true) {
+        let reasons: Vec<&str> = limits["noise_reasons"]
+            .as_array()
+            .unwrap_or(&empty)
+            .iter()
+            .filter_map(Value::as_str)
+            .collect();
+        let _ = writeln!(
+            md,
+            "**NOISY RUN: no verdict rests on these numbers** ({}).\n",
+            reasons.join("; ")
+        );
+    } else {
+        let _ = writeln!(
+            md,
+            "Noise check passed (CPU pressure at most {PRESSURE_NOISY} %, 2-thread speed-ups at \
+             most {SPEEDUP_NOISY}, spread of repeated runs at most {:.0} %).\n",
+            100.0 * SPREAD_NOISY
+        );
+    }
+    let bandwidth = f(&limits["bandwidth"]["bytes_per_second"]);
+    let cells = &limits["cells"];
+    let _ = writeln!(
+        md,
+        "Streaming read bandwidth (1 thread, measured now): {:.1} GB/s. Beam of {} x {} x {} \
+         cells; a solve reads the factor twice (forward and backward), so its bound is \
+         2 x factor bytes / bandwidth; the global step per iteration also assembles the \
+         right-hand side.\n",
+        bandwidth / 1e9,
+        cells[0],
+        cells[1],
+        cells[2]
+    );
+    let _ = writeln!(
+        md,
+        "| threads | tets | step [ms] | local [ns / tet / iteration] | factor [MB] | solve bound [ms] | global per iteration [ms] | ratio to bound | spread of runs |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    );
+    for run in limits["by_threads"].as_array().unwrap_or(&empty) {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:.1} | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {:.1} % |",
+            run["threads"].as_str().unwrap_or("?"),
+            f(&run["n_tets"]),
+            f(&run["step_ms"]),
+            f(&run["local_ns_per_tet_iteration"]),
+            f(&run["factor_bytes"]) / 1e6,
+            f(&run["solve_bound_ms"]),
+            f(&run["global_ms_per_iteration"]),
+            f(&run["ratio_to_bound"]),
+            100.0 * f(&run["spread"]),
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\n2-thread speed-up: step {:.2}, local step {:.2}.\n",
+        f(&limits["step_speedup"]),
+        f(&limits["local_speedup"])
+    );
+    let meshes = limits["meshes"].as_array().unwrap_or(&empty);
+    if !meshes.is_empty() {
+        let _ = writeln!(md, "## Real meshes (TetGen, `--mesh`)\n");
+        let _ = writeln!(
+            md,
+            "Smallest-x vertex pinned as in the C++ reference's runs; 10 iterations, backward \
+             Euler. nnz(L) counts structural non-zeros (CHOLMOD's `lnz`); stored values add \
+             faer's supernode padding.\n"
+        );
+        let _ = writeln!(
+            md,
+            "| mesh | vertices | tets | threads | step [ms] | local [ms] | global [ms] | nnz(L) [M] | stored values [M] | peak memory [MB] |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+        );
+        for run in meshes {
+            let name = run["mesh"].as_str().unwrap_or("?");
+            let short = Path::new(name)
+                .file_name()
+                .map_or(name.into(), |n| n.to_string_lossy());
+            let _ = writeln!(
+                md,
+                "| {short} | {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.3} | {:.3} | {:.0} |",
+                run["n_verts"],
+                run["n_tets"],
+                run["threads"],
+                f(&run["step_ms_median"]),
+                f(&run["local_ms_median"]),
+                f(&run["global_ms_median"]),
+                f(&run["nnz_L_exact"]) / 1e6,
+                f(&run["nnz_L_factor"]) / 1e6,
+                f(&run["peak_bytes"]) / 1e6,
+            );
+        }
+        let _ = writeln!(md);
+    }
+    md
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fake probe: bandwidth 10 GB/s, 100 tets, 10 iterations, a factor
+    /// of 1e6 values (8 MB: bound 1.6 ms per solve).
+    fn fake(speedup: f64) -> impl Fn(Vec<String>) -> Result<Value, String> {
+        move |a: Vec<String>| {
+            if a[0] == "bandwidth" {
+                return Ok(json!({ "bytes_per_second": 1e10 }));
+            }
+            let two = a.iter().any(|x| x == "2");
+            let s = if two { speedup } else { 1.0 };
+            Ok(json!({
+                "step_ms_median": 40.0 / s, "local_ms_median": 20.0 / s,
+                "global_ms_median": 20.0, "iters": 10, "n_tets": 100,
+                "nnz_L_factor": 1e6, "nnz_L_exact": 8e5, "n_verts": 40, "threads": if two { 2 } else { 1 },
+                "peak_bytes": 1e7,
+            }))
+        }
+    }
+
+    #[test]
+    fn bound_ratio_and_local_cost_follow_from_the_probe() {
+        let limits = measure(&fake(1.5), true, &[]).unwrap();
+        let one = &limits["by_threads"][0];
+        assert!((f(&one["solve_bound_ms"]) - 1.6).abs() < 1e-12);
+        assert!((f(&one["ratio_to_bound"]) - 2.0 / 1.6).abs() < 1e-12);
+        // 20 ms / (10 iterations x 100 tets) = 20,000 ns.
+        assert!((f(&one["local_ns_per_tet_iteration"]) - 20_000.0).abs() < 1e-6);
+        assert!((f(&limits["local_speedup"]) - 1.5).abs() < 1e-12);
+        assert!(markdown(&limits).contains("| 1 | 100 |"));
+    }
+
+    #[test]
+    fn a_superlinear_speedup_flags_the_report() {
+        let limits = measure(&fake(2.5), true, &[]).unwrap();
+        assert_eq!(limits["noisy"], true);
+        assert!(markdown(&limits).contains("NOISY RUN"));
+    }
+}
