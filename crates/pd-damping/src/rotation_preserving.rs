@@ -51,18 +51,26 @@ impl SpinKeeper {
     ) {
         let masses = step.base.masses;
         let h = step.base.h;
-        // The motion the step predicts before internal forces act, as a
-        // velocity: `(y - x_n) / h`. Its rigid rotation includes the angular
-        // impulse of external forces (gravity about a pivot), so a pendulum's
-        // swing is followed as it speeds up; for a steady spin it is `v_n`'s
-        // rotation (the inertial target moves each vertex by `h v_n` for one-
-        // step methods, by `h v_n` to first order for BDF-2).
+        // For a body held at a pivot or along a hinge, the rotation is fitted
+        // to the motion the step predicts before internal forces act, as a
+        // velocity `(y - x_n) / h`: it carries the angular impulse of external
+        // forces about the pivot (gravity), so a pendulum's swing is followed
+        // as it speeds up. A free body's spin needs no prediction (uniform
+        // gravity exerts no torque about its centre of mass).
+        let turnable = step.rigid_bodies.iter().any(|b| {
+            matches!(
+                b.freedom,
+                RigidFreedom::Pivot { .. } | RigidFreedom::Hinge { .. }
+            )
+        });
         let predicted = &mut *targets.scratch;
-        for (u, y) in predicted
-            .iter_mut()
-            .zip(targets.inertial_displacement.iter())
-        {
-            *u = y / h;
+        if turnable {
+            for (u, y) in predicted
+                .iter_mut()
+                .zip(targets.inertial_displacement.iter())
+            {
+                *u = y / h;
+            }
         }
         self.spins
             .resize(step.rigid_bodies.len(), SpinAtStart::ZERO);
@@ -78,15 +86,17 @@ impl SpinKeeper {
                     .map(|&i| 0.5 * masses[i] * velocities[i].norm_squared())
                     .sum(),
             };
-            // The rigid rotation the body can perform: any for a free body,
-            // about its pivot or hinge for a held one (a pendulum swings
-            // undamped), none for a clamped one.
-            let coming = RigidFit::of(body, masses, positions, predicted);
+            // The rigid rotation the body can perform: its spin for a free
+            // body, about its pivot or hinge for a held one, none for a
+            // clamped one.
+            let predicted_fit = || RigidFit::of(body, masses, positions, predicted);
             let omega = match &rigid.freedom {
                 RigidFreedom::Free => start_omega,
-                RigidFreedom::Pivot { point } => coming.angular_velocity_about(point, None),
+                RigidFreedom::Pivot { point } => {
+                    predicted_fit().angular_velocity_about(point, None)
+                }
                 RigidFreedom::Hinge { point, axis } => {
-                    coming.angular_velocity_about(point, Some(axis))
+                    predicted_fit().angular_velocity_about(point, Some(axis))
                 }
                 RigidFreedom::Held => continue,
             };
