@@ -1,12 +1,12 @@
 //! Sparse Cholesky factorisation of the global matrix with faer: symbolic
-//! analysis (AMD or nested dissection, whichever fills less) once per sparsity pattern, numeric factorisation
+//! analysis (AMD or nested dissection, whichever a cost model of the solve prefers) once per sparsity pattern, numeric factorisation
 //! into a preallocated buffer, and in-place solves with a 3-column
 //! right-hand side.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
     factorize_symbolic_cholesky, simplicial,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
@@ -14,6 +14,8 @@ use faer::{Conj, MatMut, Par, Side};
 
 use crate::SolverError;
 
+#[cfg(test)]
+mod calibration;
 #[cfg(feature = "metis")]
 mod metis;
 
@@ -63,20 +65,20 @@ const DISSECTION_MIN: usize = 2000;
 /// Largest part that nested dissection leaves in its natural order.
 const DISSECTION_LEAF: usize = 64;
 
-/// A nested-dissection elimination order of `pattern` (old indices in pivot
-/// order), or `None` for small systems: the geometric dissection below or,
-/// with the `metis` feature, METIS's multilevel nested dissection, whichever
-/// factor has fewer stored values (ties keep the geometric order). The two
-/// win on different meshes: the geometric split suits regular box meshes,
-/// METIS irregular ones (docs/performance.md). Deterministic: METIS runs
-/// with its fixed default seed.
-pub(crate) fn nested_dissection(
+/// The nested-dissection elimination orders worth analysing for `pattern`
+/// (old indices in pivot order), none for small systems: the geometric
+/// dissection below and, with the `metis` feature, METIS's multilevel nested
+/// dissection. [`SymbolicFactor::analyse`] weighs them against AMD by
+/// [`solve_cost`]: the geometric split suits regular box meshes, METIS and AMD
+/// irregular ones (docs/performance.md). Deterministic: METIS runs with its
+/// fixed default seed.
+pub(crate) fn dissection_candidates(
     pattern: &LowerPattern,
     coordinates: &[pd_mesh::Point],
-) -> Option<Vec<usize>> {
+) -> Vec<Vec<usize>> {
     let n = pattern.n;
     if n < DISSECTION_MIN || coordinates.len() != n {
-        return None;
+        return Vec::new();
     }
     let (start, neighbours) = adjacency(pattern);
     #[cfg(feature = "metis")]
@@ -90,14 +92,32 @@ pub(crate) fn nested_dissection(
     let mut side = vec![0u8; n];
     let mut ids: Vec<usize> = (0..n).collect();
     graph.dissect(&mut ids, &mut side, &mut order);
-    drop(graph);
+    #[allow(unused_mut)]
+    let mut candidates = vec![order];
     #[cfg(feature = "metis")]
-    if let Some(metis_order) = metis_order {
-        if fill(pattern, &metis_order) < fill(pattern, &order) {
-            return Some(metis_order);
-        }
-    }
-    Some(order)
+    candidates.extend(metis_order);
+    candidates
+}
+
+/// What one supernode costs a 3-column solve, in stored values: the fixed
+/// work of visiting it (a small dense triangular solve, an update product and
+/// the scatter of its rows) measured as the time of this many stored values.
+/// Fitted on this machine to the solve times of three orderings of three
+/// meshes (docs/performance.md, "Choosing the ordering"): 1.76 ns per stored
+/// value and 0.123 us per supernode, about 70 values.
+const SUPERNODE_COST: usize = 70;
+
+/// The modelled cost of one solve with `symbolic`'s factor, in stored
+/// values: `stored + SUPERNODE_COST x supernodes`. Less fill alone is not a
+/// faster solve: METIS's orders of regular grids and of the armadillo store
+/// fewer values than the alternatives but in two to four times as many
+/// supernodes, most of them under 8 columns wide.
+fn solve_cost(symbolic: &SymbolicCholesky<usize>) -> usize {
+    let supernodes = match symbolic.raw() {
+        SymbolicCholeskyRaw::Supernodal(s) => s.n_supernodes(),
+        SymbolicCholeskyRaw::Simplicial(_) => 0,
+    };
+    symbolic.len_val() + SUPERNODE_COST * supernodes
 }
 
 /// The adjacency of `pattern`'s graph (both triangles, no diagonal) as
@@ -130,24 +150,6 @@ fn adjacency(pattern: &LowerPattern) -> (Vec<usize>, Vec<usize>) {
         }
     }
     (start, neighbours)
-}
-
-/// Stored values of the factor of `pattern` in the elimination `order`
-/// (`usize::MAX` if the symbolic analysis fails).
-#[cfg(feature = "metis")]
-fn fill(pattern: &LowerPattern, order: &[usize]) -> usize {
-    let mut inverse = vec![0; order.len()];
-    for (new, &old) in order.iter().enumerate() {
-        inverse[old] = new;
-    }
-    let perm = faer::perm::PermRef::new_checked(order, &inverse, pattern.n);
-    factorize_symbolic_cholesky(
-        pattern.symbolic(),
-        Side::Lower,
-        SymmetricOrdering::Custom(perm),
-        CholeskySymbolicParams::default(),
-    )
-    .map_or(usize::MAX, |symbolic| symbolic.len_val())
 }
 
 /// Adjacency and coordinates for the geometric dissection.
@@ -289,15 +291,15 @@ pub(crate) struct NumericFactor {
 
 impl SymbolicFactor {
     /// Orders and analyses the pattern; allocates scratch for numeric
-    /// factorisations and 3-column solves. The ordering is AMD, or the
-    /// `candidate` elimination order (old indices in pivot order) if its
-    /// factor has fewer stored values: trying both costs one more symbolic
-    /// analysis and can never increase the fill.
-    pub fn analyse(
-        pattern: LowerPattern,
-        candidate: Option<&[usize]>,
-    ) -> Result<Self, SolverError> {
-        let analyse = |ordering| {
+    /// factorisations and 3-column solves. The ordering is AMD or one of the
+    /// `candidates` (elimination orders, old indices in pivot order),
+    /// whichever has the lowest [`solve_cost`] (ties keep the earlier, AMD
+    /// first): one symbolic analysis per candidate, deterministic.
+    pub fn analyse(pattern: LowerPattern, candidates: &[Vec<usize>]) -> Result<Self, SolverError> {
+        fn analyse(
+            pattern: &LowerPattern,
+            ordering: SymmetricOrdering<'_, usize>,
+        ) -> Result<SymbolicCholesky<usize>, SolverError> {
             factorize_symbolic_cholesky(
                 pattern.symbolic(),
                 Side::Lower,
@@ -307,17 +309,19 @@ impl SymbolicFactor {
             .map_err(|e| SolverError::Factorisation {
                 reason: format!("symbolic analysis failed: {e:?}"),
             })
-        };
-        let mut symbolic = analyse(SymmetricOrdering::Amd)?;
-        if let Some(forward) = candidate {
+        }
+        let mut symbolic = analyse(&pattern, SymmetricOrdering::Amd)?;
+        let mut cost = solve_cost(&symbolic);
+        for forward in candidates {
             let mut inverse = vec![0; forward.len()];
             for (new, &old) in forward.iter().enumerate() {
                 inverse[old] = new;
             }
             let perm = faer::perm::PermRef::new_checked(forward, &inverse, pattern.n);
-            let dissected = analyse(SymmetricOrdering::Custom(perm))?;
-            if dissected.len_val() < symbolic.len_val() {
-                symbolic = dissected;
+            let candidate = analyse(&pattern, SymmetricOrdering::Custom(perm))?;
+            let candidate_cost = solve_cost(&candidate);
+            if candidate_cost < cost {
+                (symbolic, cost) = (candidate, candidate_cost);
             }
         }
         let factor_nnz = match symbolic.perm() {
@@ -334,6 +338,20 @@ impl SymbolicFactor {
             factor_nnz,
             scratch,
         })
+    }
+
+    /// The elimination order chosen (old indices in pivot order), if any.
+    pub fn order(&self) -> Option<Vec<usize>> {
+        self.symbolic.perm().map(|perm| perm.arrays().0.to_vec())
+    }
+
+    /// Number of supernodes of the factor (0 for a simplicial factor).
+    #[cfg(test)]
+    pub fn supernodes(&self) -> usize {
+        match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(s) => s.n_supernodes(),
+            SymbolicCholeskyRaw::Simplicial(_) => 0,
+        }
     }
 
     /// The analysed pattern.
@@ -447,19 +465,36 @@ mod tests {
     }
 
     #[test]
-    fn nested_dissection_is_a_permutation_and_solves_exactly() {
+    fn candidates_are_permutations_and_the_cheapest_solves_exactly() {
         let (pattern, values, coordinates) = grid(14);
-        let order = nested_dissection(&pattern, &coordinates).expect("n = 2744 >= 2000");
-        let mut seen = vec![false; pattern.n];
-        for &v in &order {
-            assert!(!seen[v], "vertex {v} twice");
-            seen[v] = true;
+        let candidates = dissection_candidates(&pattern, &coordinates);
+        assert_eq!(
+            candidates.len(),
+            if cfg!(feature = "metis") { 2 } else { 1 }
+        );
+        for order in &candidates {
+            let mut seen = vec![false; pattern.n];
+            for &v in order {
+                assert!(!seen[v], "vertex {v} twice");
+                seen[v] = true;
+            }
+            assert!(seen.iter().all(|&s| s));
         }
-        assert!(seen.iter().all(|&s| s));
 
-        let amd = SymbolicFactor::analyse(pattern.clone(), None).unwrap();
-        let mut best = SymbolicFactor::analyse(pattern.clone(), Some(&order)).unwrap();
-        assert!(best.factor_len() <= amd.factor_len());
+        // The choice is the cheapest of AMD and every candidate alone.
+        let mut best = SymbolicFactor::analyse(pattern.clone(), &candidates).unwrap();
+        let cost = |f: &SymbolicFactor| solve_cost(&f.symbolic);
+        let amd = SymbolicFactor::analyse(pattern.clone(), &[]).unwrap();
+        assert!(cost(&best) <= cost(&amd));
+        for order in &candidates {
+            let single =
+                SymbolicFactor::analyse(pattern.clone(), std::slice::from_ref(order)).unwrap();
+            assert!(cost(&best) <= cost(&single));
+        }
+        assert_eq!(
+            cost(&best),
+            best.factor_len() + SUPERNODE_COST * best.supernodes()
+        );
         // Solve A x = A x_true for a known x_true; A is diagonally dominant
         // (condition number < 2), so round-off stays near 1e-15.
         let factor = best.factorise(&values).unwrap();
@@ -502,7 +537,7 @@ mod tests {
         assert_eq!(exact_factor_nnz(&pattern, &identity), n * (n + 1) / 2);
         let hub_last: Vec<usize> = (0..n).map(|old| (old + n - 1) % n).collect();
         assert_eq!(exact_factor_nnz(&pattern, &hub_last), 2 * n - 1);
-        let amd = SymbolicFactor::analyse(pattern, None).unwrap();
+        let amd = SymbolicFactor::analyse(pattern, &[]).unwrap();
         assert_eq!(amd.factor_nnz(), 2 * n - 1);
         assert!(amd.factor_len() >= amd.factor_nnz());
     }
@@ -510,6 +545,6 @@ mod tests {
     #[test]
     fn small_systems_keep_amd_only() {
         let (pattern, _, coordinates) = grid(5);
-        assert!(nested_dissection(&pattern, &coordinates).is_none());
+        assert!(dissection_candidates(&pattern, &coordinates).is_empty());
     }
 }

@@ -2,7 +2,7 @@
 //! the global matrix `A = alpha M + beta L_sys + delta L_d` (DESIGN.md 3.2),
 //! and its cached factorisations.
 
-use crate::cholesky::{LowerPattern, NumericFactor, SymbolicFactor, nested_dissection};
+use crate::cholesky::{LowerPattern, NumericFactor, SymbolicFactor, dissection_candidates};
 use crate::{SolverError, local::LocalStep};
 use pd_constraints::{CsrMatrix, assembly, assembly::LaplacianKind};
 
@@ -54,9 +54,9 @@ pub(crate) struct GlobalSystem {
     pub system_part: Vec<f64>,
     /// Per pattern slot: the entry of `L_d`.
     pub damping_part: Vec<f64>,
-    /// The nested-dissection order tried for the scalar system (free
-    /// indices in pivot order), reused for the lagged 3n system.
-    pub dissection: Option<Vec<usize>>,
+    /// The elimination order chosen for the scalar system (free indices in
+    /// pivot order), offered to the lagged 3n system as a candidate.
+    pub order: Option<Vec<usize>>,
     symbolic: SymbolicFactor,
     cache: Vec<([u64; 3], NumericFactor)>,
     values: Vec<f64>,
@@ -149,9 +149,10 @@ impl GlobalSystem {
             }
         }
         let free_rest: Vec<pd_mesh::Point> = free.iter().map(|&v| rest[v]).collect();
-        let dissection = nested_dissection(&pattern, &free_rest);
+        let candidates = dissection_candidates(&pattern, &free_rest);
         drop(free_rest);
-        let symbolic = SymbolicFactor::analyse(pattern.clone(), dissection.as_deref())?;
+        let symbolic = SymbolicFactor::analyse(pattern.clone(), &candidates)?;
+        let order = symbolic.order();
         Ok(Self {
             pattern,
             damping_rows: damping.select_rows(&free),
@@ -162,7 +163,7 @@ impl GlobalSystem {
             mass_part,
             system_part,
             damping_part,
-            dissection,
+            order,
             symbolic,
             cache: Vec::new(),
             values: vec![0.0; len],

@@ -131,14 +131,18 @@ impl LaggedSystem {
                 slots,
             });
         }
-        // The scalar dissection order with each vertex's x, y, z together.
-        let dissection: Option<Vec<usize>> = global.dissection.as_ref().map(|order| {
-            order
-                .iter()
-                .flat_map(|&v| [3 * v, 3 * v + 1, 3 * v + 2])
-                .collect()
-        });
-        let mut symbolic = SymbolicFactor::analyse(pattern, dissection.as_deref())?;
+        // The scalar system's order with each vertex's x, y, z together.
+        let candidates: Vec<Vec<usize>> = global
+            .order
+            .iter()
+            .map(|order| {
+                order
+                    .iter()
+                    .flat_map(|&v| [3 * v, 3 * v + 1, 3 * v + 2])
+                    .collect()
+            })
+            .collect();
+        let mut symbolic = SymbolicFactor::analyse(pattern, &candidates)?;
         let [mass_part, system_part, damping_part] = parts;
         // A first numeric factorisation sizes the factor buffer; it is
         // recomputed before every step.

@@ -1,0 +1,150 @@
+//! The measurement behind [`super::SUPERNODE_COST`] (ignored: it times
+//! solves, so its numbers mean something only on a quiet machine):
+//!
+//! ```sh
+//! cargo test --release -p pd-solver --lib calibration -- --ignored --nocapture
+//! ```
+//!
+//! For the 95,499- and 19,456-vertex beams and the TetGen armadillo (read
+//! from `../shared/meshes/armadillo` beside the repository, skipped if
+//! absent) it prints, for AMD, the geometric dissection and METIS, the
+//! stored values, the supernodes, the modelled cost, and the measured
+//! numeric factorisation and median 3-column solve. docs/performance.md
+//! fits the cost model to these numbers.
+
+use super::*;
+
+/// The lower pattern of a tet mesh's vertex graph (what the global matrix of
+/// tet strain has), diagonal included.
+fn tet_pattern(mesh: &pd_mesh::Mesh) -> LowerPattern {
+    let n = mesh.num_vertices();
+    let mut columns: Vec<Vec<usize>> = (0..n).map(|c| vec![c]).collect();
+    for tet in mesh.tets() {
+        for &a in tet {
+            for &b in tet {
+                if a > b {
+                    columns[b].push(a);
+                }
+            }
+        }
+    }
+    let (mut col_ptr, mut row_idx) = (vec![0], Vec::new());
+    for mut column in columns {
+        column.sort_unstable();
+        column.dedup();
+        row_idx.extend(column);
+        col_ptr.push(row_idx.len());
+    }
+    LowerPattern {
+        n,
+        col_ptr,
+        row_idx,
+    }
+}
+
+/// Values of `I + graph Laplacian` on `pattern`: symmetric positive definite.
+fn laplacian_values(p: &LowerPattern) -> Vec<f64> {
+    let mut degree = vec![1.0; p.n];
+    for c in 0..p.n {
+        for &r in &p.row_idx[p.col_ptr[c]..p.col_ptr[c + 1]] {
+            if r != c {
+                degree[r] += 1.0;
+                degree[c] += 1.0;
+            }
+        }
+    }
+    let mut values = vec![-1.0; p.row_idx.len()];
+    for c in 0..p.n {
+        values[p.col_ptr[c]] = degree[c]; // rows sorted: the diagonal first
+    }
+    values
+}
+
+/// Prints one ordering's line: structure, modelled cost, measured times.
+fn measure(name: &str, mut factor: SymbolicFactor) {
+    let values = laplacian_values(factor.pattern());
+    let n = factor.pattern().n;
+    let start = std::time::Instant::now();
+    let numeric = factor.factorise(&values).expect("diagonally dominant");
+    let factorise = start.elapsed().as_secs_f64();
+    let mut rhs = faer::Mat::<f64>::from_fn(n, 3, |i, j| ((i * 7 + j) % 13) as f64);
+    let mut times: Vec<f64> = (0..15)
+        .map(|_| {
+            let start = std::time::Instant::now();
+            factor.solve_in_place(&numeric, rhs.as_mut());
+            start.elapsed().as_secs_f64()
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    println!(
+        "  {name:<10} stored {:>10} supernodes {:>6} cost {:>10}  factorise {:>8.1} ms  solve {:>7.2} ms",
+        factor.factor_len(),
+        factor.supernodes(),
+        solve_cost(&factor.symbolic),
+        factorise * 1e3,
+        times[times.len() / 2] * 1e3
+    );
+}
+
+#[test]
+#[ignore = "timing: run on a quiet machine"]
+fn solve_cost_calibration() {
+    let mut meshes = vec![
+        (
+            "beam 130 x 26 x 26",
+            pd_mesh::generators::box_tets([1.0, 0.2, 0.2], [130, 26, 26]).unwrap(),
+        ),
+        (
+            "beam 75 x 15 x 15",
+            pd_mesh::generators::box_tets([1.0, 0.2, 0.2], [75, 15, 15]).unwrap(),
+        ),
+    ];
+    let armadillo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/meshes/armadillo/armadillo");
+    match pd_io::tetgen::read_tetgen_base(&armadillo) {
+        Ok(mesh) => meshes.push(("armadillo", mesh)),
+        Err(e) => println!("armadillo skipped: {e}"),
+    }
+    for (label, mesh) in meshes {
+        let pattern = tet_pattern(&mesh);
+        println!("{label}: {} vertices", pattern.n);
+        let candidates = dissection_candidates(&pattern, mesh.vertices());
+        let names = ["geometric", "metis"];
+        measure(
+            "amd",
+            SymbolicFactor::analyse(pattern.clone(), &[]).unwrap(),
+        );
+        for (name, order) in names.iter().zip(&candidates) {
+            // Forced: the candidate alone, even where AMD is cheaper.
+            let mut inverse = vec![0; order.len()];
+            for (new, &old) in order.iter().enumerate() {
+                inverse[old] = new;
+            }
+            let perm = faer::perm::PermRef::new_checked(order, &inverse, pattern.n);
+            let symbolic = factorize_symbolic_cholesky(
+                pattern.symbolic(),
+                Side::Lower,
+                SymmetricOrdering::Custom(perm),
+                CholeskySymbolicParams::default(),
+            )
+            .unwrap();
+            let scratch = MemBuffer::new(StackReq::any_of(&[
+                symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+                symbolic.solve_in_place_scratch::<f64>(3, Par::Seq),
+            ]));
+            let factor = SymbolicFactor {
+                pattern: pattern.clone(),
+                symbolic,
+                factor_nnz: 0,
+                scratch,
+            };
+            measure(name, factor);
+        }
+        let chosen = SymbolicFactor::analyse(pattern.clone(), &candidates).unwrap();
+        println!(
+            "  chosen: {} stored, {} supernodes",
+            chosen.factor_len(),
+            chosen.supernodes()
+        );
+    }
+}
