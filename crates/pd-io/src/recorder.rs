@@ -230,6 +230,7 @@ impl Recorder {
             "iterations": sim.settings().iterations,
             "integrator": sim.integrator_name(),
             "damping": sim.damping_name(),
+            "damping_coefficients": damping_coefficients(sim),
             "bodies": sim.model().bodies().len(),
             "vertices": sim.model().num_vertices(),
             "free_vertices": sim.num_free_vertices(),
@@ -366,4 +367,15 @@ mod median_tests {
         assert_eq!(median(&[4.0, 1.0, 2.0, 3.0]), 2.5);
         assert!(median(&[]).is_nan());
     }
+}
+
+/// The damping matrix coefficients of `sim` for the summary (what a
+/// scene's `ratio` was turned into).
+fn damping_coefficients(sim: &Simulation) -> serde_json::Value {
+    let d = sim.damping_matrix();
+    serde_json::json!({
+        "mass_per_s": d.mass,
+        "laplacian_stiffness_s": d.damping_laplacian,
+        "lagged_stiffness_s": d.lagged_stiffness,
+    })
 }

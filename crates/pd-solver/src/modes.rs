@@ -20,7 +20,10 @@
 //! `K + s M` (`s` a small positive shift that makes it definite even with
 //! rigid modes present), then block solves. See `docs/damping.md`.
 
+mod response;
 mod subspace;
+
+pub use response::{DiscreteMode, discrete_mode};
 
 use std::time::Instant;
 
