@@ -163,13 +163,15 @@ impl RatioTarget {
 
 /// Reads a ratio target from the parameters `ratio`, `mode`, `ratios`,
 /// `modes`, `stiffness`, `mass` as given (`None` where absent); `Ok(None)`
-/// when the coefficients are given as `stiffness`.
+/// when the coefficients are given as `stiffness`, or when neither
+/// `stiffness` nor a ratio is given (the model's build then reports the
+/// missing `stiffness`).
 ///
 /// # Errors
 /// [`DampingError::Conflict`] for `stiffness` with `ratio`/`ratios`, both
 /// `ratio` and `ratios`, `mode` without `ratio`, `modes` without `ratios` or
-/// the other way round, a non-zero `mass` with `ratios`, or neither
-/// `stiffness` nor a ratio; [`DampingError::InvalidParameter`] for a
+/// the other way round, or a non-zero `mass` with `ratios`;
+/// [`DampingError::InvalidParameter`] for a
 /// negative or non-finite ratio, or a mode that is not a whole number >= 1.
 pub(crate) fn target(
     given: impl Fn(&str) -> Option<f64>,
@@ -216,10 +218,11 @@ pub(crate) fn target(
         }
     };
     match (ratio, ratios) {
+        // Neither: `stiffness` is missing, which the model's build reports.
+        (None, None) if given("mode").is_none() && pair("modes").is_none() => Ok(None),
         (None, None) => Err(conflict(
-            "stiffness",
-            "is required: give stiffness (s), or ratio (the damping ratio of the lowest elastic \
-             mode) or ratios with modes",
+            "mode",
+            "only goes with ratio (and modes with ratios), which is missing",
         )),
         (Some(_), Some(_)) => Err(conflict("ratio", "give either ratio or ratios, not both")),
         (Some(ratio), None) => {
