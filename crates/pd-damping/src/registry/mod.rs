@@ -260,8 +260,15 @@ pub fn model_names() -> Vec<&'static str> {
     MODELS.iter().map(|m| m.name).collect()
 }
 
+/// Parameters added after the scene format's first version (damping by
+/// ratio). [`parameter_names`] lists them last, so that the positional form
+/// of a `[damping]` table (serde's JSON array) written before them still
+/// reads, and messages list the original keys first as before.
+pub const ADDED_PARAMETERS: &[&str] = &["ratio", "mode", "ratios", "modes"];
+
 /// Every parameter name of every model, each once, in registry order (the
-/// keys a scene's `[damping]` table may hold besides `model`).
+/// keys a scene's `[damping]` table may hold besides `model`), the
+/// [`ADDED_PARAMETERS`] last.
 pub fn parameter_names() -> &'static [&'static str] {
     static NAMES: LazyLock<Vec<&'static str>> = LazyLock::new(|| {
         let mut names = Vec::new();
@@ -270,6 +277,9 @@ pub fn parameter_names() -> &'static [&'static str] {
                 names.push(parameter.name);
             }
         }
+        // Added parameters last, in their own order.
+        names.retain(|n| !ADDED_PARAMETERS.contains(n));
+        names.extend(ADDED_PARAMETERS);
         names
     });
     &NAMES

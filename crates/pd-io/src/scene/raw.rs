@@ -212,8 +212,11 @@ impl<'de> Visitor<'de> for DampingVisitor {
     /// a struct from a JSON array.
     fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Damping, A::Error> {
         let keys = damping_keys();
+        // The registry's added parameters come last and may be left out, so
+        // that arrays written before they existed still read.
+        let required = keys.len() - registry::ADDED_PARAMETERS.len();
         let short = |found: usize| {
-            let expected = format!("struct Damping with {} elements", keys.len());
+            let expected = format!("struct Damping with {required} elements");
             de::Error::invalid_length(found, &expected.as_str())
         };
         let model: String = seq.next_element()?.ok_or_else(|| short(0))?;
@@ -229,6 +232,10 @@ impl<'de> Visitor<'de> for DampingVisitor {
                 _ => seq
                     .next_element::<Option<f64>>()?
                     .map(|v| v.map(Value::Number)),
+            };
+            let value = match value {
+                None if index >= required => break,
+                other => other,
             };
             if let Some(value) = value.ok_or_else(|| short(index))? {
                 arguments.push((name, value));
