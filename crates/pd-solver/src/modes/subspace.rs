@@ -60,22 +60,16 @@ pub(super) fn solve(
     let mut width = (2 * count + 8).min(available);
     let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
     let mut block: Vec<Vec<f64>> = (0..width).map(|_| random(nd, &mut seed)).collect();
-    let mut rhs = Mat::<f64>::zeros(nd, 3);
     let mut product = vec![0.0; nd];
     for iteration in 1..=MAX_ITERATIONS {
-        // Y = (K + s M)^-1 M X, three columns per solve.
-        for chunk in block.chunks_mut(3) {
-            for (j, x) in chunk.iter().enumerate() {
-                for (i, (xi, m)) in x.iter().zip(&stiffness.mass).enumerate() {
-                    rhs[(i, j)] = m * xi;
-                }
-            }
-            symbolic.solve_in_place(&factor, rhs.as_mut());
-            for (j, x) in chunk.iter_mut().enumerate() {
-                x.iter_mut()
-                    .enumerate()
-                    .for_each(|(i, xi)| *xi = rhs[(i, j)]);
-            }
+        // Y = (K + s M)^-1 M X, every column in one solve (the factor is
+        // read once per block, not once per column).
+        let mut rhs = Mat::<f64>::from_fn(nd, block.len(), |i, j| stiffness.mass[i] * block[j][i]);
+        symbolic.solve_in_place_wide(&factor, rhs.as_mut());
+        for (j, x) in block.iter_mut().enumerate() {
+            x.iter_mut()
+                .enumerate()
+                .for_each(|(i, xi)| *xi = rhs[(i, j)]);
         }
         orthonormalise(&stiffness.mass, rigid, &mut block, &mut seed);
         // Rayleigh-Ritz on span(Y).
@@ -86,11 +80,15 @@ pub(super) fn solve(
                 product.clone()
             })
             .collect();
-        let small = DMatrix::from_fn(width, width, |i, j| {
-            let v: f64 = block[i].iter().zip(&products[j]).map(|(a, b)| a * b).sum();
-            let w: f64 = block[j].iter().zip(&products[i]).map(|(a, b)| a * b).sum();
-            0.5 * (v + w)
-        });
+        // Y^T K Y, symmetric: the upper triangle mirrored.
+        let mut small = DMatrix::<f64>::zeros(width, width);
+        for i in 0..width {
+            for j in i..width {
+                let v: f64 = block[i].iter().zip(&products[j]).map(|(a, b)| a * b).sum();
+                small[(i, j)] = v;
+                small[(j, i)] = v;
+            }
+        }
         let eigen = SymmetricEigen::new(small);
         let mut order: Vec<usize> = (0..width).collect();
         order.sort_by(|&i, &j| eigen.eigenvalues[i].total_cmp(&eigen.eigenvalues[j]));
