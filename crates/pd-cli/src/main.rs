@@ -116,6 +116,11 @@ enum Command {
         /// bdf2).
         #[arg(long, value_delimiter = ',')]
         integrator: Vec<String>,
+        /// Damping ratios of the lowest elastic mode, comma separated
+        /// (0.01,0.05,0.2): the scene's model if it takes a ratio
+        /// (laplacian, rayleigh-lagged), else Laplacian damping.
+        #[arg(long, value_delimiter = ',', conflicts_with_all = ["damping", "integrator"])]
+        ratio: Vec<f64>,
     },
 }
 
@@ -200,7 +205,16 @@ fn main() -> ExitCode {
             scene,
             damping,
             integrator,
-        } => compare::compare(&scene, &damping, &integrator, quiet),
+            ratio,
+        } => compare::compare(
+            &scene,
+            &compare::Variants {
+                damping,
+                integrator,
+                ratio,
+            },
+            quiet,
+        ),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -38,7 +38,7 @@ use crate::{Model, SolverError};
 
 /// Systems with at most this many free degrees of freedom are solved with a
 /// dense symmetric eigensolver.
-pub const DENSE_LIMIT: usize = 1200;
+pub const DENSE_LIMIT: usize = 300;
 
 /// A mode with `omega^2 <= ZERO * max_i K_ii / m_i` counts as a zero mode:
 /// round-off in the dense eigensolver is about `1e-15` of the largest
