@@ -357,6 +357,17 @@ fn json_number(value: f64) -> serde_json::Value {
     serde_json::Number::from_f64(value).map_or(serde_json::Value::Null, serde_json::Value::Number)
 }
 
+/// The damping matrix coefficients of `sim` for the summary (what a
+/// scene's `ratio` was turned into).
+fn damping_coefficients(sim: &Simulation) -> serde_json::Value {
+    let d = sim.damping_matrix();
+    serde_json::json!({
+        "mass_per_s": d.mass,
+        "laplacian_stiffness_s": d.damping_laplacian,
+        "lagged_stiffness_s": d.lagged_stiffness,
+    })
+}
+
 #[cfg(test)]
 mod median_tests {
     use super::median;
@@ -367,15 +378,4 @@ mod median_tests {
         assert_eq!(median(&[4.0, 1.0, 2.0, 3.0]), 2.5);
         assert!(median(&[]).is_nan());
     }
-}
-
-/// The damping matrix coefficients of `sim` for the summary (what a
-/// scene's `ratio` was turned into).
-fn damping_coefficients(sim: &Simulation) -> serde_json::Value {
-    let d = sim.damping_matrix();
-    serde_json::json!({
-        "mass_per_s": d.mass,
-        "laplacian_stiffness_s": d.damping_laplacian,
-        "lagged_stiffness_s": d.lagged_stiffness,
-    })
 }

@@ -192,14 +192,18 @@ fn assemble(
     let n = model.num_vertices();
     let mut free_index = vec![usize::MAX; n];
     let mut free = Vec::new();
-    for v in 0..n {
-        if !model.fixed()[v] {
-            if !(model.masses()[v] > 0.0) {
+    for (v, (index, (&fixed, &mass))) in free_index
+        .iter_mut()
+        .zip(model.fixed().iter().zip(model.masses()))
+        .enumerate()
+    {
+        if !fixed {
+            if !(mass > 0.0) {
                 return Err(SolverError::InvalidModel {
-                    reason: format!("vertex {v} is free but has mass {}", model.masses()[v]),
+                    reason: format!("vertex {v} is free but has mass {mass}"),
                 });
             }
-            free_index[v] = free.len();
+            *index = free.len();
             free.push(v);
         }
     }
