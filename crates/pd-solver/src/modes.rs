@@ -134,13 +134,41 @@ impl Stiffness {
 /// free vertex of zero mass; [`SolverError::Factorisation`] if the shifted
 /// stiffness cannot be factorised.
 pub fn elastic_modes(model: &Model, count: usize) -> Result<ModalAnalysis, SolverError> {
+    elastic_modes_by(model, count, Method::Auto)
+}
+
+/// Which eigensolver [`elastic_modes_by`] uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// Dense up to [`DENSE_LIMIT`] free dofs, subspace iteration above.
+    Auto,
+    /// The dense symmetric eigensolver (every mode; cubic in the dofs).
+    Dense,
+    /// Shift-invert subspace iteration on one sparse Cholesky.
+    Subspace,
+}
+
+/// [`elastic_modes`] with the eigensolver chosen (to cross-check the two).
+///
+/// # Errors
+/// As [`elastic_modes`].
+pub fn elastic_modes_by(
+    model: &Model,
+    count: usize,
+    method: Method,
+) -> Result<ModalAnalysis, SolverError> {
     let start = Instant::now();
     let blocks = model.constraint_blocks();
     let stiffness = assemble(model, &blocks)?;
     let rigid = rigid_basis(model, &blocks, &stiffness);
     let rigid_modes = rigid.len();
     let dofs = stiffness.pattern.n;
-    let (pairs, mechanisms, iterations, factor_seconds, method) = if dofs <= DENSE_LIMIT {
+    let dense_wanted = match method {
+        Method::Auto => dofs <= DENSE_LIMIT,
+        Method::Dense => true,
+        Method::Subspace => false,
+    };
+    let (pairs, mechanisms, iterations, factor_seconds, method) = if dense_wanted {
         let (pairs, zeros) = dense(&stiffness, count);
         (pairs, zeros.saturating_sub(rigid_modes), 0, 0.0, "dense")
     } else {

@@ -177,3 +177,63 @@ fn clamped_beam_bending_converges_to_euler_bernoulli_from_above() {
         previous = Some(bending);
     }
 }
+
+/// Free-free chain: the same chain without fixed ends has
+/// `omega_j = 2 sqrt(k/m) sin(j pi / (2 N))`, `j = 1..N-1` (the lumped
+/// free-free rod). Its rigid motions (3 translations, 2 rotations: a turn
+/// about its own axis moves nothing) are deflated, and the 2N sideways
+/// motions less the 4 rigid ones among them are mechanisms.
+#[test]
+fn free_chain_skips_its_rigid_motions() {
+    let n = 12;
+    let mesh = generators::chain(n, 1.0).unwrap();
+    let mut model = Model::new();
+    let body = model.add_body(mesh, vec![M; n]).unwrap();
+    model.add_springs(body, K).unwrap();
+    let analysis = modes::elastic_modes(&model, n - 1).unwrap();
+    assert_eq!(analysis.rigid_modes, 5);
+    assert_eq!(analysis.mechanisms, 2 * n - 4);
+    assert_eq!(analysis.modes.len(), n - 1);
+    // Round-off as in the fixed chain (|A| <= 4 k/m, 3n dofs).
+    for (j, mode) in analysis.modes.iter().enumerate() {
+        let j = j + 1;
+        let exact = 2.0 * (K / M).sqrt() * (j as f64 * PI / (2.0 * n as f64)).sin();
+        let tolerance = 8.0 * (3 * n) as f64 * f64::EPSILON * (4.0 * K / M) / exact.powi(2);
+        assert!(
+            (mode.omega - exact).abs() <= tolerance * exact,
+            "mode {j}: {}",
+            mode.omega
+        );
+    }
+}
+
+/// The two eigensolvers agree, on a clamped beam and on a free tet body
+/// (six rigid motions deflated in the subspace iteration, found as zero
+/// modes by the dense solver): to the subspace iteration's convergence
+/// tolerance (residual <= 1e-9 lambda, so omega within 5e-10 relative, plus
+/// the dense solver's round-off, 1e-12 here).
+#[test]
+fn dense_and_subspace_iteration_agree() {
+    let clamped = beam_modes::beam([1.0, 0.1, 0.1], [20, 2, 2]);
+    let mesh = generators::box_tets([0.3, 0.2, 0.1], [3, 2, 1]).unwrap();
+    let mut free = Model::new();
+    let masses = mesh.lumped_masses(1000.0).unwrap();
+    let body = free.add_body(mesh, masses).unwrap();
+    free.add_tet_strain(body, 1.0e5, None).unwrap();
+    for (name, model, rigid) in [("clamped", clamped, 0), ("free", free, 6)] {
+        let dense = modes::elastic_modes_by(&model, 8, modes::Method::Dense).unwrap();
+        let subspace = modes::elastic_modes_by(&model, 8, modes::Method::Subspace).unwrap();
+        assert_eq!(dense.rigid_modes, rigid, "{name}");
+        assert_eq!(subspace.rigid_modes, rigid, "{name}");
+        assert_eq!(dense.mechanisms + subspace.mechanisms, 0, "{name}");
+        assert_eq!(subspace.modes.len(), 8, "{name}");
+        for (a, b) in dense.modes.iter().zip(&subspace.modes) {
+            assert!(
+                (a.omega - b.omega).abs() <= 1e-9 * a.omega,
+                "{name}: {} vs {}",
+                a.omega,
+                b.omega
+            );
+        }
+    }
+}
