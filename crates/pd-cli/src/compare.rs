@@ -4,6 +4,8 @@
 //! model's main preset (named as the model) and variants such as
 //! `laplacian-rot`, with the coefficients of the measured table in
 //! `docs/damping-table.md`. Integrators keep the scene's damping model.
+//! `--ratio z1,z2,...` runs the scene's model (or Laplacian damping) with
+//! each damping ratio of its lowest elastic mode.
 
 use pd_io::recorder::median;
 use std::fmt::Write as _;
@@ -94,15 +96,26 @@ fn fmt_opt(v: Option<f64>) -> String {
     v.map_or_else(|| "n/a".into(), |v| format!("{v:.4}"))
 }
 
+/// What `pd compare` varies: damping presets, integrators, or damping
+/// ratios.
+pub(crate) struct Variants {
+    /// Damping presets (`--damping`).
+    pub damping: Vec<String>,
+    /// Integrators (`--integrator`).
+    pub integrator: Vec<String>,
+    /// Damping ratios of the lowest elastic mode (`--ratio`).
+    pub ratio: Vec<f64>,
+}
+
 /// `pd compare`.
 pub(crate) fn compare(
     options: &SceneOptions,
-    damping: &[String],
-    integrators: &[String],
+    asked: &Variants,
     quiet: bool,
 ) -> Result<(), Failure> {
     let loaded = load_scene(options)?;
-    let variants = variants(&loaded, damping, integrators)?;
+    let mut variants = variants(&loaded, &asked.damping, &asked.integrator, &asked.ratio)?;
+    variants.extend(ratio_variants(&loaded, &asked.ratio)?);
     let out = options
         .out
         .clone()
@@ -136,10 +149,40 @@ pub(crate) fn compare(
 }
 
 /// The scene once per damping preset or integrator, each with its name.
+/// One variant per damping ratio: the scene's model with `ratio` (mode 1)
+/// if it takes one, else Laplacian damping.
+fn ratio_variants(loaded: &LoadedScene, ratios: &[f64]) -> Result<Vec<(String, Scene)>, Failure> {
+    let model = match loaded.scene.damping.model().ratio {
+        Some(_) => loaded.scene.damping.name(),
+        None => "laplacian",
+    };
+    if let Some(twice) = ratios
+        .iter()
+        .enumerate()
+        .find(|(i, r)| ratios[..*i].contains(r))
+    {
+        return Err(Failure::Input(format!(
+            "--ratio {} is given twice",
+            twice.1
+        )));
+    }
+    ratios
+        .iter()
+        .map(|&ratio| {
+            let spec = DampingSpec::new(model, [("ratio", registry::Value::Number(ratio))])
+                .map_err(|e| Failure::Input(format!("--ratio {ratio}: {e}")))?;
+            let mut scene = loaded.scene.clone();
+            scene.damping = spec;
+            Ok((format!("{model}-ratio-{ratio}"), scene))
+        })
+        .collect()
+}
+
 fn variants(
     loaded: &LoadedScene,
     damping: &[String],
     integrators: &[String],
+    ratios: &[f64],
 ) -> Result<Vec<(String, Scene)>, Failure> {
     let mut variants = Vec::new();
     for name in damping {
@@ -159,9 +202,11 @@ fn variants(
         scene.integrator = kind;
         variants.push((name.clone(), scene));
     }
-    if variants.is_empty() {
+    if variants.is_empty() && ratios.is_empty() {
         return Err(Failure::Input(
-            "give the variants to compare: --damping a,b,... or --integrator a,b,...".into(),
+            "give the variants to compare: --damping a,b,... or --integrator a,b,... or \
+             --ratio z1,z2,..."
+                .into(),
         ));
     }
     if let Some(name) = variants

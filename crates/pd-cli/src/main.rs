@@ -7,6 +7,8 @@
 //! - `pd resume DIR` continues a run from its last checkpoint;
 //! - `pd render DIR` draws a run's surface frames as PNG images and a GIF;
 //! - `pd plot DIR` plots energies and momenta against time (PNG and SVG);
+//! - `pd modes SCENE [--count K] [--out DIR]` writes the scene's lowest
+//!   elastic modes (frequencies, damping ratios, animated shapes);
 //! - `pd compare SCENE --damping a,b,...` (or `--integrator a,b,...`) runs a
 //!   scene once per variant and compares them.
 //!
@@ -16,6 +18,7 @@
 //! 3 divergence, 4 output failure.
 
 mod compare;
+mod modes;
 mod pictures;
 mod run;
 
@@ -87,6 +90,16 @@ enum Command {
         /// The run's output folder.
         dir: PathBuf,
     },
+    /// Write the scene's lowest elastic modes: `modes.json` (frequencies in
+    /// Hz, the damping ratio each mode gets under the scene's damping and
+    /// integrator) and each mode shape animated (`mode_NN.pvd`, OBJ frames).
+    Modes {
+        #[command(flatten)]
+        scene: run::SceneOptions,
+        /// How many modes (the lowest elastic ones).
+        #[arg(long, value_name = "K", default_value_t = 6)]
+        count: usize,
+    },
     /// Run a scene once per damping model or integrator and compare them:
     /// a side-by-side animation, a plot of total energy, and a table.
     Compare {
@@ -103,6 +116,11 @@ enum Command {
         /// bdf2).
         #[arg(long, value_delimiter = ',')]
         integrator: Vec<String>,
+        /// Damping ratios of the lowest elastic mode, comma separated
+        /// (0.01,0.05,0.2): the scene's model if it takes a ratio
+        /// (laplacian, rayleigh-lagged), else Laplacian damping.
+        #[arg(long, value_delimiter = ',', conflicts_with_all = ["damping", "integrator"])]
+        ratio: Vec<f64>,
     },
 }
 
@@ -182,11 +200,21 @@ fn main() -> ExitCode {
             )
         }
         Command::Plot { dir } => pictures::plot(&dir),
+        Command::Modes { scene, count } => modes::modes(&scene, count),
         Command::Compare {
             scene,
             damping,
             integrator,
-        } => compare::compare(&scene, &damping, &integrator, quiet),
+            ratio,
+        } => compare::compare(
+            &scene,
+            &compare::Variants {
+                damping,
+                integrator,
+                ratio,
+            },
+            quiet,
+        ),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

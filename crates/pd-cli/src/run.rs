@@ -103,6 +103,13 @@ pub(crate) fn build(scene: &Scene) -> Result<Simulation, Failure> {
         sim.damping_name(),
         start.elapsed().as_secs_f64() * 1e3
     );
+    let d = sim.damping_matrix();
+    if !d.is_zero() {
+        info!(
+            "damping coefficients: mass a1 = {:e} 1/s, Laplacian a2 = {:e} s, lagged a3 = {:e} s",
+            d.mass, d.damping_laplacian, d.lagged_stiffness
+        );
+    }
     Ok(sim)
 }
 

@@ -33,6 +33,7 @@ mod ether_drag;
 mod laplacian;
 mod none;
 mod pbd;
+pub mod ratio;
 mod rayleigh_lagged;
 pub mod registry;
 pub mod rigid;

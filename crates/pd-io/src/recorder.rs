@@ -230,6 +230,7 @@ impl Recorder {
             "iterations": sim.settings().iterations,
             "integrator": sim.integrator_name(),
             "damping": sim.damping_name(),
+            "damping_coefficients": damping_coefficients(sim),
             "bodies": sim.model().bodies().len(),
             "vertices": sim.model().num_vertices(),
             "free_vertices": sim.num_free_vertices(),
@@ -354,6 +355,17 @@ pub fn median(values: &[f64]) -> f64 {
 
 fn json_number(value: f64) -> serde_json::Value {
     serde_json::Number::from_f64(value).map_or(serde_json::Value::Null, serde_json::Value::Number)
+}
+
+/// The damping matrix coefficients of `sim` for the summary (what a
+/// scene's `ratio` was turned into).
+fn damping_coefficients(sim: &Simulation) -> serde_json::Value {
+    let d = sim.damping_matrix();
+    serde_json::json!({
+        "mass_per_s": d.mass,
+        "laplacian_stiffness_s": d.damping_laplacian,
+        "lagged_stiffness_s": d.lagged_stiffness,
+    })
 }
 
 #[cfg(test)]

@@ -414,6 +414,21 @@ impl SymbolicFactor {
         Ok(())
     }
 
+    /// Solves `A x = b` in place for any number of columns of `rhs`, with
+    /// scratch allocated for them (the modal analysis's block solves).
+    pub fn solve_in_place_wide(&self, factor: &NumericFactor, rhs: MatMut<'_, f64>) {
+        let mut scratch = MemBuffer::new(
+            self.symbolic
+                .solve_in_place_scratch::<f64>(rhs.ncols(), Par::Seq),
+        );
+        LltRef::new(&self.symbolic, &factor.values).solve_in_place_with_conj(
+            Conj::No,
+            rhs,
+            Par::Seq,
+            MemStack::new(&mut scratch),
+        );
+    }
+
     /// Solves `A x = b` in place for every column of `rhs`.
     pub fn solve_in_place(&mut self, factor: &NumericFactor, mut rhs: MatMut<'_, f64>) {
         if let (Some(fast), 3) = (&mut self.fast_solve, rhs.ncols()) {

@@ -40,6 +40,7 @@ mod global;
 mod lagged;
 mod local;
 mod model;
+pub mod modes;
 mod phases;
 mod settings;
 mod simulation;

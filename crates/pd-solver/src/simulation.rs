@@ -424,6 +424,12 @@ impl Simulation {
         self.damping.name()
     }
 
+    /// The damping model's implicit matrix coefficients (`a1` in 1/s, `a2`
+    /// and `a3` in s): what a `ratio` in the scene was turned into.
+    pub fn damping_matrix(&self) -> pd_damping::DampingMatrix {
+        self.damping.implicit_matrix()
+    }
+
     /// Simulated time in s.
     pub fn time(&self) -> f64 {
         self.time

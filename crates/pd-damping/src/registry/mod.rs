@@ -62,6 +62,9 @@ pub enum Value {
     Number(f64),
     /// A flag.
     Flag(bool),
+    /// A list of two numbers (`ratios = [0.02, 0.05]`), each in the
+    /// parameter's unit.
+    Pair([f64; 2]),
 }
 
 impl Value {
@@ -70,6 +73,7 @@ impl Value {
         match self {
             Self::Number(_) => Kind::Number,
             Self::Flag(_) => Kind::Flag,
+            Self::Pair(_) => Kind::Pair,
         }
     }
 }
@@ -81,6 +85,8 @@ pub enum Kind {
     Number,
     /// A `bool`.
     Flag,
+    /// Two `f64`s, written as a list.
+    Pair,
 }
 
 impl Kind {
@@ -89,6 +95,7 @@ impl Kind {
         match self {
             Self::Number => "a number",
             Self::Flag => "true or false",
+            Self::Pair => "a list of two numbers",
         }
     }
 }
@@ -137,6 +144,9 @@ pub struct Model {
     /// `stiffness`), which sweeps over a damping coefficient vary; `None` for
     /// a model without one.
     pub strength: Option<&'static str>,
+    /// The matrix `stiffness` multiplies, for models that take a damping
+    /// `ratio` instead ([`crate::ratio`]); `None` for the others.
+    pub ratio: Option<crate::ratio::Quotient>,
     build: fn(&Arguments<'_>) -> Result<Box<dyn Damping>, DampingError>,
 }
 
@@ -204,14 +214,21 @@ impl Arguments<'_> {
     fn number(&self, name: &str) -> Option<f64> {
         match self.get(name)? {
             Value::Number(x) => Some(x),
-            Value::Flag(_) => None,
+            _ => None,
         }
     }
 
     fn flag(&self, name: &str) -> Option<bool> {
         match self.get(name)? {
             Value::Flag(b) => Some(b),
-            Value::Number(_) => None,
+            _ => None,
+        }
+    }
+
+    fn pair(&self, name: &str) -> Option<[f64; 2]> {
+        match self.get(name)? {
+            Value::Pair(p) => Some(p),
+            _ => None,
         }
     }
 
@@ -243,8 +260,15 @@ pub fn model_names() -> Vec<&'static str> {
     MODELS.iter().map(|m| m.name).collect()
 }
 
+/// Parameters added after the scene format's first version (damping by
+/// ratio). [`parameter_names`] lists them last, so that the positional form
+/// of a `[damping]` table (serde's JSON array) written before them still
+/// reads, and messages list the original keys first as before.
+pub const ADDED_PARAMETERS: &[&str] = &["ratio", "mode", "ratios", "modes"];
+
 /// Every parameter name of every model, each once, in registry order (the
-/// keys a scene's `[damping]` table may hold besides `model`).
+/// keys a scene's `[damping]` table may hold besides `model`), the
+/// [`ADDED_PARAMETERS`] last.
 pub fn parameter_names() -> &'static [&'static str] {
     static NAMES: LazyLock<Vec<&'static str>> = LazyLock::new(|| {
         let mut names = Vec::new();
@@ -253,6 +277,9 @@ pub fn parameter_names() -> &'static [&'static str] {
                 names.push(parameter.name);
             }
         }
+        // Added parameters last, in their own order.
+        names.retain(|n| !ADDED_PARAMETERS.contains(n));
+        names.extend(ADDED_PARAMETERS);
         names
     });
     &NAMES

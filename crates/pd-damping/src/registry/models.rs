@@ -4,6 +4,7 @@
 //! `PRESETS` if the comparisons should run it).
 
 use super::{Arguments, Kind, Model, Parameter, Preset, Requirement, Value};
+use crate::ratio::Quotient;
 use crate::{
     Damping, DampingError, EtherDrag, LaplacianDamping, NoDamping, PbdDamping, RayleighLagged,
     ether_drag, laplacian, none, pbd, rayleigh_lagged,
@@ -14,6 +15,7 @@ pub(super) const NONE: Model = Model {
     summary: "no damping (backward Euler's own numerical damping remains)",
     parameters: &[],
     strength: None,
+    ratio: None,
     build: |_| Ok(Box::new(NoDamping)),
 };
 
@@ -43,6 +45,7 @@ const ETHER_DRAG: Model = Model {
         ),
     ],
     strength: Some("rate"),
+    ratio: None,
     build: build_ether_drag,
 };
 
@@ -78,6 +81,7 @@ const PBD: Model = Model {
         "in [0, 1]: the fraction of the non-rigid velocity removed per step",
     )],
     strength: Some("factor"),
+    ratio: None,
     build: |arguments| Ok(Box::new(PbdDamping::new(arguments.required("factor")?)?)),
 };
 
@@ -120,6 +124,59 @@ const MASS: Parameter = number(
     ">= 0: a1, the a1 M part of D",
 );
 
+/// `ratio`: the damping ratio of one elastic mode instead of `stiffness`.
+const RATIO: Parameter = number(
+    "ratio",
+    "1",
+    Requirement::Optional,
+    None,
+    ">= 0: damping ratio (1 = critical) of elastic mode `mode`; a2 is solved from the \
+     scene's modes instead of given as stiffness",
+);
+
+/// `mode`: which elastic mode `ratio` is for.
+const MODE: Parameter = number(
+    "mode",
+    "1",
+    Requirement::Optional,
+    None,
+    "whole number >= 1: the elastic mode `ratio` is for (1 = lowest, the default)",
+);
+
+/// `ratios`: damping ratios of two modes, fitting a1 and a2.
+const RATIOS: Parameter = Parameter {
+    name: "ratios",
+    unit: "1",
+    kind: Kind::Pair,
+    requirement: Requirement::Optional,
+    maximum: None,
+    doc: "[zeta_1, zeta_2] >= 0: damping ratios of the two `modes`; fits a1 and a2",
+};
+
+/// `modes`: the two modes `ratios` are for.
+const MODES: Parameter = Parameter {
+    name: "modes",
+    unit: "1",
+    kind: Kind::Pair,
+    requirement: Requirement::Optional,
+    maximum: None,
+    doc: "[i, j], whole numbers >= 1: the elastic modes `ratios` are for",
+};
+
+/// The `stiffness` of a spec that gives it; a spec with a ratio must be
+/// resolved against the scene's modes first ([`super::DampingSpec::resolved`]).
+fn stiffness(arguments: &Arguments<'_>) -> Result<f64, DampingError> {
+    match crate::ratio::target(|n| arguments.number(n), |n| arguments.pair(n))? {
+        None => arguments.required("stiffness"),
+        Some(_) => Err(DampingError::Conflict {
+            parameter: "ratio",
+            reason: "is turned into a stiffness from the scene's elastic modes \
+                     (pd_solver::modes), which were not computed for this spec"
+                .into(),
+        }),
+    }
+}
+
 const RAYLEIGH_LAGGED: Model = Model {
     name: rayleigh_lagged::NAME,
     summary: "lagged Rayleigh damping D = a1 M + a2 K(x_n), the elastic Hessian at the start \
@@ -129,15 +186,20 @@ const RAYLEIGH_LAGGED: Model = Model {
         number(
             "stiffness",
             "s",
-            Requirement::Required,
+            Requirement::Optional,
             None,
-            ">= 0: a2, times the elastic Hessian K(x_n)",
+            ">= 0: a2, times the elastic Hessian K(x_n) (or give ratio)",
         ),
+        RATIO,
+        MODE,
+        RATIOS,
+        MODES,
     ],
     strength: Some("stiffness"),
+    ratio: Some(Quotient::Stiffness),
     build: |arguments| {
         Ok(Box::new(RayleighLagged::new(
-            arguments.required("stiffness")?,
+            stiffness(arguments)?,
             arguments.required("mass")?,
         )?))
     },
@@ -150,20 +212,25 @@ const LAPLACIAN: Model = Model {
         number(
             "stiffness",
             "s",
-            Requirement::Required,
+            Requirement::Optional,
             None,
-            ">= 0: a2, times the damping Laplacian L_d",
+            ">= 0: a2, times the damping Laplacian L_d (or give ratio)",
         ),
         MASS,
         flag(
             "preserve_rotation",
             "give back, per free body, the angular momentum the damping removed",
         ),
+        RATIO,
+        MODE,
+        RATIOS,
+        MODES,
     ],
     strength: Some("stiffness"),
+    ratio: Some(Quotient::Laplacian),
     build: |arguments| {
         Ok(Box::new(LaplacianDamping::new(
-            arguments.required("stiffness")?,
+            stiffness(arguments)?,
             arguments.required("mass")?,
             arguments.flag("preserve_rotation").unwrap_or(false),
         )?))

@@ -2,6 +2,7 @@
 
 use super::models::NONE;
 use super::{Arguments, Model, Requirement, Value, model, parameter_names};
+use crate::ratio::{self, FittedCoefficients, RatioTarget};
 use crate::{Damping, DampingError, none};
 
 /// A damping model and its validated parameters: what a scene's `[damping]`
@@ -85,8 +86,46 @@ impl DampingSpec {
             model: entry.name,
             arguments: values,
         };
-        spec.create()?;
+        // A spec with a ratio is checked here and built once its
+        // coefficients are known ([`DampingSpec::resolved`]).
+        if spec.ratio_target()?.is_none() {
+            spec.create()?;
+        }
         Ok(spec)
+    }
+
+    /// The damping ratio(s) this spec asks for instead of `stiffness`, for
+    /// a model that takes them; `None` when the coefficients are given.
+    ///
+    /// # Errors
+    /// As [`crate::ratio`]'s checks: conflicting or invalid ratio keys.
+    pub fn ratio_target(&self) -> Result<Option<RatioTarget>, DampingError> {
+        if self.model().ratio.is_none() {
+            return Ok(None);
+        }
+        let view = self.view();
+        ratio::target(|n| view.number(n), |n| view.pair(n))
+    }
+
+    /// The same model with the fitted coefficients as `stiffness` and
+    /// `mass` in place of the ratio keys, validated and buildable.
+    ///
+    /// # Errors
+    /// As [`DampingSpec::new`] (a coefficient out of its domain).
+    pub fn resolved(&self, coefficients: FittedCoefficients) -> Result<Self, DampingError> {
+        const RATIO_KEYS: [&str; 6] = ["ratio", "mode", "ratios", "modes", "stiffness", "mass"];
+        let kept = self
+            .arguments
+            .iter()
+            .filter(|(n, _)| !RATIO_KEYS.contains(n))
+            .copied();
+        Self::new(
+            self.model,
+            kept.chain([
+                ("stiffness", Value::Number(coefficients.stiffness)),
+                ("mass", Value::Number(coefficients.mass)),
+            ]),
+        )
     }
 
     /// The model's name.

@@ -27,8 +27,8 @@ impl Scene {
         }
         self.check_probes(model.num_vertices())?;
         let offsets: Vec<_> = model.bodies().iter().map(|b| b.vertices()).collect();
-        let damping = self
-            .damping
+        let (damping, _) = self.resolve_damping(&model)?;
+        let damping = damping
             .create()
             .map_err(|e| self.field_error("damping", e))?;
         let mut simulation = Simulation::new(

@@ -128,6 +128,19 @@ impl<'de> Deserialize<'de> for Damping {
     }
 }
 
+/// A list-valued damping parameter (`ratios = [0.02, 0.05]`): exactly two
+/// numbers.
+struct Pair([f64; 2]);
+
+impl<'de> Deserialize<'de> for Pair {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let list = Vec::<f64>::deserialize(deserializer)?;
+        <[f64; 2]>::try_from(list.as_slice())
+            .map(Pair)
+            .map_err(|_| de::Error::invalid_length(list.len(), &"a list of two numbers"))
+    }
+}
+
 /// A key of the `[damping]` table, as its index in [`damping_keys`].
 struct Key(usize);
 
@@ -163,6 +176,7 @@ impl DampingVisitor {
     fn value<'de, A: MapAccess<'de>>(map: &mut A, name: &str) -> Result<Option<Value>, A::Error> {
         Ok(match registry::parameter_kind(name) {
             Some(Kind::Flag) => map.next_value::<Option<bool>>()?.map(Value::Flag),
+            Some(Kind::Pair) => map.next_value::<Option<Pair>>()?.map(|p| Value::Pair(p.0)),
             _ => map.next_value::<Option<f64>>()?.map(Value::Number),
         })
     }
@@ -198,8 +212,11 @@ impl<'de> Visitor<'de> for DampingVisitor {
     /// a struct from a JSON array.
     fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Damping, A::Error> {
         let keys = damping_keys();
+        // The registry's added parameters come last and may be left out, so
+        // that arrays written before they existed still read.
+        let required = keys.len() - registry::ADDED_PARAMETERS.len();
         let short = |found: usize| {
-            let expected = format!("struct Damping with {} elements", keys.len());
+            let expected = format!("struct Damping with {required} elements");
             de::Error::invalid_length(found, &expected.as_str())
         };
         let model: String = seq.next_element()?.ok_or_else(|| short(0))?;
@@ -209,9 +226,16 @@ impl<'de> Visitor<'de> for DampingVisitor {
                 Some(Kind::Flag) => seq
                     .next_element::<Option<bool>>()?
                     .map(|v| v.map(Value::Flag)),
+                Some(Kind::Pair) => seq
+                    .next_element::<Option<Pair>>()?
+                    .map(|v| v.map(|p| Value::Pair(p.0))),
                 _ => seq
                     .next_element::<Option<f64>>()?
                     .map(|v| v.map(Value::Number)),
+            };
+            let value = match value {
+                None if index >= required => break,
+                other => other,
             };
             if let Some(value) = value.ok_or_else(|| short(index))? {
                 arguments.push((name, value));

@@ -1,0 +1,416 @@
+//! Modal analysis: the lowest elastic modes of a model at rest, the
+//! generalized eigenpairs `K phi = omega^2 M phi` of the elastic stiffness
+//! `K` (the Hessian of every constraint energy at the rest positions, the
+//! exact element Hessians of `ConstraintBlock::hessian_range`, attachments
+//! included) and the lumped mass matrix `M`, over the free degrees of
+//! freedom (fixed vertices removed).
+//!
+//! Zero-frequency modes are skipped: the rigid motions a body keeps (six for
+//! a free body, three about a pivot, one about a hinge, as
+//! [`pd_damping::rigid::RigidFreedom`] classifies them) are deflated
+//! explicitly, and any other mode with `omega^2 <= ZERO * scale` (a
+//! mechanism, such as the sideways motion of a straight spring chain, which
+//! has no stiffness at rest) is counted and left out. `scale` is
+//! `max_i K_ii / m_i`, an estimate of the largest `omega^2`.
+//!
+//! Small systems (at most [`DENSE_LIMIT`] degrees of freedom) are solved
+//! densely (`M^-1/2 K M^-1/2`, a symmetric eigensolver: exact to round-off);
+//! larger ones by shift-invert subspace iteration with Rayleigh-Ritz
+//! (`modes/subspace.rs`): one sparse Cholesky factorisation of
+//! `K + s M` (`s` a small positive shift that makes it definite even with
+//! rigid modes present), then block solves. See `docs/damping.md`.
+
+mod response;
+mod subspace;
+
+pub use response::{DiscreteMode, discrete_mode};
+
+use std::time::Instant;
+
+use nalgebra::{DMatrix, SymmetricEigen};
+use pd_constraints::assembly::{self, LaplacianKind};
+use pd_damping::rigid::RigidFreedom;
+use pd_mesh::Point;
+
+use crate::cholesky::LowerPattern;
+use crate::components::Topology;
+use crate::{Model, SolverError};
+
+/// Systems with at most this many free degrees of freedom are solved with a
+/// dense symmetric eigensolver.
+pub const DENSE_LIMIT: usize = 300;
+
+/// A mode with `omega^2 <= ZERO * max_i K_ii / m_i` counts as a zero mode:
+/// round-off in the dense eigensolver is about `1e-15` of the largest
+/// eigenvalue, while the lowest elastic mode of a mesh with `r` elements
+/// along its longest side lies near `(1/r^2)^2` of it (a bending beam), far
+/// above `1e-10` for any mesh this solver can factor.
+const ZERO: f64 = 1e-10;
+
+/// Constraints per Hessian evaluation batch.
+const CHUNK: usize = 256;
+
+/// One elastic mode.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mode {
+    /// Angular frequency `omega` in rad/s.
+    pub omega: f64,
+    /// The shape per vertex (zero at fixed vertices), mass-normalised:
+    /// `sum_i m_i |phi_i|^2 = 1` (units 1/sqrt(kg)).
+    pub shape: Vec<Point>,
+    /// `phi^T L_d phi` in 1/s^2: the damping Laplacian's Rayleigh quotient
+    /// of the mass-normalised mode. Laplacian damping `a2 L_d` gives the mode
+    /// the damping coefficient `a2 phi^T L_d phi` (1/s).
+    pub laplacian_quotient: f64,
+}
+
+impl Mode {
+    /// The frequency in Hz, `omega / (2 pi)`.
+    pub fn frequency_hz(&self) -> f64 {
+        self.omega / std::f64::consts::TAU
+    }
+}
+
+/// The result of [`elastic_modes`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModalAnalysis {
+    /// The lowest elastic modes, lowest first.
+    pub modes: Vec<Mode>,
+    /// Rigid motions deflated (free bodies, pivots, hinges).
+    pub rigid_modes: usize,
+    /// Other zero-frequency modes (mechanisms) found and skipped.
+    pub mechanisms: usize,
+    /// Free degrees of freedom (3 per free vertex).
+    pub dofs: usize,
+    /// `"dense"` or `"shift-invert subspace iteration"`.
+    pub method: &'static str,
+    /// Subspace iterations (0 for the dense method).
+    pub iterations: usize,
+    /// Seconds spent in the sparse Cholesky factorisation (0 for dense).
+    pub factor_seconds: f64,
+    /// Seconds of the whole analysis, assembly included.
+    pub seconds: f64,
+}
+
+/// The elastic stiffness at rest over the free degrees of freedom
+/// (`3 f + a` for free vertex `f`, axis `a`), lower triangle.
+pub(crate) struct Stiffness {
+    pub pattern: LowerPattern,
+    pub values: Vec<f64>,
+    /// The lumped mass of each degree of freedom, kg.
+    pub mass: Vec<f64>,
+    /// Global vertex of each free vertex.
+    pub free: Vec<usize>,
+}
+
+impl Stiffness {
+    /// `y = K x`.
+    pub fn mul(&self, x: &[f64], y: &mut [f64]) {
+        y.iter_mut().for_each(|v| *v = 0.0);
+        for c in 0..self.pattern.n {
+            for s in self.pattern.col_ptr[c]..self.pattern.col_ptr[c + 1] {
+                let (r, v) = (self.pattern.row_idx[s], self.values[s]);
+                y[r] += v * x[c];
+                if r != c {
+                    y[c] += v * x[r];
+                }
+            }
+        }
+    }
+
+    /// `max_i K_ii / m_i` in 1/s^2, about the largest eigenvalue.
+    pub fn scale(&self) -> f64 {
+        (0..self.pattern.n)
+            .map(|c| self.values[self.pattern.col_ptr[c]] / self.mass[c])
+            .fold(0.0, f64::max)
+    }
+}
+
+/// The lowest `count` elastic modes of `model` at rest (fewer if the model
+/// has fewer non-zero modes).
+///
+/// # Errors
+/// [`SolverError::InvalidModel`] for a model without free vertices or with a
+/// free vertex of zero mass; [`SolverError::Factorisation`] if the shifted
+/// stiffness cannot be factorised.
+pub fn elastic_modes(model: &Model, count: usize) -> Result<ModalAnalysis, SolverError> {
+    elastic_modes_by(model, count, Method::Auto)
+}
+
+/// Which eigensolver [`elastic_modes_by`] uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// Dense up to [`DENSE_LIMIT`] free dofs, subspace iteration above.
+    Auto,
+    /// The dense symmetric eigensolver (every mode; cubic in the dofs).
+    Dense,
+    /// Shift-invert subspace iteration on one sparse Cholesky.
+    Subspace,
+}
+
+/// [`elastic_modes`] with the eigensolver chosen (to cross-check the two).
+///
+/// # Errors
+/// As [`elastic_modes`].
+pub fn elastic_modes_by(
+    model: &Model,
+    count: usize,
+    method: Method,
+) -> Result<ModalAnalysis, SolverError> {
+    let start = Instant::now();
+    let blocks = model.constraint_blocks();
+    let stiffness = assemble(model, &blocks)?;
+    let rigid = rigid_basis(model, &blocks, &stiffness);
+    let rigid_modes = rigid.len();
+    let dofs = stiffness.pattern.n;
+    let dense_wanted = match method {
+        Method::Auto => dofs <= DENSE_LIMIT,
+        Method::Dense => true,
+        Method::Subspace => false,
+    };
+    let (pairs, mechanisms, iterations, factor_seconds, method) = if dense_wanted {
+        let (pairs, zeros) = dense(&stiffness, count);
+        (pairs, zeros.saturating_sub(rigid_modes), 0, 0.0, "dense")
+    } else {
+        let result = subspace::solve(&stiffness, &rigid, count)?;
+        (
+            result.pairs,
+            result.mechanisms,
+            result.iterations,
+            result.factor_seconds,
+            "shift-invert subspace iteration",
+        )
+    };
+    let damping = assembly::laplacian(&blocks, model.num_vertices(), LaplacianKind::Damping);
+    let n = model.num_vertices();
+    let modes = pairs
+        .into_iter()
+        .map(|(lambda, phi)| {
+            let mut shape = vec![Point::zeros(); n];
+            for (f, &v) in stiffness.free.iter().enumerate() {
+                shape[v] = Point::new(phi[3 * f], phi[3 * f + 1], phi[3 * f + 2]);
+            }
+            let mut product = vec![Point::zeros(); n];
+            damping.mul_points(&shape, &mut product);
+            let laplacian_quotient = shape.iter().zip(&product).map(|(a, b)| a.dot(b)).sum();
+            Mode {
+                omega: lambda.max(0.0).sqrt(),
+                shape,
+                laplacian_quotient,
+            }
+        })
+        .collect();
+    Ok(ModalAnalysis {
+        modes,
+        rigid_modes,
+        mechanisms,
+        dofs,
+        method,
+        iterations,
+        factor_seconds,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Assembles `K` at the rest positions over the free degrees of freedom.
+fn assemble(
+    model: &Model,
+    blocks: &[Box<dyn pd_constraints::ConstraintBlock>],
+) -> Result<Stiffness, SolverError> {
+    let n = model.num_vertices();
+    let mut free_index = vec![usize::MAX; n];
+    let mut free = Vec::new();
+    for (v, (index, (&fixed, &mass))) in free_index
+        .iter_mut()
+        .zip(model.fixed().iter().zip(model.masses()))
+        .enumerate()
+    {
+        if !fixed {
+            if !(mass > 0.0) {
+                return Err(SolverError::InvalidModel {
+                    reason: format!("vertex {v} is free but has mass {mass}"),
+                });
+            }
+            *index = free.len();
+            free.push(v);
+        }
+    }
+    if free.is_empty() {
+        return Err(SolverError::InvalidModel {
+            reason: "every vertex is fixed: the model has no modes".into(),
+        });
+    }
+    let nd = 3 * free.len();
+    // (column, row, value), lower triangle, diagonal of every dof included.
+    let mut triplets: Vec<(usize, usize, f64)> = (0..nd).map(|d| (d, d, 0.0)).collect();
+    let rest = model.rest_positions();
+    for block in blocks {
+        if block.is_empty() {
+            continue;
+        }
+        let (len, size) = (block.hessian_len(), 3 * block.stencil(0).len());
+        let mut out = vec![0.0; CHUNK * len];
+        for first in (0..block.len()).step_by(CHUNK) {
+            let count = CHUNK.min(block.len() - first);
+            let out = &mut out[..count * len];
+            block.hessian_range(rest, first, false, out);
+            for (c, h) in out.chunks_exact(len).enumerate() {
+                let stencil = block.stencil(first + c);
+                for (i, row) in h.chunks_exact(size).enumerate() {
+                    for (j, &value) in row.iter().enumerate() {
+                        let (fi, fj) = (free_index[stencil[i / 3]], free_index[stencil[j / 3]]);
+                        if fi == usize::MAX || fj == usize::MAX || value == 0.0 {
+                            continue;
+                        }
+                        let (r, col) = (3 * fi + i % 3, 3 * fj + j % 3);
+                        if r >= col {
+                            triplets.push((col, r, value));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    triplets.sort_unstable_by_key(|&(c, r, _)| (c, r));
+    let mut col_ptr = vec![0; nd + 1];
+    let mut row_idx = Vec::new();
+    let mut values: Vec<f64> = Vec::new();
+    let mut last = (usize::MAX, usize::MAX);
+    for (c, r, v) in triplets {
+        if (c, r) == last {
+            *values.last_mut().expect("a previous entry") += v;
+        } else {
+            row_idx.push(r);
+            values.push(v);
+            col_ptr[c + 1] = row_idx.len();
+            last = (c, r);
+        }
+    }
+    for c in 0..nd {
+        col_ptr[c + 1] = col_ptr[c + 1].max(col_ptr[c]);
+    }
+    let mass = free.iter().flat_map(|&v| [model.masses()[v]; 3]).collect();
+    Ok(Stiffness {
+        pattern: LowerPattern {
+            n: nd,
+            col_ptr,
+            row_idx,
+        },
+        values,
+        mass,
+        free,
+    })
+}
+
+/// The rigid motions each connected component keeps, as M-orthonormal
+/// vectors over the free degrees of freedom.
+fn rigid_basis(
+    model: &Model,
+    blocks: &[Box<dyn pd_constraints::ConstraintBlock>],
+    stiffness: &Stiffness,
+) -> Vec<Vec<f64>> {
+    let topology = Topology::of(model, blocks);
+    let mut dof_of = vec![usize::MAX; model.num_vertices()];
+    for (f, &v) in stiffness.free.iter().enumerate() {
+        dof_of[v] = 3 * f;
+    }
+    let rest = model.rest_positions();
+    let axes = [Point::x(), Point::y(), Point::z()];
+    let mut basis: Vec<Vec<f64>> = Vec::new();
+    for body in &topology.rigid_bodies {
+        let field = |velocity: &dyn Fn(&Point) -> Point| {
+            let mut out = vec![0.0; stiffness.pattern.n];
+            for &v in &body.vertices {
+                let u = velocity(&rest[v]);
+                out[dof_of[v]..dof_of[v] + 3].copy_from_slice(u.as_slice());
+            }
+            out
+        };
+        let mut fields = Vec::new();
+        match body.freedom {
+            RigidFreedom::Free => {
+                let mass: f64 = body.vertices.iter().map(|&v| model.masses()[v]).sum();
+                let centre = body
+                    .vertices
+                    .iter()
+                    .map(|&v| rest[v] * model.masses()[v])
+                    .sum::<Point>()
+                    / mass;
+                for axis in axes {
+                    fields.push(field(&|_| axis));
+                    fields.push(field(&|p| axis.cross(&(p - centre))));
+                }
+            }
+            RigidFreedom::Pivot { point } => {
+                for axis in axes {
+                    fields.push(field(&|p| axis.cross(&(p - point))));
+                }
+            }
+            RigidFreedom::Hinge { point, axis } => {
+                fields.push(field(&|p| axis.cross(&(p - point))))
+            }
+            RigidFreedom::Held => {}
+        }
+        for mut f in fields {
+            // Twice-applied Gram-Schmidt in the M inner product.
+            for _ in 0..2 {
+                for b in &basis {
+                    let projection = mass_dot(&stiffness.mass, b, &f);
+                    f.iter_mut().zip(b).for_each(|(x, y)| *x -= projection * y);
+                }
+            }
+            let norm = mass_dot(&stiffness.mass, &f, &f).sqrt();
+            if norm > 1e-12 {
+                f.iter_mut().for_each(|x| *x /= norm);
+                basis.push(f);
+            }
+        }
+    }
+    basis
+}
+
+/// `a^T M b` for the per-dof masses `mass`.
+pub(crate) fn mass_dot(mass: &[f64], a: &[f64], b: &[f64]) -> f64 {
+    mass.iter().zip(a).zip(b).map(|((m, x), y)| m * x * y).sum()
+}
+
+/// Every eigenpair by a dense symmetric eigensolver; returns the lowest
+/// `count` non-zero ones `(omega^2, mass-normalised phi)` and the number of
+/// zero modes.
+fn dense(stiffness: &Stiffness, count: usize) -> (Vec<(f64, Vec<f64>)>, usize) {
+    let nd = stiffness.pattern.n;
+    let scale: Vec<f64> = stiffness.mass.iter().map(|m| 1.0 / m.sqrt()).collect();
+    let mut a = DMatrix::<f64>::zeros(nd, nd);
+    for c in 0..nd {
+        for s in stiffness.pattern.col_ptr[c]..stiffness.pattern.col_ptr[c + 1] {
+            let r = stiffness.pattern.row_idx[s];
+            let v = stiffness.values[s] * scale[r] * scale[c];
+            a[(r, c)] = v;
+            a[(c, r)] = v;
+        }
+    }
+    let eigen = SymmetricEigen::new(a);
+    let mut order: Vec<usize> = (0..nd).collect();
+    order.sort_by(|&i, &j| eigen.eigenvalues[i].total_cmp(&eigen.eigenvalues[j]));
+    let threshold = ZERO * stiffness.scale();
+    let zeros = order
+        .iter()
+        .filter(|&&i| eigen.eigenvalues[i] <= threshold)
+        .count();
+    let pairs = order
+        .into_iter()
+        .filter(|&i| eigen.eigenvalues[i] > threshold)
+        .take(count)
+        .map(|i| {
+            let phi = eigen
+                .eigenvectors
+                .column(i)
+                .iter()
+                .zip(&scale)
+                .map(|(u, s)| u * s)
+                .collect();
+            (eigen.eigenvalues[i], phi)
+        })
+        .collect();
+    (pairs, zeros)
+}
