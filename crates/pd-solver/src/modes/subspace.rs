@@ -52,7 +52,7 @@ pub(super) fn solve(
         shifted[stiffness.pattern.col_ptr[c]] += shift * stiffness.mass[c];
     }
     let clock = Instant::now();
-    let mut symbolic = SymbolicFactor::analyse(stiffness.pattern.clone(), None)?;
+    let mut symbolic = SymbolicFactor::analyse(stiffness.pattern.clone(), &[])?;
     let factor = symbolic.factorise(&shifted)?;
     let factor_seconds = clock.elapsed().as_secs_f64();
 
