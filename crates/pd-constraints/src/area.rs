@@ -68,8 +68,7 @@ impl Constraint for Area {
     fn project(&self, gx: &[Point], out: &mut [Point]) {
         let svd = thin_svd(&gradient_of(gx));
         let (c, _) = unit_product::project(&[svd.s[0], svd.s[1]]);
-        let target =
-            svd.u * Matrix2::from_diagonal(&Vector2::new(c[0], c[1])) * svd.v.transpose();
+        let target = svd.u * Matrix2::from_diagonal(&Vector2::new(c[0], c[1])) * svd.v.transpose();
         out[0] = target.column(0).into_owned();
         out[1] = target.column(1).into_owned();
     }

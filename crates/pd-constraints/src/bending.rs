@@ -161,7 +161,9 @@ impl Constraint for Bending {
 /// [`ConstraintError::NonManifoldEdge`] naming the edge and its triangles
 /// if an edge is shared by more than two triangles.
 pub fn hinges(triangles: &[[usize; 3]]) -> Result<Vec<[usize; 4]>, ConstraintError> {
-    let mut edges: std::collections::HashMap<[usize; 2], (usize, Vec<(usize, usize)>)> =
+    // Edge -> (order of first appearance, [(triangle, opposite vertex)]).
+    type Sides = (usize, Vec<(usize, usize)>);
+    let mut edges: std::collections::HashMap<[usize; 2], Sides> =
         std::collections::HashMap::with_capacity(3 * triangles.len() / 2 + 1);
     for (t, tri) in triangles.iter().enumerate() {
         for j in 0..3 {

@@ -125,17 +125,14 @@ pub(crate) fn thin_svd(f: &Matrix3x2<f64>) -> ThinSvd {
     };
     let r01 = q0.dot(&f1);
     let rest = f1 - q0 * r01;
-    let q1 = rest.try_normalize(0.0).unwrap_or_else(|| orthogonal_to(&q0));
+    let q1 = rest
+        .try_normalize(0.0)
+        .unwrap_or_else(|| orthogonal_to(&q0));
     let (r00, r11) = (q0.dot(&f0), q1.dot(&f1));
     // R = E I + H J + F sz + G sx: rotation part sqrt(E^2 + H^2) R(alpha),
     // reflection part sqrt(F^2 + G^2) Refl(beta); then
     // R = R(phi) diag(s) R(psi), phi = (alpha + beta)/2, psi = (alpha - beta)/2.
-    let (e, d, g, h) = (
-        0.5 * (r00 + r11),
-        0.5 * (r00 - r11),
-        0.5 * r01,
-        -0.5 * r01,
-    );
+    let (e, d, g, h) = (0.5 * (r00 + r11), 0.5 * (r00 - r11), 0.5 * r01, -0.5 * r01);
     let (rot, refl) = (e.hypot(h), d.hypot(g));
     let (alpha, beta) = (h.atan2(e), g.atan2(d));
     let u2 = rotation(0.5 * (alpha + beta));

@@ -160,7 +160,12 @@ fn tet_singular_values(rest: &[Point], q: &[Point]) -> [f64; 3] {
     let dm = Matrix3::from_columns(&[rest[1] - rest[0], rest[2] - rest[0], rest[3] - rest[0]]);
     let ds = Matrix3::from_columns(&[q[1] - q[0], q[2] - q[0], q[3] - q[0]]);
     let f = ds * dm.try_inverse().unwrap();
-    let mut s: Vec<f64> = f.svd(false, false).singular_values.iter().copied().collect();
+    let mut s: Vec<f64> = f
+        .svd(false, false)
+        .singular_values
+        .iter()
+        .copied()
+        .collect();
     s.sort_by(|a, b| b.total_cmp(a));
     if f.determinant() < 0.0 {
         s[2] = -s[2];

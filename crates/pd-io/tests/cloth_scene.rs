@@ -82,11 +82,17 @@ density = 1000.0
 constraints = [ { kind = "bending", stiffness = 1.0 } ]
 "#;
     let e = built(on_tets).unwrap_err();
-    assert!(e.contains("body[0].constraints[0]") && e.contains("triangle mesh"), "{e}");
+    assert!(
+        e.contains("body[0].constraints[0]") && e.contains("triangle mesh"),
+        "{e}"
+    );
 
     let volume_on_cloth = SHEET.replace(r#"kind = "area""#, r#"kind = "volume""#);
     let e = built(&volume_on_cloth).unwrap_err();
-    assert!(e.contains("body[0].constraints[2]") && e.contains("tetrahedral"), "{e}");
+    assert!(
+        e.contains("body[0].constraints[2]") && e.contains("tetrahedral"),
+        "{e}"
+    );
 
     let limits_on_bending = SHEET.replace(
         r#"{ kind = "bending", stiffness = 1.0e-3 }"#,

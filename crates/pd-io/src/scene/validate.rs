@@ -349,12 +349,12 @@ impl Validator<'_> {
                 if selection_given =>
             {
                 Err(self.error(
-                sub(if raw.vertices.is_some() {
-                    "vertices"
-                } else {
-                    "box"
-                }),
-                format!("is not a parameter of {}", raw.kind),
+                    sub(if raw.vertices.is_some() {
+                        "vertices"
+                    } else {
+                        "box"
+                    }),
+                    format!("is not a parameter of {}", raw.kind),
                 ))
             }
             "triangle-strain" => {

@@ -91,9 +91,8 @@ impl Model {
         let mut new = Vec::with_capacity(b.mesh.tets().len());
         for (i, t) in b.mesh.tets().iter().enumerate() {
             new.push(
-                Volume::new(rest, t.map(|v| v + offset), stiffness).map_err(|e| {
-                    element_error(body, "volume", "tetrahedron", i, &t[..], e)
-                })?,
+                Volume::new(rest, t.map(|v| v + offset), stiffness)
+                    .map_err(|e| element_error(body, "volume", "tetrahedron", i, &t[..], e))?,
             );
         }
         self.add_constraints(new)
