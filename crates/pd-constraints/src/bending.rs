@@ -44,6 +44,35 @@ fn cot(a: Point, b: Point) -> f64 {
     a.dot(&b) / a.cross(&b).norm()
 }
 
+/// The hinge row `K` of `[x0, x1, x2, x3]` and the sum of its two triangles'
+/// rest areas (m^2).
+///
+/// # Errors
+/// [`ConstraintError::DegenerateElement`] if either triangle has (nearly)
+/// zero area.
+pub(crate) fn hinge_operator(
+    rest: &[Point],
+    hinge: [usize; 4],
+) -> Result<([f64; 4], f64), ConstraintError> {
+    let [x0, x1, x2, x3] = hinge.map(|v| rest[v]);
+    let e = x1 - x0;
+    let area_a = 0.5 * e.cross(&(x2 - x0)).norm();
+    let area_b = 0.5 * e.cross(&(x3 - x0)).norm();
+    let size = e.norm().max((x2 - x0).norm()).max((x3 - x0).norm());
+    let flat = |area: f64| !(area.is_finite() && area > 1e-12 * size * size);
+    if flat(area_a) || flat(area_b) {
+        return Err(ConstraintError::DegenerateElement {
+            vertices: hinge.to_vec(),
+        });
+    }
+    let (c0a, c1a) = (cot(e, x2 - x0), cot(-e, x2 - x1));
+    let (c0b, c1b) = (cot(e, x3 - x0), cot(-e, x3 - x1));
+    Ok((
+        [-(c1a + c1b), -(c0a + c0b), c0a + c1a, c0b + c1b],
+        area_a + area_b,
+    ))
+}
+
 impl Bending {
     /// Builds the hinge `[x0, x1, x2, x3]` (edge `x0 x1`, opposite vertices
     /// `x2` and `x3`) from rest positions; `stiffness` is the flexural
@@ -59,19 +88,9 @@ impl Bending {
     pub fn new(rest: &[Point], hinge: [usize; 4], stiffness: f64) -> Result<Self, ConstraintError> {
         check_stiffness(stiffness)?;
         let [x0, x1, x2, x3] = hinge.map(|v| rest[v]);
+        let (operator, areas) = hinge_operator(rest, hinge)?;
         let e = x1 - x0;
-        let area_a = 0.5 * e.cross(&(x2 - x0)).norm();
-        let area_b = 0.5 * e.cross(&(x3 - x0)).norm();
         let size = e.norm().max((x2 - x0).norm()).max((x3 - x0).norm());
-        let flat = |area: f64| !(area.is_finite() && area > 1e-12 * size * size);
-        if flat(area_a) || flat(area_b) {
-            return Err(ConstraintError::DegenerateElement {
-                vertices: hinge.to_vec(),
-            });
-        }
-        let (c0a, c1a) = (cot(e, x2 - x0), cot(-e, x2 - x1));
-        let (c0b, c1b) = (cot(e, x3 - x0), cot(-e, x3 - x1));
-        let operator = [-(c1a + c1b), -(c0a + c0b), c0a + c1a, c0b + c1b];
         // K X from differences to x0 (K sums to 0), free of the origin's
         // round-off.
         let rest_vector: Point = [x1 - x0, x2 - x0, x3 - x0]
@@ -88,7 +107,7 @@ impl Bending {
         let normal = e.cross(&(x2 - x0)).normalize();
         Ok(Self {
             vertices: hinge,
-            weight: stiffness / (area_a + area_b),
+            weight: stiffness / areas,
             operator,
             rest_magnitude,
             rest_direction: rest_vector.try_normalize(0.0).unwrap_or(normal),
@@ -105,7 +124,7 @@ impl Constraint for Bending {
     const STENCIL: usize = 4;
     const ROWS: usize = 1;
     const TRANSLATION_INVARIANT: bool = true;
-    const KIND: &'static str = "bending";
+    const KIND: &'static str = "bending-curved";
 
     fn vertices(&self) -> &[usize] {
         &self.vertices
@@ -161,6 +180,24 @@ impl Constraint for Bending {
 /// [`ConstraintError::NonManifoldEdge`] naming the edge and its triangles
 /// if an edge is shared by more than two triangles.
 pub fn hinges(triangles: &[[usize; 3]]) -> Result<Vec<[usize; 4]>, ConstraintError> {
+    Ok(edge_sides(triangles)?
+        .into_iter()
+        .filter_map(|(edge, sides)| match sides.as_slice() {
+            [(_, a), (_, b)] => Some([edge[0], edge[1], *a, *b]),
+            _ => None,
+        })
+        .collect())
+}
+
+/// Every edge of a triangle mesh (sorted vertex pair) with its one or two
+/// `(triangle, opposite vertex)` sides, in order of first appearance.
+///
+/// # Errors
+/// [`ConstraintError::NonManifoldEdge`] for an edge of more than two
+/// triangles.
+pub(crate) fn edge_sides(
+    triangles: &[[usize; 3]],
+) -> Result<Vec<([usize; 2], Vec<(usize, usize)>)>, ConstraintError> {
     // Edge -> (order of first appearance, [(triangle, opposite vertex)]).
     type Sides = (usize, Vec<(usize, usize)>);
     let mut edges: std::collections::HashMap<[usize; 2], Sides> =
@@ -179,16 +216,13 @@ pub fn hinges(triangles: &[[usize; 3]]) -> Result<Vec<[usize; 4]>, ConstraintErr
     ordered.sort_unstable_by_key(|(_, (first, _))| *first);
     let mut out = Vec::with_capacity(ordered.len());
     for (edge, (_, sides)) in ordered {
-        match sides.as_slice() {
-            [_] => {}
-            [(_, a), (_, b)] => out.push([edge[0], edge[1], *a, *b]),
-            _ => {
-                return Err(ConstraintError::NonManifoldEdge {
-                    edge,
-                    triangles: sides.iter().map(|(t, _)| *t).collect(),
-                });
-            }
+        if sides.len() > 2 {
+            return Err(ConstraintError::NonManifoldEdge {
+                edge,
+                triangles: sides.iter().map(|(t, _)| *t).collect(),
+            });
         }
+        out.push((edge, sides));
     }
     Ok(out)
 }

@@ -7,7 +7,7 @@
 //! [`ConstraintBlock`] trait, one virtual call per range of constraints. The
 //! kinds are [`TetStrain`] (corotational strain, optionally strain-limited),
 //! [`Spring`], [`Attachment`], and for cloth and shells [`TriangleStrain`],
-//! [`Bending`], [`Area`] and [`Volume`]. The mathematics is in
+//! [`PlateBending`] and [`Bending`], [`Area`] and [`Volume`]. The mathematics is in
 //! `docs/constraints.md`.
 //!
 //! ```
@@ -32,6 +32,7 @@ pub mod assembly;
 mod attachment;
 pub mod bending;
 mod constraint;
+pub mod plate_bending;
 pub mod polar;
 pub mod polar_batch;
 mod set;
@@ -49,6 +50,7 @@ pub use area::Area;
 pub use attachment::Attachment;
 pub use bending::Bending;
 pub use constraint::Constraint;
+pub use plate_bending::PlateBending;
 pub use set::{ConstraintBlock, ConstraintSet, EnergyBound, MAX_ROWS};
 pub use sparse::{CsrMatrix, Triplet};
 pub use spring::Spring;

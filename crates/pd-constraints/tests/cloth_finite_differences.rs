@@ -18,7 +18,7 @@
 
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Matrix3x2, SymmetricEigen};
 use pd_constraints::{
-    Area, Bending, Constraint, ConstraintBlock, ConstraintSet, TriangleStrain, Volume,
+    Area, Bending, Constraint, ConstraintBlock, ConstraintSet, PlateBending, TriangleStrain, Volume,
 };
 use pd_mesh::Point;
 use proptest::prelude::*;
@@ -227,6 +227,25 @@ proptest! {
         check_projected(&block, &q, true)?;
         prop_assume!(hinge_vector(&c, &q).norm() > 0.2 * c.rest_magnitude());
         check_hessian(&block, &q)?;
+    }
+
+    #[test]
+    fn plate_bending_derivatives(moves in proptest::collection::vec(point(), 6), stiffness in 0.1..1e3f64) {
+        // Triangle 0-1-2 with all three neighbours 3, 4, 5 (a flat patch).
+        let rest = vec![
+            Point::new(0.0, 0.0, 0.0),
+            Point::new(1.0, 0.0, 0.0),
+            Point::new(0.4, 0.9, 0.0),
+            Point::new(0.6, -0.8, 0.0),
+            Point::new(1.2, 0.9, 0.0),
+            Point::new(-0.5, 0.7, 0.0),
+        ];
+        let c = PlateBending::new(&rest, [0, 1, 2], [Some(3), Some(4), Some(5)], stiffness).unwrap();
+        let q: Vec<Point> = rest.iter().zip(&moves).map(|(x, d)| x + d * 0.5).collect();
+        let block = ConstraintSet::new(vec![c]);
+        check_gradient(&block, &q)?;
+        check_hessian(&block, &q)?;
+        check_projected(&block, &q, true)?;
     }
 
     #[test]

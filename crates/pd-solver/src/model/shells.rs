@@ -3,7 +3,8 @@
 //! edge or tetrahedron.
 
 use pd_constraints::{
-    Area, Bending, Constraint, ConstraintError, TriangleStrain, Volume, bending::hinges,
+    Area, Bending, Constraint, ConstraintError, PlateBending, TriangleStrain, Volume,
+    bending::hinges, plate_bending::neighbours,
 };
 use pd_mesh::Point;
 
@@ -41,35 +42,52 @@ impl Model {
         self.add_constraints(new)
     }
 
-    /// Adds a bending hinge on every interior edge of a body's triangles
-    /// (open edges get none): `stiffness` is the flexural rigidity `D` in
-    /// N m. Flat rest hinges get the quadratic (isometric) bending energy,
-    /// curved ones keep their rest curvature magnitude
-    /// (`docs/constraints.md`). Returns how many.
+    /// Adds bending with flexural rigidity `stiffness = D` in N m to a body's
+    /// triangles (open edges are free). If every interior edge is flat at
+    /// rest (a flat sheet) this is one [`PlateBending`] per triangle, the
+    /// quadratic plate energy with Poisson ratio 0; otherwise one curved
+    /// [`Bending`] hinge per interior edge, which keeps the rest curvature
+    /// magnitude (`docs/constraints.md`). Returns how many.
     ///
     /// # Errors
     /// As [`Model::add_triangle_strain`].
     pub fn add_bending(&mut self, body: BodyId, stiffness: f64) -> Result<usize, SolverError> {
         // Validates the triangles (degenerate, non-manifold) first.
-        self.per_triangle(body, Bending::KIND, |rest, t| {
+        self.per_triangle(body, "bending", |rest, t| {
             TriangleStrain::new(rest, t, 0.0, None)
         })?;
         let b = self.body(body)?;
         let offset = b.offset;
-        let stencils = hinges(b.mesh.triangles()).map_err(|source| SolverError::Constraint {
+        let to_solver = |source| SolverError::Constraint {
             body: body.0,
             source,
-        })?;
+        };
+        let triangles = b.mesh.triangles();
         let rest = &self.rest_positions;
-        let new = stencils
+        let curved = hinges(triangles)
+            .map_err(to_solver)?
             .iter()
             .map(|h| Bending::new(rest, h.map(|v| v + offset), stiffness))
             .collect::<Result<Vec<_>, _>>()
-            .map_err(|source| SolverError::Constraint {
-                body: body.0,
-                source,
-            })?;
-        self.add_constraints(new)
+            .map_err(to_solver)?;
+        if curved.iter().any(|h| h.rest_magnitude() > 0.0) {
+            return self.add_constraints(curved);
+        }
+        let across = neighbours(triangles).map_err(to_solver)?;
+        let flat = triangles
+            .iter()
+            .zip(&across)
+            .map(|(t, a)| {
+                PlateBending::new(
+                    rest,
+                    t.map(|v| v + offset),
+                    a.map(|o| o.map(|v| v + offset)),
+                    stiffness,
+                )
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(to_solver)?;
+        self.add_constraints(flat)
     }
 
     /// Adds a volume-preservation constraint for every tetrahedron of a
