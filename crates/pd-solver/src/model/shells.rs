@@ -74,9 +74,11 @@ impl Model {
             return self.add_constraints(curved);
         }
         let across = neighbours(triangles).map_err(to_solver)?;
+        // A triangle without interior edges has no bending to measure.
         let flat = triangles
             .iter()
             .zip(&across)
+            .filter(|(_, a)| a.iter().any(Option::is_some))
             .map(|(t, a)| {
                 PlateBending::new(
                     rest,
