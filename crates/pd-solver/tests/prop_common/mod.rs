@@ -137,7 +137,9 @@ impl Scene {
                     model.add_tet_strain(body, self.stiffness, None).unwrap();
                 }
                 (Material::Elastic, false) if is_cloth => {
-                    model.add_triangle_strain(body, self.stiffness, None).unwrap();
+                    model
+                        .add_triangle_strain(body, self.stiffness, None)
+                        .unwrap();
                     model.add_bending(body, 1e-3 * self.stiffness).unwrap();
                     model.add_area(body, 0.1 * self.stiffness).unwrap();
                 }
