@@ -189,15 +189,16 @@ pub fn hinges(triangles: &[[usize; 3]]) -> Result<Vec<[usize; 4]>, ConstraintErr
         .collect())
 }
 
+/// An edge (sorted vertex pair) and its `(triangle, opposite vertex)` sides.
+pub(crate) type EdgeSides = ([usize; 2], Vec<(usize, usize)>);
+
 /// Every edge of a triangle mesh (sorted vertex pair) with its one or two
 /// `(triangle, opposite vertex)` sides, in order of first appearance.
 ///
 /// # Errors
 /// [`ConstraintError::NonManifoldEdge`] for an edge of more than two
 /// triangles.
-pub(crate) fn edge_sides(
-    triangles: &[[usize; 3]],
-) -> Result<Vec<([usize; 2], Vec<(usize, usize)>)>, ConstraintError> {
+pub(crate) fn edge_sides(triangles: &[[usize; 3]]) -> Result<Vec<EdgeSides>, ConstraintError> {
     // Edge -> (order of first appearance, [(triangle, opposite vertex)]).
     type Sides = (usize, Vec<(usize, usize)>);
     let mut edges: std::collections::HashMap<[usize; 2], Sides> =

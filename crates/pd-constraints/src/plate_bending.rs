@@ -194,7 +194,8 @@ mod tests {
         // Displacements along y: x^2/2 (H_xx = 1), z^2/2 (H_zz = 1), x z
         // (H_xz = 1): |G x|^2 / 2 = |H|_F^2 / 2 is 1/2, 1/2 and 1 (the energy
         // density over D).
-        let fields: [(fn(&Point) -> f64, f64); 3] = [
+        type Field = fn(&Point) -> f64;
+        let fields: [(Field, f64); 3] = [
             (|p| p.x * p.x / 2.0, 0.5),
             (|p| p.z * p.z / 2.0, 0.5),
             (|p| p.x * p.z, 1.0),
