@@ -25,8 +25,12 @@
 //! - starting state: at rest; inverted (every x mirrored, so every tet is
 //!   inside out); compressed (x scaled by 0.01); fast (100 m/s per vertex in
 //!   varied directions);
-//! - body: a clamped 1 x 0.25 x 0.25 m beam (2 x 1 x 1 cells, 12 tets) and a
-//!   free 0.3 m cube (6 tets) / the beam only. Gravity on, 100 steps.
+//! - body: a clamped 1 x 0.25 x 0.25 m beam (2 x 1 x 1 cells, 12 tets), a
+//!   free 0.3 m cube (6 tets) and a 0.5 m square cloth of 1 mm thickness
+//!   pinned at two corners (4 x 4 quads; `triangle-strain` with `E t` =
+//!   stiffness x 1 mm, `bending` with `D = E t^3 / 12`, `rho_A` = density x
+//!   1 mm: thin, light, stiff membranes) / the beam and the cloth. Gravity
+//!   on, 100 steps.
 //!
 //! Besides the ending, each completed run records its largest energy rise:
 //! the maximum over its steps of `(E(t) - E(0)) / scale`, with `E` the total
@@ -103,6 +107,72 @@ mesh = { generator = "box", size = [0.3, 0.3, 0.3], cells = [1, 1, 1] }
 density = 1000.0
 constraints = [ { kind = "tet-strain", stiffness = 1.0e5 } ]
 "#;
+
+const CLOTH: &str = r#"
+[simulation]
+dt = 0.01
+steps = 10
+[[body]]
+mesh = { generator = "cloth", size = [0.5, 0.5], cells = [4, 4] }
+density = 1.0
+constraints = [ { kind = "triangle-strain", stiffness = 1.0e2 } ]
+fixed = { vertices = [0, 4] }
+"#;
+
+/// Thickness of the stability map's cloth, m.
+const CLOTH_THICKNESS: f64 = 1e-3;
+
+/// The body of a run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Body {
+    Beam,
+    Cube,
+    Cloth,
+}
+
+impl Body {
+    const ALL: [Self; 3] = [Self::Beam, Self::Cube, Self::Cloth];
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::Beam => "clamped beam",
+            Self::Cube => "free cube",
+            Self::Cloth => "pinned cloth",
+        }
+    }
+
+    /// The body's scene, mass and constraints for the case's parameters.
+    fn scene(self, case: &Case) -> Result<Scene, String> {
+        let text = match self {
+            Self::Beam => BEAM,
+            Self::Cube => CUBE,
+            Self::Cloth => CLOTH,
+        };
+        let mut scene = Scene::parse(text, Syntax::Toml, Path::new("stability.toml"))
+            .map_err(|e| e.to_string())?;
+        let body = &mut scene.bodies[0];
+        if self == Self::Cloth {
+            let e_t = case.stiffness * CLOTH_THICKNESS;
+            body.mass = MassSpec::Density(case.density * CLOTH_THICKNESS);
+            body.constraints = vec![
+                ConstraintSpec::TriangleStrain {
+                    stiffness: e_t,
+                    limits: None,
+                },
+                ConstraintSpec::Bending {
+                    stiffness: e_t * CLOTH_THICKNESS * CLOTH_THICKNESS / 12.0,
+                },
+            ];
+        } else {
+            body.mass = MassSpec::Density(case.density);
+            body.constraints = vec![ConstraintSpec::TetStrain {
+                stiffness: case.stiffness,
+                limits: None,
+            }];
+        }
+        Ok(scene)
+    }
+}
 
 /// How a run starts.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -191,7 +261,7 @@ struct Case {
     coefficient: f64,
     iterations: usize,
     start: Start,
-    free: bool,
+    body: Body,
 }
 
 impl Case {
@@ -212,11 +282,7 @@ impl Case {
             self.density,
             self.iterations,
             self.start.name(),
-            if self.free {
-                "free cube"
-            } else {
-                "clamped beam"
-            },
+            self.body.name(),
         )
     }
 }
@@ -265,19 +331,12 @@ fn inverted_elements(sim: &pd_solver::Simulation) -> usize {
 
 fn run_case(case: &Case) -> Ending {
     let outcome = catch_unwind(AssertUnwindSafe(|| -> Result<Ending, String> {
-        let text = if case.free { CUBE } else { BEAM };
-        let mut scene = Scene::parse(text, Syntax::Toml, Path::new("stability.toml"))
-            .map_err(|e| e.to_string())?;
+        let mut scene = case.body.scene(case)?;
         scene.settings.dt = case.dt;
         scene.settings.iterations = case.iterations;
         scene.settings.threads = 1;
         scene.integrator = case.integrator;
         scene.damping = damping(&presets()[case.model], case.coefficient)?;
-        scene.bodies[0].mass = MassSpec::Density(case.density);
-        scene.bodies[0].constraints = vec![ConstraintSpec::TetStrain {
-            stiffness: case.stiffness,
-            limits: None,
-        }];
         let mut sim = scene.build().map_err(|e| e.to_string())?;
         let start = case.start.apply(sim.state());
         sim.set_state(start).map_err(|e| e.to_string())?;
@@ -348,7 +407,7 @@ struct Axes {
     density: Vec<f64>,
     coefficient: Vec<f64>,
     iterations: Vec<usize>,
-    free: Vec<bool>,
+    bodies: Vec<Body>,
 }
 
 impl Axes {
@@ -360,7 +419,7 @@ impl Axes {
                 density: vec![1.0, 1e5],
                 coefficient: vec![1e3],
                 iterations: vec![1, 200],
-                free: vec![false],
+                bodies: vec![Body::Beam, Body::Cloth],
             }
         } else {
             Self {
@@ -369,7 +428,7 @@ impl Axes {
                 density: vec![1.0, 1e3, 1e5],
                 coefficient: vec![1e-3, 1.0, 1e3],
                 iterations: vec![1, 10, 200],
-                free: vec![false, true],
+                bodies: Body::ALL.to_vec(),
             }
         }
     }
@@ -390,7 +449,7 @@ impl Axes {
                             for &coefficient in coefficients {
                                 for &iterations in &self.iterations {
                                     for start in Start::ALL {
-                                        for &free in &self.free {
+                                        for &body in &self.bodies {
                                             cases.push(Case {
                                                 integrator,
                                                 model,
@@ -400,7 +459,7 @@ impl Axes {
                                                 coefficient,
                                                 iterations,
                                                 start,
-                                                free,
+                                                body,
                                             });
                                         }
                                     }
@@ -609,9 +668,13 @@ fn run(root: &Path, quick: bool, mode: &shard::Mode) -> Result<PathBuf, String> 
             .collect::<Vec<_>>()
             .join(", "),
         if quick {
-            "a clamped 1 x 0.25 x 0.25 m beam (12 tets)"
+            "a clamped 1 x 0.25 x 0.25 m beam (12 tets) and a 0.5 m cloth of 1 mm \
+             (32 triangles; E t = stiffness x 1 mm, D = E t^3/12, rho_A = density x 1 mm) \
+             pinned at two corners"
         } else {
-            "a clamped 1 x 0.25 x 0.25 m beam (12 tets) and a free 0.3 m cube (6 tets)"
+            "a clamped 1 x 0.25 x 0.25 m beam (12 tets), a free 0.3 m cube (6 tets) and a 0.5 m \
+             cloth of 1 mm (32 triangles; E t = stiffness x 1 mm, D = E t^3/12, rho_A = density \
+             x 1 mm) pinned at two corners"
         },
     )
     .expect("infallible");
@@ -758,14 +821,11 @@ fn run(root: &Path, quick: bool, mode: &shard::Mode) -> Result<PathBuf, String> 
     axis_table(&mut out, "starting state", &start_labels, &results, |c| {
         position(&Start::ALL, &c.start)
     });
-    if axes.free.len() > 1 {
-        axis_table(
-            &mut out,
-            "body",
-            &["clamped beam".into(), "free cube".into()],
-            &results,
-            |c| usize::from(c.free),
-        );
+    if axes.bodies.len() > 1 {
+        let names: Vec<String> = axes.bodies.iter().map(|b| b.name().to_string()).collect();
+        axis_table(&mut out, "body", &names, &results, |c| {
+            position(&axes.bodies, &c.body)
+        });
     }
 
     let path = root.join("docs/stability.md");

@@ -6,7 +6,8 @@
 //! kind contiguously; the solver sees each set through the object-safe
 //! [`ConstraintBlock`] trait, one virtual call per range of constraints. The
 //! kinds are [`TetStrain`] (corotational strain, optionally strain-limited),
-//! [`Spring`] and [`Attachment`]. The mathematics is in
+//! [`Spring`], [`Attachment`], and for cloth and shells [`TriangleStrain`],
+//! [`PlateBending`] and [`Bending`], [`Area`] and [`Volume`]. The mathematics is in
 //! `docs/constraints.md`.
 //!
 //! ```
@@ -26,9 +27,12 @@
 //! assert_eq!(blocks[0].energy_range(chain.vertices(), 0..3), 0.0);
 //! ```
 
+mod area;
 pub mod assembly;
 mod attachment;
+pub mod bending;
 mod constraint;
+pub mod plate_bending;
 pub mod polar;
 pub mod polar_batch;
 mod set;
@@ -37,13 +41,22 @@ mod sparse;
 mod spring;
 mod tet_hessian;
 pub mod tet_strain;
+mod triangle_frame;
+mod triangle_strain;
+mod unit_product;
+mod volume;
 
+pub use area::Area;
 pub use attachment::Attachment;
+pub use bending::Bending;
 pub use constraint::Constraint;
+pub use plate_bending::PlateBending;
 pub use set::{ConstraintBlock, ConstraintSet, EnergyBound, MAX_ROWS};
 pub use sparse::{CsrMatrix, Triplet};
 pub use spring::Spring;
 pub use tet_strain::TetStrain;
+pub use triangle_strain::TriangleStrain;
+pub use volume::Volume;
 
 /// What can be wrong with a constraint's parameters.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -80,5 +93,14 @@ pub enum ConstraintError {
     DegenerateElement {
         /// Its vertices.
         vertices: Vec<usize>,
+    },
+    /// An edge shared by more than two triangles (bending needs a manifold
+    /// surface).
+    #[error("edge {edge:?} is shared by more than two triangles: {triangles:?}")]
+    NonManifoldEdge {
+        /// Its two vertices.
+        edge: [usize; 2],
+        /// The triangles (indices in the mesh) that share it.
+        triangles: Vec<usize>,
     },
 }

@@ -8,6 +8,8 @@ use pd_mesh::{Mesh, Point};
 
 use crate::SolverError;
 
+mod shells;
+
 /// Index of a body in a [`Model`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct BodyId(pub usize);

@@ -1,7 +1,9 @@
 //! A small software renderer for surface frames: orthographic camera fitted
 //! once to every frame of every panel (so the view stays fixed over the
 //! run), a ground grid at the lowest point reached, flat Lambert shading of
-//! triangles with a z-buffer, and side-by-side labelled panels.
+//! triangles with a z-buffer, and side-by-side labelled panels. Open
+//! surfaces (cloth) get a lighter back side and a dark outline along their
+//! boundary edges (`sheet.rs`).
 //!
 //! The world's up axis is `+y` (scenes put gravity along `-y`). Images are
 //! drawn at twice the requested size and box-filtered down, which smooths
@@ -297,6 +299,8 @@ pub fn render_surface(camera: &Camera, surface: &Surface, body: usize) -> RgbIma
         .iter()
         .map(|&p| camera.project(p))
         .collect();
+    // An open surface (cloth) shows its back side lighter and its boundary.
+    let open = crate::sheet::open_edges(&surface.triangles);
     for t in &surface.triangles {
         let [a, b, c] = t.map(|i| surface.positions[i]);
         let n = cross(sub(b, a), sub(c, a));
@@ -306,13 +310,32 @@ pub fn render_surface(camera: &Camera, surface: &Surface, body: usize) -> RgbIma
         }
         // Two-sided Lambert shading with an ambient term.
         let lambert = (dot(n, light) / len).abs();
-        let shade = 0.3 + 0.7 * lambert;
-        let colour = base.map(|c| (c * shade).round().clamp(0.0, 255.0) as u8);
+        // A hanging sheet is mostly edge-on to the light: more ambient.
+        let shade = if open.is_empty() {
+            0.3 + 0.7 * lambert
+        } else {
+            0.5 + 0.5 * lambert
+        };
+        let side = if !open.is_empty() && dot(n, camera.towards_eye) < 0.0 {
+            crate::sheet::back_side(base)
+        } else {
+            base
+        };
+        let colour = side.map(|c| (c * shade).round().clamp(0.0, 255.0) as u8);
         canvas.triangle(
             projected[t[0]],
             projected[t[1]],
             projected[t[2]],
             colour,
+            true,
+        );
+    }
+    for e in &open {
+        canvas.line(
+            projected[e[0]],
+            projected[e[1]],
+            crate::sheet::outline(base),
+            SUPERSAMPLE as i64 / 2,
             true,
         );
     }

@@ -79,6 +79,14 @@ impl Scene {
                     model.add_tet_strain(id, *stiffness, *limits).map(drop)
                 }
                 ConstraintSpec::Spring { stiffness } => model.add_springs(id, *stiffness).map(drop),
+                ConstraintSpec::TriangleStrain { stiffness, limits } => {
+                    model.add_triangle_strain(id, *stiffness, *limits).map(drop)
+                }
+                ConstraintSpec::Bending { stiffness } => {
+                    model.add_bending(id, *stiffness).map(drop)
+                }
+                ConstraintSpec::Area { stiffness } => model.add_area(id, *stiffness).map(drop),
+                ConstraintSpec::Volume { stiffness } => model.add_volume(id, *stiffness).map(drop),
                 ConstraintSpec::Attachment {
                     stiffness,
                     selection,

@@ -114,6 +114,29 @@ pub enum ConstraintSpec {
         /// N/m.
         stiffness: f64,
     },
+    /// `triangle-strain` on every triangle: `E t` in N/m, optional stretch
+    /// limits.
+    TriangleStrain {
+        /// N/m.
+        stiffness: f64,
+        /// `[min, max]` principal stretches.
+        limits: Option<(f64, f64)>,
+    },
+    /// `bending` on every interior edge: flexural rigidity `D` in N m.
+    Bending {
+        /// N m.
+        stiffness: f64,
+    },
+    /// `area` preservation of every triangle: N/m.
+    Area {
+        /// N/m.
+        stiffness: f64,
+    },
+    /// `volume` preservation of every tetrahedron: Pa.
+    Volume {
+        /// Pa.
+        stiffness: f64,
+    },
     /// `attachment` of selected vertices to their rest positions: N/m.
     Attachment {
         /// N/m.

@@ -345,14 +345,35 @@ impl Validator<'_> {
         let stiffness = self.non_negative(&sub("stiffness"), raw.stiffness)?;
         let selection_given = raw.vertices.is_some() || raw.bounds.is_some();
         match raw.kind.as_str() {
-            "tet-strain" | "spring" if selection_given => Err(self.error(
-                sub(if raw.vertices.is_some() {
-                    "vertices"
-                } else {
-                    "box"
-                }),
-                format!("is not a parameter of {}", raw.kind),
-            )),
+            "tet-strain" | "spring" | "triangle-strain" | "bending" | "area" | "volume"
+                if selection_given =>
+            {
+                Err(self.error(
+                    sub(if raw.vertices.is_some() {
+                        "vertices"
+                    } else {
+                        "box"
+                    }),
+                    format!("is not a parameter of {}", raw.kind),
+                ))
+            }
+            "triangle-strain" => {
+                let limits = match raw.limits {
+                    None => None,
+                    Some([min, max]) => {
+                        pd_constraints::TetStrain::check_limits(min, max)
+                            .map_err(|e| self.error(sub("limits"), e.to_string()))?;
+                        Some((min, max))
+                    }
+                };
+                Ok(ConstraintSpec::TriangleStrain { stiffness, limits })
+            }
+            "bending" | "area" | "volume" if raw.limits.is_some() => {
+                Err(self.error(sub("limits"), format!("is not a parameter of {}", raw.kind)))
+            }
+            "bending" => Ok(ConstraintSpec::Bending { stiffness }),
+            "area" => Ok(ConstraintSpec::Area { stiffness }),
+            "volume" => Ok(ConstraintSpec::Volume { stiffness }),
             "tet-strain" => {
                 let limits = match raw.limits {
                     None => None,
@@ -375,8 +396,8 @@ impl Validator<'_> {
             other => Err(self.error(
                 sub("kind"),
                 format!(
-                    "unknown constraint kind \"{other}\"; expected \"tet-strain\", \"spring\" or \
-                     \"attachment\""
+                    "unknown constraint kind \"{other}\"; expected \"tet-strain\", \"spring\", \
+                     \"attachment\", \"triangle-strain\", \"bending\", \"area\" or \"volume\""
                 ),
             )),
         }

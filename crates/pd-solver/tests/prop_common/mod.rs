@@ -44,6 +44,13 @@ pub enum Shape {
         /// Vertices of the chain.
         points: usize,
     },
+    /// A 1 m x 0.7 m cloth of `cells` quads (two triangles each), flat for
+    /// an even seed and with a rest shape bent out of plane by up to 0.1 m
+    /// for an odd one (so both plate and curved bending occur).
+    Cloth {
+        /// Quads along x and z.
+        cells: [usize; 2],
+    },
 }
 
 /// Which energy the scene's edges or tets carry.
@@ -51,8 +58,9 @@ pub enum Shape {
 pub enum Material {
     /// Zero-rest-length springs on every edge: a quadratic, convex energy.
     ZeroLengthSprings,
-    /// Corotational tet strain on boxes, rest-length springs on chains:
-    /// rotation-invariant, nonconvex.
+    /// Corotational tet strain on boxes, rest-length springs on chains,
+    /// triangle strain, bending (`D = 1e-3 m^2 x stiffness`) and area
+    /// (`0.1 x stiffness`) on cloth: rotation-invariant, nonconvex.
     Elastic,
 }
 
@@ -87,7 +95,24 @@ impl Scene {
                 jittered_box([1, 1, 1], [0.3, 0.3, 0.3], 0.1, self.seed)
                     .translated(Point::new(2.0, 0.0, 0.0)),
             ],
+            Shape::Cloth { cells } => vec![self.cloth(cells)],
         }
+    }
+
+    /// The cloth of [`Shape::Cloth`]: bent along y by a seeded smooth field
+    /// for an odd seed.
+    fn cloth(&self, cells: [usize; 2]) -> Mesh {
+        let flat = generators::cloth([1.0, 0.7], cells).unwrap();
+        if self.seed % 2 == 0 {
+            return flat;
+        }
+        let phase = self.seed as f64 * 0.37;
+        let vertices = flat
+            .vertices()
+            .iter()
+            .map(|p| p + Point::y() * (0.1 * (3.0 * p.x + 2.0 * p.z + phase).sin()))
+            .collect();
+        Mesh::from_triangles(vertices, flat.triangles().to_vec()).unwrap()
     }
 
     /// The model with `material`; `pin_first` hard-fixes the first vertex.
@@ -97,6 +122,7 @@ impl Scene {
         for mesh in self.meshes() {
             let n = mesh.num_vertices();
             let has_tets = !mesh.tets().is_empty();
+            let is_cloth = !has_tets && !mesh.triangles().is_empty();
             let body = model
                 .add_body(mesh, self.masses[used..used + n].to_vec())
                 .unwrap();
@@ -109,6 +135,13 @@ impl Scene {
                 }
                 (Material::Elastic, true) => {
                     model.add_tet_strain(body, self.stiffness, None).unwrap();
+                }
+                (Material::Elastic, false) if is_cloth => {
+                    model
+                        .add_triangle_strain(body, self.stiffness, None)
+                        .unwrap();
+                    model.add_bending(body, 1e-3 * self.stiffness).unwrap();
+                    model.add_area(body, 0.1 * self.stiffness).unwrap();
                 }
                 (Material::Elastic, false) => {
                     model.add_springs(body, self.stiffness).unwrap();
@@ -140,6 +173,7 @@ pub fn shape() -> impl Strategy<Value = Shape> {
         (1usize..=2, 1usize..=2, 1usize..=2).prop_map(|(a, b, c)| Shape::Box { cells: [a, b, c] }),
         (2usize..=8).prop_map(|points| Shape::Chain { points }),
         (2usize..=8).prop_map(|points| Shape::ChainAndCube { points }),
+        (1usize..=2, 1usize..=2).prop_map(|(a, b)| Shape::Cloth { cells: [a, b] }),
     ]
 }
 
