@@ -91,6 +91,9 @@ metrics_columns! {
     local_ms: f64 => "{:.4}",
     /// Wall time of its global steps, ms.
     global_ms: f64 => "{:.4}",
+    /// The step's final relative residual `|G(x) - x|_M / |G(x) - x_n|_M`
+    /// (docs/solver.md; 0 in row 0).
+    residual: f64 => "{}",
 }
 
 impl MetricsRow {
@@ -128,6 +131,7 @@ impl MetricsRow {
             step_ms,
             local_ms,
             global_ms,
+            residual: stats.map_or(0.0, |s| s.relative_change),
         }
     }
 

@@ -17,6 +17,7 @@
 
 mod build;
 mod raw;
+mod solver;
 mod spec;
 mod validate;
 
