@@ -51,7 +51,7 @@ pub use model::{Body, BodyId, Model};
 pub use settings::Settings;
 pub use simulation::{Energies, SetupStats, Simulation, State, StepStats};
 pub use step::{
-    Anderson, Chebyshev, IterationChange, LocalGlobal, Newton, PositionSolver, SolverMethod,
+    Anderson, Chebyshev, IterationChange, Lbfgs, LocalGlobal, Newton, PositionSolver, SolverMethod,
     SolverSpec, SpectralRadius, StepProblem,
 };
 

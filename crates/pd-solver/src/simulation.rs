@@ -37,6 +37,10 @@ pub struct StepStats {
     /// `|G(x) - x|_M / |G(x) - x_n|_M` (docs/solver.md; 0 for a step that
     /// does not move; NaN before the first iteration).
     pub relative_change: f64,
+    /// Step-objective evaluations the iteration method made (each one
+    /// projection pass; the merit checks of `anderson`, the line search of
+    /// `newton`; 0 for local-global without an objective trace).
+    pub objective_evaluations: usize,
     /// Time in the local step (projections), s.
     pub local_seconds: f64,
     /// Time in the global step (right-hand side and solve), s.

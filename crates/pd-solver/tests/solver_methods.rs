@@ -88,6 +88,7 @@ fn every_method_converges_to_newtons_solution() {
                 SolverMethod::LocalGlobal,
                 SolverMethod::Anderson,
                 SolverMethod::Chebyshev,
+                SolverMethod::Lbfgs,
             ] {
                 let (x, its) = run(scheme, laplacian, method, 1e-9, 20000, 3);
                 let relative = mass_free_error(&x, &reference) / motion;
@@ -108,17 +109,28 @@ fn every_method_converges_to_newtons_solution() {
     }
 }
 
-/// Anderson reaches the tolerance in fewer iterations than plain PD.
+/// Anderson reaches the tolerance in fewer than half the iterations of
+/// plain PD, L-BFGS in fewer than three quarters (measured over the three
+/// steps at 1e-6: Anderson 0.28 to 0.46 of plain PD's count, L-BFGS 0.37 to
+/// 0.54).
 #[test]
-fn anderson_needs_fewer_iterations() {
+fn accelerated_methods_need_fewer_iterations() {
     for scheme in SCHEMES {
         let (_, plain) = run(scheme, false, SolverMethod::LocalGlobal, 1e-6, 20000, 3);
-        let (_, accelerated) = run(scheme, false, SolverMethod::Anderson, 1e-6, 20000, 3);
-        let (plain, accelerated): (usize, usize) = (plain.iter().sum(), accelerated.iter().sum());
-        assert!(
-            2 * accelerated < plain,
-            "{scheme:?}: anderson {accelerated} iterations, plain {plain}"
-        );
+        let plain: usize = plain.iter().sum();
+        for method in [SolverMethod::Anderson, SolverMethod::Lbfgs] {
+            let (_, accelerated) = run(scheme, false, method, 1e-6, 20000, 3);
+            let accelerated: usize = accelerated.iter().sum();
+            let bound = if method == SolverMethod::Anderson {
+                plain / 2
+            } else {
+                plain * 3 / 4
+            };
+            assert!(
+                accelerated < bound,
+                "{scheme:?} {method:?}: {accelerated} iterations, plain {plain}"
+            );
+        }
     }
 }
 
@@ -135,6 +147,7 @@ fn every_method_keeps_linear_momentum() {
     for method in [
         SolverMethod::Anderson,
         SolverMethod::Chebyshev,
+        SolverMethod::Lbfgs,
         SolverMethod::Newton,
     ] {
         for scheme in SCHEMES {
@@ -172,6 +185,7 @@ fn every_method_is_thread_count_independent() {
     for method in [
         SolverMethod::Anderson,
         SolverMethod::Chebyshev,
+        SolverMethod::Lbfgs,
         SolverMethod::Newton,
     ] {
         let runs: Vec<Vec<Point>> = [1, 2]
@@ -218,32 +232,27 @@ fn spec_validation_names_the_field() {
         }),
         "rho"
     );
-    assert_eq!(
-        field(SolverSpec {
-            method: SolverMethod::Lbfgs,
-            ..base
-        }),
-        "method"
-    );
     assert!(SolverSpec::default().create().is_ok());
 }
 
-/// Newton refuses lagged damping, saying why.
+/// Newton and L-BFGS refuse lagged damping, saying why.
 #[test]
-fn newton_refuses_lagged_damping() {
-    let (model, _) = clamped_beam([4, 1, 1], [1.0, 0.2, 0.2], 7, 1e6);
-    let damping = Box::new(pd_damping::RayleighLagged::new(0.01, 0.0).unwrap());
-    let mut sim = Simulation::new(
-        model,
-        Scheme::BackwardEuler.integrator(),
-        damping,
-        Settings::default(),
-    )
-    .unwrap();
-    sim.set_position_solver(spec(SolverMethod::Newton).create().unwrap());
-    let error = sim.step().unwrap_err().to_string();
-    assert!(
-        error.contains("newton") && error.contains("lagged"),
-        "{error}"
-    );
+fn newton_and_lbfgs_refuse_lagged_damping() {
+    for method in [SolverMethod::Newton, SolverMethod::Lbfgs] {
+        let (model, _) = clamped_beam([4, 1, 1], [1.0, 0.2, 0.2], 7, 1e6);
+        let damping = Box::new(pd_damping::RayleighLagged::new(0.01, 0.0).unwrap());
+        let mut sim = Simulation::new(
+            model,
+            Scheme::BackwardEuler.integrator(),
+            damping,
+            Settings::default(),
+        )
+        .unwrap();
+        sim.set_position_solver(spec(method).create().unwrap());
+        let error = sim.step().unwrap_err().to_string();
+        assert!(
+            error.contains(method.name()) && error.contains("lagged"),
+            "{error}"
+        );
+    }
 }

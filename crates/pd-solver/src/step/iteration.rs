@@ -195,6 +195,7 @@ impl StepProblem<'_> {
     /// (the function every method minimises, DESIGN.md 3.1-3.2).
     /// Costs one energy evaluation (a projection of every constraint).
     pub fn objective(&mut self) -> f64 {
+        self.stats.objective_evaluations += 1;
         super::objective::step_objective(self)
     }
 

@@ -6,6 +6,7 @@
 use super::anderson::Anderson;
 use super::chebyshev::Chebyshev;
 use super::iteration::{LocalGlobal, PositionSolver};
+use super::lbfgs::Lbfgs;
 use super::newton::Newton;
 use crate::SolverError;
 
@@ -21,8 +22,7 @@ pub enum SolverMethod {
     /// Chebyshev semi-iterative acceleration (Wang 2015).
     Chebyshev,
     /// L-BFGS with the prefactored matrix as initial Hessian (Liu, Bouaziz
-    /// and Kavan 2017): named by the scene format, not available in this
-    /// version ([`SolverSpec::validate`] refuses it).
+    /// and Kavan 2017), for PD energies.
     Lbfgs,
     /// Newton's method with per-element PSD-projected Hessians and a line
     /// search on the step objective: the converged reference.
@@ -55,9 +55,9 @@ impl SolverMethod {
         Self::ALL.into_iter().find(|m| m.name() == name)
     }
 
-    /// Whether the method only minimises Projective Dynamics' quadratic
-    /// energies (local-global, anderson, chebyshev): non-quadratic
-    /// materials need `lbfgs` or `newton`.
+    /// Whether the method only minimises Projective Dynamics' energies
+    /// (local-global, anderson, chebyshev): non-quadratic materials, once
+    /// they exist, need `lbfgs` or `newton`.
     pub fn pd_only(self) -> bool {
         matches!(
             self,
@@ -116,14 +116,6 @@ impl SolverSpec {
         let bad = |field: &'static str, reason: String| {
             Err(SolverError::InvalidSetting { field, reason })
         };
-        if self.method == SolverMethod::Lbfgs {
-            return bad(
-                "method",
-                "\"lbfgs\" is not available in this version; use \"anderson\", \"chebyshev\" or \
-                 \"newton\""
-                    .into(),
-            );
-        }
         if !(1..=Self::MAX_WINDOW).contains(&self.window) {
             return bad(
                 "window",
@@ -152,8 +144,8 @@ impl SolverSpec {
     pub fn create(&self) -> Result<Box<dyn PositionSolver>, SolverError> {
         self.validate()?;
         let solver: Box<dyn PositionSolver> = match self.method {
-            // Refused by validate, which returned above.
-            SolverMethod::LocalGlobal | SolverMethod::Lbfgs => Box::new(LocalGlobal),
+            SolverMethod::LocalGlobal => Box::new(LocalGlobal),
+            SolverMethod::Lbfgs => Box::new(Lbfgs::new(self.window)),
             SolverMethod::Anderson => Box::new(Anderson::new(self.window)),
             SolverMethod::Chebyshev => Box::new(Chebyshev::new(self.rho, self.start)),
             SolverMethod::Newton => Box::new(Newton::default()),

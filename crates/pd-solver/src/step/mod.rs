@@ -16,6 +16,7 @@ pub(crate) mod anderson;
 pub(crate) mod chebyshev;
 pub(crate) mod divergence;
 pub(crate) mod iteration;
+pub(crate) mod lbfgs;
 pub(crate) mod method;
 pub(crate) mod newton;
 pub(crate) mod objective;
@@ -38,6 +39,7 @@ use iteration::IterationBuffers;
 pub use anderson::Anderson;
 pub use chebyshev::Chebyshev;
 pub use iteration::{IterationChange, LocalGlobal, PositionSolver, StepProblem};
+pub use lbfgs::Lbfgs;
 pub use method::{SolverMethod, SolverSpec, SpectralRadius};
 pub use newton::Newton;
 

@@ -52,7 +52,12 @@ pub struct Newton {
 
 /// `out_f = (A w)_f` for every free vertex `f`, `A` given by its values over
 /// the lower pattern of `system` (symmetric).
-fn symmetric_product(system: &GlobalSystem, values: &[f64], w: &[Point], out: &mut [Point]) {
+pub(crate) fn symmetric_product(
+    system: &GlobalSystem,
+    values: &[f64],
+    w: &[Point],
+    out: &mut [Point],
+) {
     out.iter_mut().for_each(|o| *o = Point::zeros());
     let pattern = &system.pattern;
     for j in 0..pattern.n {
