@@ -96,6 +96,7 @@ pub fn measure(beam: &Beam, mesh: &Mesh, plan: &MethodsPlan) -> Result<Value, St
         SolverMethod::LocalGlobal,
         SolverMethod::Anderson,
         SolverMethod::Chebyshev,
+        SolverMethod::Lbfgs,
         SolverMethod::Newton,
     ];
     for method in methods {

@@ -89,7 +89,7 @@ fn cheapest(rows: &[Value], method: &str, target: f64, local_fraction: f64) -> O
         .min_by(|a, b| a.0.total_cmp(&b.0))
 }
 
-const METHODS: [&str; 4] = ["local-global", "anderson", "chebyshev", "newton"];
+const METHODS: [&str; 5] = ["local-global", "anderson", "chebyshev", "lbfgs", "newton"];
 
 /// The section's Markdown.
 pub fn markdown(runs: &Value) -> String {
@@ -116,9 +116,9 @@ pub fn markdown(runs: &Value) -> String {
     );
     let _ = writeln!(
         md,
-        "| mesh | integrator | damping | error of PD-20 | anderson | chebyshev | newton |"
+        "| mesh | integrator | damping | error of PD-20 | anderson | chebyshev | lbfgs | newton |"
     );
-    let _ = writeln!(md, "| --- | --- | --- | --- | --- | --- | --- |");
+    let _ = writeln!(md, "| --- | --- | --- | --- | --- | --- | --- | --- |");
     for run in runs {
         let rows = run["rows"].as_array().unwrap_or(&empty);
         let fraction = f(&run["local_fraction"]);

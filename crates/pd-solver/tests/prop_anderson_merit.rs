@@ -4,11 +4,13 @@
 //! time steps and budgets.
 //!
 //! Why it should hold: Anderson takes an accelerated iterate only where it
-//! lowers the objective below the current one, else the plain iterate, and
-//! ends on a plain iterate; on these scenes its accepted iterates run ahead
-//! of plain PD's. It is a property of the method on such problems, not a
-//! theorem (PD's map is not monotone in the objective), which is why it is
-//! tested over random cases.
+//! lowers the objective below the current one (near the end of the budget:
+//! below the plain iterate's), else the plain iterate, and ends on a plain
+//! iterate; its accepted iterates run ahead of plain PD's. It is a property
+//! of the method on such problems, not a theorem (PD's map is not monotone
+//! in the objective), which is why it is tested over random cases; with the
+//! weaker test only ("below the current one" throughout) it fails on about
+//! 1% of them (src/step/anderson.rs, `ENDGAME`).
 //!
 //! Round-off: both objectives are computed from the same formula at nearby
 //! points; the tolerance is `prop_objective.rs`' (the objective's round-off
@@ -79,7 +81,7 @@ fn material() -> impl Strategy<Value = Material> {
 }
 
 proptest! {
-    #![proptest_config(config(128))]
+    #![proptest_config(config(256))]
 
     #[test]
     fn anderson_ends_no_higher_than_plain_pd(

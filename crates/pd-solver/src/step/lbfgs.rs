@@ -15,12 +15,16 @@
 //! picks the step. Pairs with `s . y <= 0` are not stored. The last
 //! iteration of the budget ends on the plain iterate `G(x_k)`.
 //!
-//! Cost per iteration: one local-global iteration, one product with `A`,
-//! and one objective evaluation when the full step is accepted.
+//! Cost per iteration: one local-global iteration and one product with
+//! `A`. Line-search trials are judged from their local step's projections
+//! (summing the energy from them), and the accepted trial's projections
+//! serve the next global step, so only backtracking and fallbacks cost
+//! extra projection passes.
 //!
 //! Refused: lagged damping models (`rayleigh-lagged`), whose step matrix is
 //! not the scalar `A` the gradient is computed with.
 
+use pd_constraints::EnergyBound;
 use pd_mesh::Point;
 
 use super::iteration::{PositionSolver, StepProblem};
@@ -57,6 +61,8 @@ pub struct Lbfgs {
     q: Vec<Point>,
     /// `A w` per free vertex.
     product: Vec<Point>,
+    /// Per-chunk scratch of the objective's energy sum.
+    partials: Vec<EnergyBound>,
 }
 
 impl Lbfgs {
@@ -77,6 +83,7 @@ impl Lbfgs {
             direction: Vec::new(),
             q: Vec::new(),
             product: Vec::new(),
+            partials: Vec::new(),
         }
     }
 
@@ -178,7 +185,12 @@ impl PositionSolver for Lbfgs {
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {
         self.prepare(step)?;
         step.record_objective();
-        let mut merit = step.objective();
+        if self.partials.len() != step.local_chunks() {
+            self.partials = vec![EnergyBound::default(); step.local_chunks()];
+        }
+        // Trial points are judged from their local step's projections,
+        // which then serve the next global step.
+        let mut merit = step.project_with_objective(&mut self.partials);
         let (mut stored, mut newest) = (0usize, self.window - 1);
         let iterations = step.iterations();
         for k in 0..iterations {
@@ -186,7 +198,7 @@ impl PositionSolver for Lbfgs {
             self.update.swap(0, 1);
             self.gradient.swap(0, 1);
             self.iterate[0].copy_from_slice(step.displacement());
-            step.local_global_iteration();
+            step.global_half();
             difference(step.displacement(), &self.iterate[0], &mut self.update[0]);
             let masses = step.masses();
             let change = mass_dot(masses, &self.update[0], &self.update[0]);
@@ -226,7 +238,7 @@ impl PositionSolver for Lbfgs {
                     for ((x, x0), d) in dx.iter_mut().zip(&self.iterate[0]).zip(&self.direction) {
                         *x = x0 + d * alpha;
                     }
-                    let trial = step.objective();
+                    let trial = step.project_with_objective(&mut self.partials);
                     if trial <= merit + ARMIJO * alpha * slope {
                         merit = trial;
                         accepted = true;
@@ -240,7 +252,7 @@ impl PositionSolver for Lbfgs {
                 for ((x, x0), w) in dx.iter_mut().zip(&self.iterate[0]).zip(&self.update[0]) {
                     *x = x0 + w;
                 }
-                merit = step.objective();
+                merit = step.project_with_objective(&mut self.partials);
                 stored = 0;
             }
             step.record_objective();

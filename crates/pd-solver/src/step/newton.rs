@@ -21,6 +21,7 @@
 //! Refused: lagged damping models (`rayleigh-lagged`), whose step matrix
 //! already is the 3n system; their damping Hessian would have to be added.
 
+use pd_constraints::EnergyBound;
 use pd_mesh::Point;
 
 use super::iteration::{PositionSolver, StepProblem};
@@ -48,6 +49,8 @@ pub struct Newton {
     rhs: Vec<Point>,
     /// The Newton direction per vertex.
     direction: Vec<Point>,
+    /// Per-chunk scratch of the objective's energy sum.
+    partials: Vec<EnergyBound>,
 }
 
 /// `out_f = (A w)_f` for every free vertex `f`, `A` given by its values over
@@ -141,10 +144,15 @@ impl PositionSolver for Newton {
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {
         self.prepare(step)?;
         step.record_objective();
-        let mut merit = step.objective();
+        if self.partials.len() != step.local_chunks() {
+            self.partials = vec![EnergyBound::default(); step.local_chunks()];
+        }
+        // Trial points are judged from their local step's projections,
+        // which then serve the next global step.
+        let mut merit = step.project_with_objective(&mut self.partials);
         for _ in 0..step.iterations() {
             self.iterate.copy_from_slice(step.displacement());
-            step.local_global_iteration();
+            step.global_half();
             difference(step.displacement(), &self.iterate, &mut self.update);
             let masses = step.masses();
             let change = mass_dot(masses, &self.update, &self.update);
@@ -162,7 +170,7 @@ impl PositionSolver for Newton {
                     for ((x, x0), s) in dx.iter_mut().zip(&self.iterate).zip(&self.direction) {
                         *x = x0 + s * alpha;
                     }
-                    let trial = step.objective();
+                    let trial = step.project_with_objective(&mut self.partials);
                     if trial <= merit + ARMIJO * alpha * slope {
                         merit = trial;
                         accepted = true;
@@ -177,7 +185,7 @@ impl PositionSolver for Newton {
                 for ((x, x0), w) in dx.iter_mut().zip(&self.iterate).zip(&self.update) {
                     *x = x0 + w;
                 }
-                merit = step.objective();
+                merit = step.project_with_objective(&mut self.partials);
             }
             step.record_objective();
         }
