@@ -65,11 +65,11 @@ pub(crate) fn symmetric_product(
     let pattern = &system.pattern;
     for j in 0..pattern.n {
         let wj = w[system.free[j]];
-        for s in pattern.col_ptr[j]..pattern.col_ptr[j + 1] {
-            let i = pattern.row_idx[s];
-            out[i] += wj * values[s];
+        let range = pattern.col_ptr[j]..pattern.col_ptr[j + 1];
+        for (&i, &value) in pattern.row_idx[range.clone()].iter().zip(&values[range]) {
+            out[i] += wj * value;
             if i != j {
-                out[j] += w[system.free[i]] * values[s];
+                out[j] += w[system.free[i]] * value;
             }
         }
     }
