@@ -281,9 +281,12 @@ pub fn run(root: &Path, quick: bool, meshes: &[PathBuf]) -> Result<PathBuf, Stri
 
     eprintln!("limits and real meshes...");
     let limits = crate::bench_limits::measure(&p, quick, meshes)?;
+    eprintln!("iteration methods...");
+    let methods = crate::bench_methods::measure(&p, quick)?;
 
     let report = json!({
         "limits": limits,
+        "methods": methods,
         "mode": if quick { "quick" } else { "full" },
         "commit": commit,
         "date": date,
@@ -306,6 +309,7 @@ fn write_report(root: &Path, report: &Value) -> Result<PathBuf, String> {
     std::fs::write(&json_path, text + "\n").map_err(|e| format!("{}: {e}", json_path.display()))?;
 
     // Figures.
+    crate::bench_methods::figure(&dir, &report["methods"])?;
     let empty = Vec::new();
     let accuracy = report["accuracy"].as_array().unwrap_or(&empty);
     let mut position = Vec::new();
@@ -507,6 +511,7 @@ fn markdown(r: &Value) -> String {
          each curve's points are the iteration counts 1, 2, 3, 5, 10, 20, 50 from left to right.\n"
     );
 
+    md.push_str(&crate::bench_methods::markdown(&r["methods"]));
     let _ = writeln!(md, "## Scaling\n");
     let scaling = r["scaling"].as_array().unwrap_or(&empty);
     let _ = writeln!(

@@ -9,6 +9,7 @@
 //! pd-probe phases   [beam options] [--model M] [--reps R]
 //! pd-probe accuracy [beam options] [--integrator be|im] [--time T] [--iters-list 1,2,...]
 //! pd-probe bandwidth [--mib M] [--reps R]
+//! pd-probe methods  [beam options] [--mesh BASE] [--integrator be|im|bdf2] [--model M] [--steps N] [--budgets 1,2,...]
 //! beam options: --cells NX,NY,NZ --iters K --threads T --dt H --stiffness PA --soft-clamp
 //! ```
 
@@ -109,6 +110,7 @@ fn run(args: &[String]) -> Result<Value, String> {
         Some("phases") => phases(&options, &beam),
         Some("accuracy") => accuracy(&options, &beam),
         Some("bandwidth") => bandwidth(&options),
+        Some("methods") => methods(&options, &beam),
         _ => Err(
             "usage: pd-probe step|overhead|phases|accuracy|bandwidth [options] (see the source)"
                 .into(),
@@ -378,4 +380,23 @@ fn accuracy(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         "energy_scale_joule": energy_scale,
         "rows": rows,
     }))
+}
+
+/// Error against cost per step for every iteration method
+/// (`pd_benches::methods`).
+fn methods(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
+    let mesh = match options.value("--mesh") {
+        Some(base) => pd_io::tetgen::read_tetgen_base(std::path::Path::new(base))
+            .map_err(|e| e.to_string())?,
+        None => beam.mesh()?,
+    };
+    let plan = pd_benches::methods::MethodsPlan {
+        integrator: options.value("--integrator").unwrap_or("be").into(),
+        damping: options.value("--model").unwrap_or(UNDAMPED).into(),
+        steps: options.parse("--steps", 20)?,
+        budgets: options.list("--budgets", &[1, 2, 3, 5, 10, 20, 50])?,
+        newton_budgets: options.list("--newton-budgets", &[1, 2, 3, 5])?,
+        reference_tolerance: options.parse("--reference-tolerance", 1e-10)?,
+    };
+    pd_benches::methods::measure(beam, &mesh, &plan)
 }

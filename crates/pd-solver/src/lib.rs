@@ -51,7 +51,10 @@ pub use checkpoint::Checkpoint;
 pub use model::{Body, BodyId, Model};
 pub use settings::Settings;
 pub use simulation::{Energies, SetupStats, Simulation, State, StepStats};
-pub use step::{IterationChange, LocalGlobal, PositionSolver, StepProblem};
+pub use step::{
+    Anderson, Chebyshev, IterationChange, Lbfgs, LocalGlobal, Newton, PositionSolver, SolverMethod,
+    SolverSpec, SpectralRadius, StepProblem,
+};
 
 /// Everything that can go wrong building or stepping a simulation.
 #[derive(Debug, thiserror::Error)]

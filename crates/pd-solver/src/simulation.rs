@@ -33,9 +33,14 @@ pub struct StepStats {
     pub iterations: usize,
     /// Whether the tolerance was met (always `false` with tolerance 0).
     pub converged: bool,
-    /// The last relative change `|x_{k+1} - x_k|_M / |x_{k+1} - x_n|_M`
-    /// (computed only with a tolerance; else NaN).
+    /// The step's final relative residual: the last local-global change
+    /// `|G(x) - x|_M / |G(x) - x_n|_M` (docs/solver.md; 0 for a step that
+    /// does not move; NaN before the first iteration).
     pub relative_change: f64,
+    /// Step-objective evaluations the iteration method made (each one
+    /// projection pass; the merit checks of `anderson`, the line search of
+    /// `newton`; 0 for local-global without an objective trace).
+    pub objective_evaluations: usize,
     /// Time in the local step (projections), s.
     pub local_seconds: f64,
     /// Time in the global step (right-hand side and solve), s.

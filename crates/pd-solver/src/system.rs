@@ -104,6 +104,11 @@ impl GlobalStep {
         Ok(Self { system, matrix })
     }
 
+    /// The constant operators over the free vertices.
+    pub fn system(&self) -> &GlobalSystem {
+        &self.system
+    }
+
     /// Global index of each free vertex.
     pub fn free(&self) -> &[usize] {
         &self.system.free

@@ -91,6 +91,9 @@ metrics_columns! {
     local_ms: f64 => "{:.4}",
     /// Wall time of its global steps, ms.
     global_ms: f64 => "{:.4}",
+    /// The step's final relative residual `|G(x) - x|_M / |G(x) - x_n|_M`
+    /// (docs/solver.md; 0 in row 0).
+    residual: f64 => "{}",
 }
 
 impl MetricsRow {
@@ -128,6 +131,7 @@ impl MetricsRow {
             step_ms,
             local_ms,
             global_ms,
+            residual: stats.map_or(0.0, |s| s.relative_change),
         }
     }
 
@@ -230,6 +234,7 @@ mod tests {
             jz: f64::MAX,
             iterations: 10,
             step_ms: 1.23456,
+            residual: 3.7e-7,
             ..MetricsRow::default()
         };
         let mut text = Vec::new();
@@ -240,7 +245,7 @@ mod tests {
             text.lines().next(),
             Some(
                 "step,time,kinetic,elastic,gravity,total,px,py,pz,jx,jy,jz,iterations,\
-                 step_ms,local_ms,global_ms"
+                 step_ms,local_ms,global_ms,residual"
             )
         );
         let back = MetricsRow::parse_all(&text, Path::new("metrics.csv")).unwrap();
@@ -264,14 +269,14 @@ mod tests {
         assert_eq!(error(&format!("{header}\n")), "metrics.csv: no rows");
         assert!(error("step,time\n0,0\n").starts_with("metrics.csv:1: expected the header"));
         let short = format!("{header}\n0,0,0\n");
-        assert_eq!(error(&short), "metrics.csv:2: expected 16 numbers");
-        let long = format!("{header}\n{}\n", ["0"; 17].join(","));
-        assert_eq!(error(&long), "metrics.csv:2: expected 16 numbers");
+        assert_eq!(error(&short), "metrics.csv:2: expected 17 numbers");
+        let long = format!("{header}\n{}\n", ["0"; 18].join(","));
+        assert_eq!(error(&long), "metrics.csv:2: expected 17 numbers");
         let word = format!(
             "{header}\n{}\nzero{}\n",
-            ["0"; 16].join(","),
-            ",0".repeat(15)
+            ["0"; 17].join(","),
+            ",0".repeat(16)
         );
-        assert_eq!(error(&word), "metrics.csv:3: expected 16 numbers");
+        assert_eq!(error(&word), "metrics.csv:3: expected 17 numbers");
     }
 }

@@ -38,6 +38,13 @@ impl Scene {
             self.settings.clone(),
         )
         .map_err(|e| self.field_error("scene", e))?;
+        if self.solver != pd_solver::SolverSpec::default() {
+            let solver = self
+                .solver
+                .create()
+                .map_err(|e| self.field_error("solver", e))?;
+            simulation.set_position_solver(solver);
+        }
         self.apply_initial_states(&mut simulation, &offsets)?;
         for (b, body) in self.bodies.iter().enumerate() {
             if body.initial_velocity != Point::zeros() || body.angular_velocity != Point::zeros() {

@@ -18,6 +18,7 @@
 mod build;
 mod ratio;
 mod raw;
+mod solver;
 mod spec;
 mod validate;
 

@@ -22,6 +22,7 @@ pub(super) struct Scene {
     #[serde(rename = "body", default)]
     pub(super) bodies: Vec<Body>,
     pub(super) output: Option<Output>,
+    pub(super) solver: Option<super::solver::Solver>,
 }
 
 #[derive(Debug, Deserialize)]

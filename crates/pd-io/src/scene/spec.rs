@@ -233,4 +233,6 @@ pub struct Scene {
     pub bodies: Vec<BodySpec>,
     /// What to write.
     pub output: OutputSpec,
+    /// The iteration method (`[solver]`; local-global by default).
+    pub solver: pd_solver::SolverSpec,
 }

@@ -25,6 +25,11 @@ pub(super) struct Validator<'a> {
 }
 
 impl Validator<'_> {
+    /// An error at `field` (for the section validators in other files).
+    pub(super) fn field(&self, field: impl Into<String>, message: impl Into<String>) -> Error {
+        self.error(field, message)
+    }
+
     fn error(&self, field: impl Into<String>, message: impl Into<String>) -> Error {
         super::field_error(self.source, field, message.into())
     }
@@ -85,6 +90,7 @@ impl Validator<'_> {
             .map(|(b, body)| self.body(b, body))
             .collect::<Result<Vec<_>>>()?;
         let output = self.output(raw.output)?;
+        let solver = self.solver(raw.solver)?;
         Ok(Scene {
             source: self.source.to_path_buf(),
             steps: raw.simulation.steps,
@@ -93,6 +99,7 @@ impl Validator<'_> {
             damping,
             bodies,
             output,
+            solver,
         })
     }
 

@@ -66,8 +66,7 @@ impl PositionSolver for LocalGlobal {
 }
 
 /// How much one iteration moved the displacement, in the mass norm:
-/// `|dx_new - dx_old|_M^2` and `|dx_new|_M^2` (kg m^2). Both are 0 unless
-/// a tolerance is set (they are not computed otherwise).
+/// `|dx_new - dx_old|_M^2` and `|dx_new|_M^2` (kg m^2).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct IterationChange {
     /// `|dx_new - dx_old|_M^2` in kg m^2.
@@ -171,14 +170,11 @@ impl StepProblem<'_> {
         );
         self.global.solve(&b.rhs);
         let mut change = IterationChange::default();
-        let measure = self.settings.tolerance > 0.0;
         for (f, &v) in self.global.free().iter().enumerate() {
             let new = self.global.solution(f);
-            if measure {
-                let m = self.masses[v];
-                change.change_squared += m * (new - b.displacement[v]).norm_squared();
-                change.displacement_squared += m * new.norm_squared();
-            }
+            let m = self.masses[v];
+            change.change_squared += m * (new - b.displacement[v]).norm_squared();
+            change.displacement_squared += m * new.norm_squared();
             b.displacement[v] = new;
         }
         self.stats.iterations += 1;
@@ -189,24 +185,17 @@ impl StepProblem<'_> {
 
     /// Whether the iteration that moved the displacement by `change` met the
     /// tolerance: `|dx_new - dx_old|_M <= tolerance |dx_new|_M`. Records the
-    /// relative change and the verdict in the step's statistics. Always
-    /// `false` with tolerance 0.
+    /// relative change (always) and the verdict in the step's statistics.
+    /// Always `false` with tolerance 0.
     pub fn converged(&mut self, change: IterationChange) -> bool {
-        let tolerance = self.settings.tolerance;
-        if tolerance > 0.0 {
-            self.stats.relative_change =
-                (change.change_squared / change.displacement_squared).sqrt();
-            if change.change_squared <= tolerance.powi(2) * change.displacement_squared {
-                self.stats.converged = true;
-            }
-        }
-        self.stats.converged
+        self.record_residual(change.change_squared, change.displacement_squared)
     }
 
     /// The step objective `g(x_n + dx)` at the current displacement, in J
     /// (the function every method minimises, DESIGN.md 3.1-3.2).
     /// Costs one energy evaluation (a projection of every constraint).
     pub fn objective(&mut self) -> f64 {
+        self.stats.objective_evaluations += 1;
         super::objective::step_objective(self)
     }
 

@@ -12,9 +12,15 @@
 //!    damping model's end of step (velocity filters, spin restoration), the
 //!    divergence check, and the new state.
 
+pub(crate) mod anderson;
+pub(crate) mod chebyshev;
 pub(crate) mod divergence;
 pub(crate) mod iteration;
+pub(crate) mod lbfgs;
+pub(crate) mod method;
+pub(crate) mod newton;
 pub(crate) mod objective;
+pub(crate) mod ops;
 
 use std::time::Instant;
 
@@ -30,7 +36,12 @@ use crate::system::{RhsInput, SystemCoefficients};
 use crate::{Simulation, SolverError, StepStats};
 use iteration::IterationBuffers;
 
+pub use anderson::Anderson;
+pub use chebyshev::Chebyshev;
 pub use iteration::{IterationChange, LocalGlobal, PositionSolver, StepProblem};
+pub use lbfgs::Lbfgs;
+pub use method::{SolverMethod, SolverSpec, SpectralRadius};
+pub use newton::Newton;
 
 /// Scratch buffers sized once, so that a step allocates nothing.
 #[derive(Debug)]

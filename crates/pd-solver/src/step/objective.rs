@@ -8,10 +8,23 @@
 //! where `x - x_hat` vanishes, so `L_d`'s rows of the free vertices suffice;
 //! their inertia term is a constant of the step.
 
+use pd_mesh::Point;
+
 use super::iteration::StepProblem;
+use crate::local::LocalStep;
 
 /// `g(x_n + dx)` in J for the problem's current displacement.
 pub(crate) fn step_objective(problem: &mut StepProblem<'_>) -> f64 {
+    objective_with(problem, |local, q, _| local.energy(q))
+}
+
+/// `g(x_n + dx)` with the elastic energy `E(q)` given by `elastic(local, q,
+/// projections)` (which may overwrite the problem's projections, e.g. to
+/// project at `q` and sum the energy from them).
+pub(crate) fn objective_with(
+    problem: &mut StepProblem<'_>,
+    elastic: impl FnOnce(&LocalStep, &[Point], &mut [Point]) -> f64,
+) -> f64 {
     let c = problem.coefficients;
     let d = problem.damping;
     let h = problem.h;
@@ -43,7 +56,6 @@ pub(crate) fn step_objective(problem: &mut StepProblem<'_>) -> f64 {
     let damping_form = d.mass * mass_form
         + d.damping_laplacian * laplacian_form
         + d.lagged_stiffness * lagged_form;
-    inertia / (2.0 * h * h)
-        + c.c1 * problem.local.energy(&b.q)
-        + 0.5 * c.c1 * c.c2 * c.gamma * damping_form
+    let elastic = elastic(problem.local, &b.q, &mut b.projections);
+    inertia / (2.0 * h * h) + c.c1 * elastic + 0.5 * c.c1 * c.c2 * c.gamma * damping_form
 }

@@ -1,0 +1,73 @@
+//! The `[solver]` table: which iteration method a step uses
+//! ([`pd_solver::SolverSpec`], docs/solver.md "Iteration methods"). Its raw
+//! serde image and its validation, by field path (`solver.rho`).
+
+use pd_solver::{SolverError, SolverMethod, SolverSpec, SpectralRadius};
+use serde::Deserialize;
+
+use super::validate::Validator;
+use crate::Result;
+
+/// The raw `[solver]` table.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct Solver {
+    pub(super) method: Option<String>,
+    pub(super) window: Option<usize>,
+    pub(super) rho: Option<Rho>,
+    pub(super) start: Option<usize>,
+}
+
+/// `rho = 0.99` or `rho = "auto"`.
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+pub(super) enum Rho {
+    Number(f64),
+    Text(String),
+}
+
+impl Validator<'_> {
+    /// The validated `[solver]` table; the default (local-global) without one.
+    pub(super) fn solver(&self, raw: Option<Solver>) -> Result<SolverSpec> {
+        let defaults = SolverSpec::default();
+        let Some(raw) = raw else {
+            return Ok(defaults);
+        };
+        let method = match raw.method.as_deref() {
+            None => defaults.method,
+            Some(name) => SolverMethod::parse(name).ok_or_else(|| {
+                self.field(
+                    "solver.method",
+                    format!(
+                        "unknown method \"{name}\"; expected one of: {}",
+                        SolverMethod::ALL.map(SolverMethod::name).join(", ")
+                    ),
+                )
+            })?,
+        };
+        let rho = match raw.rho {
+            None => defaults.rho,
+            Some(Rho::Number(rho)) => SpectralRadius::Fixed(rho),
+            Some(Rho::Text(text)) if text == "auto" => SpectralRadius::Auto,
+            Some(Rho::Text(text)) => {
+                return Err(self.field(
+                    "solver.rho",
+                    format!("must be a number in (0, 1) or \"auto\", got \"{text}\""),
+                ));
+            }
+        };
+        let spec = SolverSpec {
+            method,
+            window: raw.window.unwrap_or(defaults.window),
+            rho,
+            start: raw.start.unwrap_or(defaults.start),
+        };
+        match spec.validate() {
+            Ok(()) => Ok(spec),
+            Err(SolverError::InvalidSetting { field, reason }) => {
+                Err(self.field(format!("solver.{field}"), reason))
+            }
+            Err(other) => Err(self.field("solver", other.to_string())),
+        }
+    }
+}

@@ -1,0 +1,81 @@
+//! The `[solver]` table: defaults, every key read as written, and each
+//! mistake reported at its field path.
+
+use std::path::Path;
+
+use pd_io::scene::{Scene, Syntax};
+use pd_solver::{SolverMethod, SolverSpec, SpectralRadius};
+
+fn scene(solver: &str) -> String {
+    format!(
+        "[simulation]\ndt = 0.01\nsteps = 1\n\n{solver}\n\n[[body]]\n\
+         mesh = {{ generator = \"chain\", points = 3, length = 1.0 }}\nvertex_mass = 0.1\n\
+         constraints = [{{ kind = \"spring\", stiffness = 10.0 }}]\n"
+    )
+}
+
+fn parse(solver: &str) -> pd_io::Result<Scene> {
+    Scene::parse(&scene(solver), Syntax::Toml, Path::new("s.toml"))
+}
+
+#[test]
+fn without_a_table_the_method_is_local_global() {
+    let s = parse("").unwrap();
+    assert_eq!(s.solver, SolverSpec::default());
+    assert_eq!(s.build().unwrap().position_solver_name(), "local-global");
+}
+
+#[test]
+fn keys_are_read_as_written() {
+    let s = parse("[solver]\nmethod = \"anderson\"\nwindow = 7").unwrap();
+    assert_eq!(s.solver.method, SolverMethod::Anderson);
+    assert_eq!(s.solver.window, 7);
+    assert_eq!(s.build().unwrap().position_solver_name(), "anderson");
+    let s = parse("[solver]\nmethod = \"chebyshev\"\nrho = 0.99\nstart = 4").unwrap();
+    assert_eq!(s.solver.rho, SpectralRadius::Fixed(0.99));
+    assert_eq!(s.solver.start, 4);
+    let s = parse("[solver]\nmethod = \"chebyshev\"\nrho = \"auto\"").unwrap();
+    assert_eq!(s.solver.rho, SpectralRadius::Auto);
+    for method in ["newton", "lbfgs"] {
+        let mut sim = parse(&format!("[solver]\nmethod = \"{method}\""))
+            .unwrap()
+            .build()
+            .unwrap();
+        assert_eq!(sim.position_solver_name(), method);
+        sim.step().unwrap();
+    }
+}
+
+#[test]
+fn mistakes_name_the_field() {
+    let cases: &[(&str, &str)] = &[
+        (
+            "[solver]\nmethod = \"gauss-seidel\"",
+            "s.toml: solver.method: unknown method \"gauss-seidel\"; expected one of: local-global, anderson, chebyshev, lbfgs, newton",
+        ),
+        (
+            "[solver]\nwindow = 0",
+            "s.toml: solver.window: must be between 1 and 50, got 0",
+        ),
+        (
+            "[solver]\nrho = 1.5",
+            "s.toml: solver.rho: must be in (0, 1) or \"auto\", got 1.5",
+        ),
+        (
+            "[solver]\nrho = \"fast\"",
+            "s.toml: solver.rho: must be a number in (0, 1) or \"auto\", got \"fast\"",
+        ),
+        (
+            "[solver]\nstart = 1",
+            "s.toml: solver.start: must be at least 2, got 1",
+        ),
+    ];
+    for (table, expected) in cases {
+        let error = parse(table).expect_err(table).to_string();
+        assert_eq!(&error, expected, "{table}");
+    }
+    let error = parse("[solver]\nmethods = \"anderson\"")
+        .unwrap_err()
+        .to_string();
+    assert!(error.contains("unknown field `methods`"), "{error}");
+}

@@ -1,0 +1,127 @@
+//! Building blocks the accelerated and converged methods add to
+//! [`StepProblem`]: access to the displacement, mass-weighted inner
+//! products, and the residual bookkeeping every method shares.
+
+use std::time::Instant;
+
+use pd_constraints::EnergyBound;
+use pd_mesh::Point;
+
+use super::iteration::{IterationChange, StepProblem};
+
+/// `sum_v m_v a_v . b_v` (kg m^2 for displacements), summed sequentially so
+/// that it does not depend on the thread count.
+pub(crate) fn mass_dot(masses: &[f64], a: &[Point], b: &[Point]) -> f64 {
+    masses
+        .iter()
+        .zip(a)
+        .zip(b)
+        .map(|((m, a), b)| m * a.dot(b))
+        .sum()
+}
+
+/// `out = a - b`, per vertex.
+pub(crate) fn difference(a: &[Point], b: &[Point], out: &mut [Point]) {
+    for ((o, a), b) in out.iter_mut().zip(a).zip(b) {
+        *o = a - b;
+    }
+}
+
+impl<'a> StepProblem<'a> {
+    /// The current displacement `x - x_n` per vertex (m), to overwrite. It
+    /// must stay zero at fixed vertices; every linear combination of
+    /// displacements the step produced does.
+    pub fn displacement_mut(&mut self) -> &mut [Point] {
+        &mut self.buffers.displacement
+    }
+
+    /// The lumped vertex masses, kg.
+    pub fn masses(&self) -> &'a [f64] {
+        self.masses
+    }
+
+    /// Records the step's residual, the mass-norm ratio
+    /// `|G(x) - x|_M / |G(x) - x_n|_M` of one local-global map `G` from `x`
+    /// (given squared, kg m^2: `change_squared`, `displacement_squared`), in
+    /// [`crate::StepStats::relative_change`], and whether it meets the
+    /// tolerance (always `false` with tolerance 0). Unlike
+    /// [`StepProblem::converged`], it records the residual without a
+    /// tolerance too.
+    pub fn record_residual(&mut self, change_squared: f64, displacement_squared: f64) -> bool {
+        let ratio = (change_squared / displacement_squared).sqrt();
+        // 0/0: a step that does not move at all has converged.
+        self.stats.relative_change = if ratio.is_nan() && change_squared == 0.0 {
+            0.0
+        } else {
+            ratio
+        };
+        let tolerance = self.settings.tolerance;
+        if tolerance > 0.0 && change_squared <= tolerance.powi(2) * displacement_squared {
+            self.stats.converged = true;
+        }
+        self.stats.converged
+    }
+}
+
+/// A local-global iteration in two halves, for methods that judge a trial
+/// point by the objective before solving from it: the local half projects
+/// at the trial point and returns the objective from those projections (no
+/// second projection pass), and the global half solves from them.
+///
+/// These bypass [`StepProblem::local_global_iteration`]: a hook added there
+/// (a contact term, say) must be added to these halves too.
+impl StepProblem<'_> {
+    /// The local half at the current displacement: projects every
+    /// constraint at `x_n + c2 dx` into the step's projections and returns
+    /// the step objective there, in J, with the elastic energy summed from
+    /// those projections (`sum w/2 |G q - P(G q)|^2`, the energy itself).
+    /// `partials` (one per [`crate::local::LocalStep::num_chunks`]) is
+    /// scratch. Counts one objective evaluation; the next
+    /// [`StepProblem::global_half`] takes it back as its own local step.
+    pub(crate) fn project_with_objective(&mut self, partials: &mut [EnergyBound]) -> f64 {
+        let t0 = Instant::now();
+        let value = super::objective::objective_with(self, |local, q, projections| {
+            local.project(q, projections);
+            local.energy_bound(q, projections, partials).0.total
+        });
+        self.stats.objective_evaluations += 1;
+        self.stats.local_seconds += t0.elapsed().as_secs_f64();
+        value
+    }
+
+    /// The global half: the right-hand side from the current projections,
+    /// the prefactored solve, the solution as the new displacement. Returns
+    /// the change, as [`StepProblem::local_global_iteration`] does, and
+    /// counts one iteration (and un-counts the projection pass it uses as
+    /// its local step).
+    pub(crate) fn global_half(&mut self) -> IterationChange {
+        let t0 = Instant::now();
+        let energy_factor = self.coefficients.c1 * self.coefficients.c2;
+        let b = &mut *self.buffers;
+        self.global.rhs_with_projections(
+            &b.constant_rhs,
+            &b.projections,
+            energy_factor,
+            &mut b.rhs,
+        );
+        self.global.solve(&b.rhs);
+        let mut change = IterationChange::default();
+        for (f, &v) in self.global.free().iter().enumerate() {
+            let new = self.global.solution(f);
+            let m = self.masses[v];
+            change.change_squared += m * (new - b.displacement[v]).norm_squared();
+            change.displacement_squared += m * new.norm_squared();
+            b.displacement[v] = new;
+        }
+        self.stats.iterations += 1;
+        self.stats.objective_evaluations = self.stats.objective_evaluations.saturating_sub(1);
+        self.stats.global_seconds += t0.elapsed().as_secs_f64();
+        change
+    }
+
+    /// Chunks of the local step (the length of the `partials` scratch of
+    /// [`StepProblem::project_with_objective`]).
+    pub(crate) fn local_chunks(&self) -> usize {
+        self.local.num_chunks()
+    }
+}

@@ -1,0 +1,209 @@
+//! The "Iteration methods" section of `cargo xtask bench-report`: error
+//! against cost per step for each method of the `[solver]` table and each
+//! integrator, with and without Laplacian damping, on the 2,304-vertex beam
+//! and a larger one (`pd-probe methods`, `benches/src/methods.rs`).
+//!
+//! Error: the largest vertex distance to Newton's solution (relative
+//! residual 1e-10 every step) after the run, over the body's diagonal.
+//! Cost: `work` per step in plain-iteration equivalents (local-global
+//! iterations plus objective evaluations times the local step's share of a
+//! plain iteration), a deterministic proxy for time; the median wall time
+//! per step is reported beside it and is only meaningful on a quiet
+//! machine.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use serde_json::{Value, json};
+
+use crate::bench_plot::{self, Series};
+
+fn f(value: &Value) -> f64 {
+    value.as_f64().unwrap_or(f64::NAN)
+}
+
+/// The meshes (cells of the beam, label) and steps of one mode.
+fn plan(quick: bool) -> (Vec<([usize; 3], &'static str)>, usize) {
+    if quick {
+        (vec![([20, 4, 4], "beam 525")], 10)
+    } else {
+        (
+            vec![([35, 7, 7], "beam 2,304"), ([50, 10, 10], "beam 6,171")],
+            20,
+        )
+    }
+}
+
+/// Runs every measurement through `probe` (one `pd-probe` process each).
+///
+/// # Errors
+/// A probe that fails.
+pub fn measure(
+    probe: &dyn Fn(Vec<String>) -> Result<Value, String>,
+    quick: bool,
+) -> Result<Value, String> {
+    let (meshes, steps) = plan(quick);
+    let mut runs = Vec::new();
+    for (cells, label) in meshes {
+        for damping in ["none", "laplacian"] {
+            for integrator in ["be", "im", "bdf2"] {
+                eprintln!("  methods: {label}, {integrator}, damping {damping}");
+                let cells = format!("{},{},{}", cells[0], cells[1], cells[2]);
+                let mut run = probe(
+                    [
+                        "methods",
+                        "--cells",
+                        &cells,
+                        "--integrator",
+                        integrator,
+                        "--model",
+                        damping,
+                        "--steps",
+                        &steps.to_string(),
+                        "--threads",
+                        "1",
+                    ]
+                    .iter()
+                    .map(|s| s.to_string())
+                    .collect(),
+                )?;
+                run["mesh"] = json!(label);
+                runs.push(run);
+            }
+        }
+    }
+    Ok(Value::Array(runs))
+}
+
+/// A row's cost per step in plain-iteration equivalents.
+fn work(row: &Value, local_fraction: f64) -> f64 {
+    f(&row["iterations_per_step"]) + f(&row["evaluations_per_step"]) * local_fraction
+}
+
+/// The cheapest row of `method` whose error is at most `target`:
+/// `(work, step_ms)`.
+fn cheapest(rows: &[Value], method: &str, target: f64, local_fraction: f64) -> Option<(f64, f64)> {
+    rows.iter()
+        .filter(|r| r["method"] == method && f(&r["position_error_rel"]) <= target)
+        .map(|r| (work(r, local_fraction), f(&r["step_ms_median"])))
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+}
+
+const METHODS: [&str; 5] = ["local-global", "anderson", "chebyshev", "lbfgs", "newton"];
+
+/// The section's Markdown.
+pub fn markdown(runs: &Value) -> String {
+    let mut md = String::new();
+    let empty = Vec::new();
+    let runs = runs.as_array().unwrap_or(&empty);
+    let _ = writeln!(md, "## Iteration methods\n");
+    let Some(first) = runs.first() else {
+        return md;
+    };
+    let _ = writeln!(
+        md,
+        "Each method of `[solver]` (docs/solver.md) on the clamped beam, {} steps of {} s, 1 \
+         thread, without damping and with Laplacian damping (the `laplacian` preset). Error: the \
+         largest vertex distance to Newton's solution (relative residual {:e} every step) over the \
+         diagonal. Work: cost per step in plain local-global iterations (iterations + objective \
+         evaluations x the local step's share of an iteration), a deterministic proxy for time; \
+         the median wall time per step is noisy unless the machine was quiet. Speed-up: the work \
+         of plain PD with 20 iterations over the least work with which the method reaches the \
+         same error or better (budgets 1, 2, 3, 5, 10, 20, 50; Newton 1, 2, 3, 5); Newton's \
+         by time only, since its work leaves out the 3n x 3n factorisation of each iteration.\n",
+        first["steps"],
+        first["dt"],
+        f(&first["reference_tolerance"]),
+    );
+    let _ = writeln!(
+        md,
+        "| mesh | integrator | damping | error of PD-20 | anderson | chebyshev | lbfgs | newton |"
+    );
+    let _ = writeln!(md, "| --- | --- | --- | --- | --- | --- | --- | --- |");
+    for run in runs {
+        let rows = run["rows"].as_array().unwrap_or(&empty);
+        let fraction = f(&run["local_fraction"]);
+        let Some(plain) = rows
+            .iter()
+            .find(|r| r["method"] == "local-global" && r["budget"] == 20)
+        else {
+            continue;
+        };
+        let target = f(&plain["position_error_rel"]);
+        let base = work(plain, fraction);
+        let mut cells = Vec::new();
+        let base_ms = f(&plain["step_ms_median"]);
+        for method in &METHODS[1..] {
+            cells.push(match cheapest(rows, method, target, fraction) {
+                // Newton's work leaves out its 3n x 3n factorisation per
+                // iteration, which dominates: only its time compares.
+                Some((_, ms)) if *method == "newton" => {
+                    format!("{:.2}x by time ({ms:.1} ms)", base_ms / ms)
+                }
+                Some((w, ms)) => format!("{:.1}x ({w:.1} it, {ms:.1} ms)", base / w),
+                None => "not reached".into(),
+            });
+        }
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.2e} ({:.1} ms) | {} |",
+            run["mesh"].as_str().unwrap_or("?"),
+            run["integrator"].as_str().unwrap_or("?"),
+            run["damping"].as_str().unwrap_or("?"),
+            target,
+            f(&plain["step_ms_median"]),
+            cells.join(" | ")
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\n![error against work per step](bench-report/methods.png)\n\n\
+         Position error against work per step, one panel per integrator (first mesh, no \
+         damping), one curve per method; each curve's points are its iteration budgets. The raw \
+         rows (every mesh and damping, with wall times) are in `report.json` under `methods`.\n"
+    );
+    md
+}
+
+/// Writes `methods.png` into `dir`.
+///
+/// # Errors
+/// A plot that cannot be written.
+pub fn figure(dir: &Path, runs: &Value) -> Result<(), String> {
+    let empty = Vec::new();
+    let runs = runs.as_array().unwrap_or(&empty);
+    let Some(mesh) = runs.first().map(|r| r["mesh"].clone()) else {
+        return Ok(());
+    };
+    let mut panels: Vec<(String, Vec<Series>)> = Vec::new();
+    for run in runs
+        .iter()
+        .filter(|r| r["mesh"] == mesh && r["damping"] == "none")
+    {
+        let rows = run["rows"].as_array().unwrap_or(&empty);
+        let fraction = f(&run["local_fraction"]);
+        let series = METHODS
+            .iter()
+            .map(|&method| Series {
+                name: method.to_string(),
+                points: rows
+                    .iter()
+                    .filter(|r| r["method"] == method)
+                    .map(|r| (work(r, fraction), f(&r["position_error_rel"])))
+                    .collect(),
+            })
+            .collect();
+        let name = run["integrator"].as_str().unwrap_or("?").to_uppercase();
+        panels.push((format!("{name}: position error"), series));
+    }
+    let panels: Vec<(&str, &[Series])> = panels
+        .iter()
+        .map(|(label, series)| (label.as_str(), series.as_slice()))
+        .collect();
+    bench_plot::log_log(
+        &dir.join("methods.png"),
+        "Iteration methods: error against work per step",
+        "work per step [plain iterations]",
+        &panels,
+    )
+}
