@@ -184,6 +184,10 @@ impl Simulation {
         {
             *dx = if fixed { Point::zeros() } else { *target };
         }
+        if let Some(contact) = &mut self.contact {
+            let g = (h, c.gamma, self.settings.gravity);
+            contact.begin_step(x_n, v_n, &s.targets.anchor_displacement, g);
+        }
     }
 
     /// Phase 3: the iteration seam.
@@ -206,6 +210,7 @@ impl Simulation {
             buffers: &mut self.scratch.iteration,
             stats,
             trace: self.objective_trace.as_mut(),
+            contact: self.contact.as_mut(),
         };
         self.position_solver.find_positions(&mut problem)
     }
@@ -242,13 +247,21 @@ impl Simulation {
         // history follows it (docs/integrators.md).
         let damping = &mut self.damping;
         let iterate = &s.iterate;
+        let contact = self.contact.as_ref();
         let mut report = DampingReport::default();
         self.integrator
             .filter_velocities(h, &mut s.velocities, &mut |velocities| {
                 report = damping.end_step(&context, iterate, velocities);
+                if let Some(contact) = contact {
+                    contact.filter_velocities(velocities);
+                }
                 zero_fixed(velocities, fixed);
             });
         stats.spin_axes_left = report.spin_axes_left;
+        if let Some(contact) = contact {
+            let measured = contact.report(&s.iterate);
+            (stats.contacts, stats.penetration) = (measured.contacts, measured.penetration);
+        }
         let elastic =
             self.local
                 .energy_bound(&s.iterate, &s.iteration.projections, &mut s.energy_partials);
