@@ -91,6 +91,10 @@ metrics_columns! {
     local_ms: f64 => "{:.4}",
     /// Wall time of its global steps, ms.
     global_ms: f64 => "{:.4}",
+    /// Contacts active at the end of the step (0 without colliders).
+    contacts: usize => "{}",
+    /// Deepest penetration into a collider thickened by the contact thickness, m.
+    penetration: f64 => "{}",
 }
 
 impl MetricsRow {
@@ -128,6 +132,8 @@ impl MetricsRow {
             step_ms,
             local_ms,
             global_ms,
+            contacts: stats.map_or(0, |s| s.contacts),
+            penetration: stats.map_or(0.0, |s| s.penetration),
         }
     }
 
@@ -240,7 +246,7 @@ mod tests {
             text.lines().next(),
             Some(
                 "step,time,kinetic,elastic,gravity,total,px,py,pz,jx,jy,jz,iterations,\
-                 step_ms,local_ms,global_ms"
+                 step_ms,local_ms,global_ms,contacts,penetration"
             )
         );
         let back = MetricsRow::parse_all(&text, Path::new("metrics.csv")).unwrap();
@@ -264,9 +270,9 @@ mod tests {
         assert_eq!(error(&format!("{header}\n")), "metrics.csv: no rows");
         assert!(error("step,time\n0,0\n").starts_with("metrics.csv:1: expected the header"));
         let short = format!("{header}\n0,0,0\n");
-        assert_eq!(error(&short), "metrics.csv:2: expected 16 numbers");
-        let long = format!("{header}\n{}\n", ["0"; 17].join(","));
-        assert_eq!(error(&long), "metrics.csv:2: expected 16 numbers");
+        assert_eq!(error(&short), "metrics.csv:2: expected 18 numbers");
+        let long = format!("{header}\n{}\n", ["0"; 19].join(","));
+        assert_eq!(error(&long), "metrics.csv:2: expected 18 numbers");
         let word = format!(
             "{header}\n{}\nzero{}\n",
             ["0"; 16].join(","),

@@ -38,6 +38,11 @@ impl Scene {
             self.settings.clone(),
         )
         .map_err(|e| self.field_error("scene", e))?;
+        if let Some(contact) = &self.contact {
+            simulation
+                .set_contact(contact.clone())
+                .map_err(|e| self.field_error("collider", e))?;
+        }
         self.apply_initial_states(&mut simulation, &offsets)?;
         for (b, body) in self.bodies.iter().enumerate() {
             if body.initial_velocity != Point::zeros() || body.angular_velocity != Point::zeros() {

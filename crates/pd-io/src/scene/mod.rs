@@ -16,6 +16,7 @@
 //! the registry's.
 
 mod build;
+mod contact;
 mod raw;
 mod spec;
 mod validate;

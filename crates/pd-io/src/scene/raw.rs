@@ -22,6 +22,9 @@ pub(super) struct Scene {
     #[serde(rename = "body", default)]
     pub(super) bodies: Vec<Body>,
     pub(super) output: Option<Output>,
+    #[serde(rename = "collider", default)]
+    pub(super) colliders: Vec<super::contact::RawCollider>,
+    pub(super) contact: Option<super::contact::RawContact>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -210,4 +210,7 @@ pub struct Scene {
     pub bodies: Vec<BodySpec>,
     /// What to write.
     pub output: OutputSpec,
+    /// Contact with colliders (`[[collider]]`, `[contact]`); `None` when
+    /// the scene names no collider.
+    pub contact: Option<pd_solver::contact::ContactSettings>,
 }

@@ -85,6 +85,7 @@ impl Validator<'_> {
             .map(|(b, body)| self.body(b, body))
             .collect::<Result<Vec<_>>>()?;
         let output = self.output(raw.output)?;
+        let contact = super::contact::validate(self.source, raw.colliders, raw.contact)?;
         Ok(Scene {
             source: self.source.to_path_buf(),
             steps: raw.simulation.steps,
@@ -93,6 +94,7 @@ impl Validator<'_> {
             damping,
             bodies,
             output,
+            contact,
         })
     }
 
