@@ -61,42 +61,225 @@ fn integrators() -> Vec<(&'static str, Box<dyn Integrator>)> {
     ]
 }
 
+/// Side, cells per side, stiffness (Pa) and mass (kg) of the test cube.
+const SIDE: f64 = 0.1;
+const CELLS: usize = 2;
+const MASS: f64 = 1000.0 * SIDE * SIDE * SIDE;
+
+fn settings(dt: f64, iterations: usize, gravity: Point) -> Settings {
+    Settings {
+        dt,
+        iterations,
+        gravity,
+        ..Settings::default()
+    }
+}
+
+fn on_floor(friction: f64, restitution: f64, thickness: f64) -> ContactSettings {
+    ContactSettings {
+        colliders: vec![floor(friction, restitution)],
+        thickness,
+    }
+}
+
+/// The block's mean acceleration along the slope over `[0.5 s, 1 s]` on a
+/// plane with gravity tilted by `theta`, and its mean displacement along
+/// the slope over that interval.
+fn slope(theta: f64, mu: f64, integrator: Box<dyn Integrator>) -> (f64, f64) {
+    let (g, dt) = (9.81, 0.005);
+    let gravity = Point::new(g * theta.sin(), -g * theta.cos(), 0.0);
+    let thickness = 0.001;
+    let mut sim = simulation(
+        cube(SIDE, CELLS, 1e6, thickness),
+        integrator,
+        Box::new(NoDamping),
+        settings(dt, 20, gravity),
+        on_floor(mu, 0.0, thickness),
+    );
+    sim.run(100).unwrap();
+    let (v0, x0) = (centre_velocity(&sim), centre(&sim));
+    sim.run(100).unwrap();
+    let (v1, x1) = (centre_velocity(&sim), centre(&sim));
+    ((v1.x - v0.x) / 0.5, x1.x - x0.x)
+}
+
+fn centre(sim: &Simulation) -> Point {
+    let s = sim.state();
+    s.positions.iter().sum::<Point>() / s.positions.len() as f64
+}
+
 #[test]
-fn explore_slope() {
+fn a_block_slides_by_coulombs_law_and_sticks_below_the_friction_angle() {
     let g = 9.81;
-    for (theta_deg, mu) in [(30.0_f64, 0.3), (20.0, 0.5)] {
-        let theta = theta_deg.to_radians();
-        for (name, integrator) in integrators() {
-            let settings = Settings {
-                dt: 0.005,
-                iterations: 20,
-                gravity: Point::new(g * theta.sin(), -g * theta.cos(), 0.0),
-                ..Settings::default()
-            };
-            let contact = ContactSettings {
-                colliders: vec![floor(mu, 0.0)],
-                thickness: 0.001,
-            };
-            let mut sim = simulation(
-                cube(0.1, 2, 1e6, 0.001),
-                integrator,
-                Box::new(NoDamping),
-                settings,
-                contact,
-            );
-            let stats = sim.run(100).unwrap();
-            let v0 = centre_velocity(&sim);
-            let stats2 = sim.run(100).unwrap();
-            let v1 = centre_velocity(&sim);
-            let a = (v1.x - v0.x) / (100.0 * 0.005);
-            let expected = (g * (theta.sin() - mu * theta.cos())).max(0.0);
-            println!(
-                "{theta_deg} {mu} {name}: a {a:.5} expected {expected:.5} vy {:.2e} contacts {} pen {:.2e} {:.2e}",
-                v1.y,
-                stats2.last().unwrap().contacts,
-                stats2.last().unwrap().penetration,
-                stats.iter().map(|s| s.penetration).fold(0.0, f64::max)
-            );
+    for (name, integrator) in integrators() {
+        // tan 30 deg = 0.577 > 0.3: slides.
+        let (theta, mu) = (30.0_f64.to_radians(), 0.3);
+        let expected = g * (theta.sin() - mu * theta.cos());
+        let (a, _) = slope(theta, mu, integrator);
+        println!(
+            "{name}: slide a {a} expected {expected} rel {:.2e}",
+            (a / expected - 1.0).abs()
+        );
+    }
+    for (name, integrator) in integrators() {
+        // tan 20 deg = 0.364 < 0.5: sticks.
+        let (a, moved) = slope(20.0_f64.to_radians(), 0.5, integrator);
+        println!("{name}: stick a {a} moved {moved:e}");
+    }
+}
+
+/// Drops the cube from `height` (m) onto the floor with backward Euler;
+/// returns the last step's penetration, the largest penetration after the
+/// first 0.5 s, the kinetic energy at the end, and the drop's potential energy.
+fn drop(
+    damping: Box<dyn Damping>,
+    height: f64,
+    threads: usize,
+) -> (f64, f64, f64, f64, Simulation) {
+    let g = 9.81;
+    let thickness = 0.001;
+    let mut settings = settings(0.005, 20, Point::new(0.0, -g, 0.0));
+    settings.threads = threads;
+    let mut sim = simulation(
+        cube(SIDE, CELLS, 1e5, height),
+        Box::new(BackwardEuler),
+        damping,
+        settings,
+        on_floor(0.5, 0.0, thickness),
+    );
+    let stats = sim.run(400).unwrap();
+    let late = stats[100..]
+        .iter()
+        .map(|s| s.penetration)
+        .fold(0.0, f64::max);
+    let kinetic = sim.energies().kinetic;
+    (
+        stats.last().unwrap().penetration,
+        late,
+        kinetic,
+        MASS * g * height,
+        sim,
+    )
+}
+
+#[test]
+fn a_dropped_body_comes_to_rest_on_the_floor() {
+    use pd_damping::LaplacianDamping;
+    for (name, damping) in [
+        ("none", Box::new(NoDamping) as Box<dyn Damping>),
+        (
+            "laplacian",
+            Box::new(LaplacianDamping::new(0.01, 0.0, false).unwrap()),
+        ),
+    ] {
+        let (last, late, kinetic, potential, _) = drop(damping, 0.2, 1);
+        println!(
+            "{name}: pen last {last:e} late {late:e} ke/pe {:e}",
+            kinetic / potential
+        );
+    }
+}
+
+#[test]
+fn a_stiff_body_bounces_to_e_squared_h() {
+    let (g, h, e) = (9.81, 0.2, 0.5);
+    let thickness = 0.0;
+    let mut sim = simulation(
+        cube(SIDE, CELLS, 1e8, h),
+        Box::new(BackwardEuler),
+        Box::new(NoDamping),
+        settings(0.001, 20, Point::new(0.0, -g, 0.0)),
+        on_floor(0.0, e, thickness),
+    );
+    let bottom = |sim: &Simulation| {
+        sim.state()
+            .positions
+            .iter()
+            .map(|p| p.y)
+            .fold(f64::INFINITY, f64::min)
+    };
+    let mut landed = false;
+    let mut peak = 0.0_f64;
+    for _ in 0..600 {
+        let stats = sim.step().unwrap();
+        if stats.contacts > 0 {
+            landed = true;
+        }
+        if landed && stats.contacts == 0 {
+            peak = peak.max(bottom(&sim));
         }
     }
+    println!(
+        "bounce peak {peak} expected {} rel {:e}",
+        e * e * h,
+        peak / (e * e * h) - 1.0
+    );
+}
+
+#[test]
+fn frictionless_contact_keeps_tangential_momentum() {
+    let thickness = 0.001;
+    let mut sim = simulation(
+        cube(SIDE, CELLS, 1e5, 0.01),
+        Box::new(BackwardEuler),
+        Box::new(NoDamping),
+        settings(0.005, 20, Point::zeros()),
+        on_floor(0.0, 0.0, thickness),
+    );
+    let v = Point::new(1.0, -0.5, 0.3);
+    sim.add_rigid_velocity(0, v, Point::zeros());
+    let p0 = sim.linear_momentum();
+    let stats = sim.run(100).unwrap();
+    let p1 = sim.linear_momentum();
+    println!(
+        "p0 {p0:?} p1 {p1:?} contacts {}",
+        stats.last().unwrap().contacts
+    );
+}
+
+#[test]
+fn a_fast_body_does_not_tunnel_through_a_thin_wall() {
+    for speed in [10.0, 50.0, 200.0] {
+        let wall = Collider {
+            shape: ColliderShape::Box {
+                min: Point::new(0.5, -1.0, -1.0),
+                max: Point::new(0.51, 1.0, 1.0),
+            },
+            friction: 0.0,
+            restitution: 0.0,
+        };
+        let mut sim = simulation(
+            cube(SIDE, CELLS, 1e5, 0.0),
+            Box::new(BackwardEuler),
+            Box::new(NoDamping),
+            settings(0.01, 20, Point::zeros()),
+            ContactSettings {
+                colliders: vec![wall],
+                thickness: 0.001,
+            },
+        );
+        sim.add_rigid_velocity(0, Point::new(speed, 0.0, 0.0), Point::zeros());
+        let mut deepest = f64::NEG_INFINITY;
+        let mut pen = 0.0_f64;
+        for _ in 0..50 {
+            let s = sim.step().unwrap();
+            pen = pen.max(s.penetration);
+            deepest = deepest.max(
+                sim.state()
+                    .positions
+                    .iter()
+                    .map(|p| p.x)
+                    .fold(f64::NEG_INFINITY, f64::max),
+            );
+        }
+        println!("speed {speed}: furthest x {deepest} pen {pen}");
+    }
+}
+
+#[test]
+fn contact_is_bit_identical_for_one_and_two_threads() {
+    let one = drop(Box::new(NoDamping), 0.2, 1).4;
+    let two = drop(Box::new(NoDamping), 0.2, 2).4;
+    assert_eq!(one.state().positions, two.state().positions);
+    assert_eq!(one.state().velocities, two.state().velocities);
 }

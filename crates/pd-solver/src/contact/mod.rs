@@ -123,14 +123,21 @@ struct Slot {
     lift: f64,
     /// Largest normal speed it may leave with, m/s (restitution).
     bounce: f64,
-    /// Carried over from the previous step (kept as is in the first
-    /// iteration, whose iterate is the inertial target, not a solve).
+    /// Moved onto its contact plane after the iterations.
+    projected: bool,
+    /// Carried over from the previous step (its force is kept as is in the
+    /// first iteration, whose iterate is the inertial target, not a solve).
     warm: bool,
 }
 
 impl Slot {
     fn active(&self) -> bool {
         self.force.dot(&self.hit.normal) > 0.0
+    }
+
+    /// Whether the velocity filter acts on it: active or projected.
+    fn filtered(&self) -> bool {
+        self.active() || self.projected
     }
 }
 
@@ -210,6 +217,7 @@ impl ContactState {
                     },
                     lift: 0.0,
                     bounce: 0.0,
+                    projected: false,
                     warm: true,
                     ..s
                 }
@@ -239,9 +247,12 @@ impl ContactState {
                 },
             };
             let mut slot = slot;
+            // The first iterate is the inertial target, reached without the
+            // warm-started force: that force is applied as is once, and
+            // updated from the first solve on.
             if !(first && slot.warm) {
-                let collider = &self.settings.colliders[slot.collider];
                 let rho = masses[v] / (h * h);
+                let collider = &self.settings.colliders[slot.collider];
                 slot.force = update_force(&slot, collider, &x, rho, h);
             }
             rhs[f] += slot.force;
@@ -279,17 +290,37 @@ impl ContactState {
             force: Point::zeros(),
             lift,
             bounce,
+            projected: false,
             warm: false,
         })
     }
 
+    /// After the iterations: moves every contact vertex that the
+    /// iterations left behind its contact plane back onto it, along the
+    /// normal (the velocity filter then removes the normal speed this
+    /// creates). Returns the deepest such correction, m.
+    pub fn project(&mut self, positions: &mut [Point]) -> f64 {
+        let mut deepest = 0.0_f64;
+        for (slot, x) in self.slots.iter_mut().zip(positions.iter_mut()) {
+            let Some(slot) = slot else { continue };
+            let depth = slot.lift - slot.hit.normal.dot(&(*x - slot.hit.point));
+            slot.projected = depth > 0.0;
+            if slot.projected {
+                *x += slot.hit.normal * depth;
+                deepest = deepest.max(depth);
+            }
+        }
+        deepest
+    }
+
     /// End of step, inside the integrator's velocity filter: the normal
     /// velocity of every active contact relative to its collider is clamped
-    /// to `[0, bounce]` (never adds kinetic energy: it only shrinks the
+    /// to `[0, bounce]`, and so is that of every vertex moved by
+    /// [`ContactState::project`] (never adds kinetic energy: it only shrinks the
     /// normal component).
     pub fn filter_velocities(&self, velocities: &mut [Point]) {
         for (slot, v) in self.slots.iter().zip(velocities.iter_mut()) {
-            let Some(slot) = slot.filter(Slot::active) else {
+            let Some(slot) = slot.filter(Slot::filtered) else {
                 continue;
             };
             let n = slot.hit.normal;

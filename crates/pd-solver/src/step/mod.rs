@@ -227,6 +227,11 @@ impl Simulation {
         for ((x, x0), dx) in s.iterate.iter_mut().zip(x_n).zip(&s.iteration.displacement) {
             *x = x0 + dx;
         }
+        if let Some(contact) = &mut self.contact {
+            let measured = contact.report(&s.iterate);
+            (stats.contacts, stats.penetration) = (measured.contacts, measured.penetration);
+            contact.project(&mut s.iterate);
+        }
         let step = self.steps + 1;
         // From the step count, so that time does not drift by round-off.
         let time = step as f64 * h;
@@ -258,10 +263,6 @@ impl Simulation {
                 zero_fixed(velocities, fixed);
             });
         stats.spin_axes_left = report.spin_axes_left;
-        if let Some(contact) = contact {
-            let measured = contact.report(&s.iterate);
-            (stats.contacts, stats.penetration) = (measured.contacts, measured.penetration);
-        }
         let elastic =
             self.local
                 .energy_bound(&s.iterate, &s.iteration.projections, &mut s.energy_partials);
