@@ -5,10 +5,10 @@
 use std::path::{Path, PathBuf};
 
 use pd_mesh::Point;
-use pd_solver::contact::{Collider, ColliderShape, ContactSettings};
+use pd_solver::contact::{Collider, ColliderShape, ContactSettings, TriangleSurface};
 use serde::Deserialize;
 
-use crate::{Error, Result};
+use crate::Result;
 
 /// One `[[collider]]` as written.
 #[derive(Debug, Deserialize)]
@@ -164,7 +164,7 @@ fn collider(source: &Path, i: usize, raw: RawCollider) -> Result<Collider> {
             }
             ColliderShape::Box { min, max }
         }
-        _ => return Err(mesh_error(source, i, raw.file.as_deref())),
+        _ => mesh(source, i, raw.file.as_deref())?,
     };
     let friction = raw.friction.unwrap_or(0.0);
     if !(friction.is_finite() && friction >= 0.0) {
@@ -187,27 +187,46 @@ fn collider(source: &Path, i: usize, raw: RawCollider) -> Result<Collider> {
     })
 }
 
-/// The error of a mesh collider: its file is missing or unreadable, or (a
-/// readable file) mesh colliders are not built yet.
-fn mesh_error(source: &Path, i: usize, file: Option<&Path>) -> Error {
+/// A mesh collider, `collider[i]`: its OBJ surface, relative to the scene.
+fn mesh(source: &Path, i: usize, file: Option<&Path>) -> Result<ColliderShape> {
     let field = |name: &str| format!("collider[{i}].{name}");
     let Some(file) = file else {
-        return super::field_error(source, field("file"), "missing (an OBJ triangle surface)");
+        return Err(super::field_error(
+            source,
+            field("file"),
+            "missing (an OBJ triangle surface)",
+        ));
     };
     let path = match source.parent() {
         Some(dir) if file.is_relative() => dir.join(file),
         _ => file.to_path_buf(),
     };
     if !path.is_file() {
-        return super::field_error(
+        return Err(super::field_error(
             source,
             field("file"),
             format!("no such file: {}", path.display()),
-        );
+        ));
     }
-    super::field_error(
-        source,
-        field("shape"),
-        "mesh colliders are not supported yet (docs/contact.md)",
-    )
+    if !cfg!(feature = "mesh-collider") {
+        return Err(super::field_error(
+            source,
+            field("shape"),
+            "mesh colliders need the `mesh-collider` feature (on in the `pd` binary; docs/contact.md)",
+        ));
+    }
+    let surface = crate::obj::read_obj(&path)?;
+    if surface.triangles().is_empty() {
+        return Err(super::field_error(
+            source,
+            field("file"),
+            format!("{} has no triangles", path.display()),
+        ));
+    }
+    let mut surface =
+        TriangleSurface::new(surface.vertices().to_vec(), surface.triangles().to_vec());
+    surface
+        .prepare()
+        .map_err(|e| super::field_error(source, field("file"), e))?;
+    Ok(ColliderShape::Mesh(surface))
 }

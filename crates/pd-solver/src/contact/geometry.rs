@@ -29,6 +29,10 @@ pub enum ColliderShape {
         /// The upper corner, m (`>= min` in every coordinate).
         max: Point,
     },
+    /// A triangle surface, one-sided (its outside is where the normals of
+    /// counter-clockwise triangles point); needs the `mesh-collider`
+    /// feature.
+    Mesh(super::mesh::TriangleSurface),
 }
 
 /// Where a vertex meets a collider: the contact point on the thickened
@@ -57,6 +61,7 @@ impl ColliderShape {
                 (d - radius - thickness, n)
             }
             Self::Box { min, max } => box_gap(min, max, p, thickness),
+            Self::Mesh(surface) => surface.gap(p, thickness),
         }
     }
 
@@ -64,6 +69,9 @@ impl ColliderShape {
     /// surface. A segment that starts inside hits at `t = 0`, at the
     /// closest point of the thickened surface to `a`.
     pub(crate) fn first_hit(&self, a: &Point, b: &Point, thickness: f64) -> Option<Hit> {
+        if let Self::Mesh(surface) = self {
+            return surface.first_hit(a, b, thickness);
+        }
         let (gap_a, normal_a) = self.gap(a, thickness);
         if gap_a <= 0.0 {
             return Some(Hit {
@@ -89,6 +97,7 @@ impl ColliderShape {
                 let pad = Point::repeat(thickness);
                 box_entry(a, &d, &(min - pad), &(max + pad))?
             }
+            Self::Mesh(_) => return None,
         };
         let point = a + d * t;
         Some(Hit { t, point, normal })

@@ -20,8 +20,10 @@
 //! normal velocity of every contact is clamped to `[0, bounce]`.
 
 mod geometry;
+mod mesh;
 
 pub use geometry::ColliderShape;
+pub use mesh::TriangleSurface;
 
 use pd_mesh::Point;
 
@@ -113,6 +115,9 @@ impl ContactSettings {
                     if (0..3).any(|a| min[a] > max[a]) {
                         return Err(bad(field("max"), "min > max"));
                     }
+                }
+                ColliderShape::Mesh(surface) => {
+                    surface.prepare().map_err(|e| bad(field("file"), &e))?;
                 }
             }
         }
