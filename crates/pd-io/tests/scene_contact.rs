@@ -171,3 +171,26 @@ fn translate_places_the_mesh_and_selections_are_in_world_coordinates() {
         assert_eq!(*f, p.y == 0.5);
     }
 }
+
+#[test]
+fn a_mesh_collider_reads_its_obj_relative_to_the_scene() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let text = format!("{BODY}\n[[collider]]\nshape = \"mesh\"\nfile = \"meshes/bowl.obj\"\n");
+    let parsed = Scene::parse(&text, Syntax::Toml, &dir.join("bowl_test.toml"));
+    if cfg!(feature = "mesh-collider") {
+        let scene = parsed.unwrap();
+        let shape = &scene.contact.as_ref().unwrap().colliders[0].shape;
+        let ColliderShape::Mesh(surface) = shape else {
+            panic!("{shape:?}");
+        };
+        // 1 + 12 rings of 32 vertices; 32 + 2 * 11 * 32 triangles.
+        assert_eq!(surface.vertices().len(), 385);
+        assert_eq!(surface.triangles().len(), 736);
+    } else {
+        let message = parsed.unwrap_err().to_string();
+        assert!(
+            message.contains("collider[0].shape: mesh colliders need"),
+            "{message}"
+        );
+    }
+}
