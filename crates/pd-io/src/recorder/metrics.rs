@@ -275,9 +275,9 @@ mod tests {
         assert_eq!(error(&long), "metrics.csv:2: expected 18 numbers");
         let word = format!(
             "{header}\n{}\nzero{}\n",
-            ["0"; 16].join(","),
-            ",0".repeat(15)
+            ["0"; 18].join(","),
+            ",0".repeat(17)
         );
-        assert_eq!(error(&word), "metrics.csv:3: expected 16 numbers");
+        assert_eq!(error(&word), "metrics.csv:3: expected 18 numbers");
     }
 }
