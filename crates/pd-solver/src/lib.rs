@@ -35,6 +35,7 @@
 mod checkpoint;
 mod cholesky;
 mod components;
+pub mod contact;
 mod energy;
 mod global;
 mod lagged;

@@ -55,6 +55,11 @@ pub struct StepStats {
     /// restoring it, because restoring it would have turned the body far
     /// faster than it turns (docs/damping.md). Always 0 with other models.
     pub spin_axes_left: usize,
+    /// Contacts active at the end of the step (0 without colliders).
+    pub contacts: usize,
+    /// Deepest penetration of a vertex into a collider thickened by the
+    /// contact thickness at the end of the step, m (0 without colliders).
+    pub penetration: f64,
 }
 
 /// What building the simulation cost.
@@ -138,6 +143,8 @@ pub struct Simulation {
     /// The step objective after each iteration of the last step, when
     /// recording was asked for ([`Simulation::record_objective`]).
     pub(crate) objective_trace: Option<Vec<f64>>,
+    /// Contact with colliders, when a scene asks for it (docs/contact.md).
+    pub(crate) contact: Option<crate::contact::ContactState>,
 }
 
 impl Simulation {
@@ -230,6 +237,7 @@ impl Simulation {
             setup,
             scratch,
             objective_trace: None,
+            contact: None,
         };
         if !d.is_lagged() {
             sim.prepare_matrix()?;

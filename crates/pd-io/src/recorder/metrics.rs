@@ -94,6 +94,10 @@ metrics_columns! {
     /// The step's final relative residual `|G(x) - x|_M / |G(x) - x_n|_M`
     /// (docs/solver.md; 0 in row 0).
     residual: f64 => "{}",
+    /// Contacts active at the end of the step (0 without colliders).
+    contacts: usize => "{}",
+    /// Deepest penetration into a collider thickened by the contact thickness, m.
+    penetration: f64 => "{}",
 }
 
 impl MetricsRow {
@@ -132,6 +136,8 @@ impl MetricsRow {
             local_ms,
             global_ms,
             residual: stats.map_or(0.0, |s| s.relative_change),
+            contacts: stats.map_or(0, |s| s.contacts),
+            penetration: stats.map_or(0.0, |s| s.penetration),
         }
     }
 
@@ -245,7 +251,7 @@ mod tests {
             text.lines().next(),
             Some(
                 "step,time,kinetic,elastic,gravity,total,px,py,pz,jx,jy,jz,iterations,\
-                 step_ms,local_ms,global_ms,residual"
+                 step_ms,local_ms,global_ms,residual,contacts,penetration"
             )
         );
         let back = MetricsRow::parse_all(&text, Path::new("metrics.csv")).unwrap();
@@ -269,14 +275,14 @@ mod tests {
         assert_eq!(error(&format!("{header}\n")), "metrics.csv: no rows");
         assert!(error("step,time\n0,0\n").starts_with("metrics.csv:1: expected the header"));
         let short = format!("{header}\n0,0,0\n");
-        assert_eq!(error(&short), "metrics.csv:2: expected 17 numbers");
-        let long = format!("{header}\n{}\n", ["0"; 18].join(","));
-        assert_eq!(error(&long), "metrics.csv:2: expected 17 numbers");
+        assert_eq!(error(&short), "metrics.csv:2: expected 19 numbers");
+        let long = format!("{header}\n{}\n", ["0"; 20].join(","));
+        assert_eq!(error(&long), "metrics.csv:2: expected 19 numbers");
         let word = format!(
             "{header}\n{}\nzero{}\n",
-            ["0"; 17].join(","),
-            ",0".repeat(16)
+            ["0"; 19].join(","),
+            ",0".repeat(18)
         );
-        assert_eq!(error(&word), "metrics.csv:3: expected 17 numbers");
+        assert_eq!(error(&word), "metrics.csv:3: expected 19 numbers");
     }
 }

@@ -16,6 +16,7 @@
 //! the registry's.
 
 mod build;
+mod contact;
 mod ratio;
 mod raw;
 mod solver;

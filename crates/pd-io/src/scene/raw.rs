@@ -23,6 +23,9 @@ pub(super) struct Scene {
     pub(super) bodies: Vec<Body>,
     pub(super) output: Option<Output>,
     pub(super) solver: Option<super::solver::Solver>,
+    #[serde(rename = "collider", default)]
+    pub(super) colliders: Vec<super::contact::RawCollider>,
+    pub(super) contact: Option<super::contact::RawContact>,
 }
 
 #[derive(Debug, Deserialize)]

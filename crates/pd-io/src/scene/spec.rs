@@ -235,4 +235,7 @@ pub struct Scene {
     pub output: OutputSpec,
     /// The iteration method (`[solver]`; local-global by default).
     pub solver: pd_solver::SolverSpec,
+    /// Contact with colliders (`[[collider]]`, `[contact]`); `None` when
+    /// the scene names no collider.
+    pub contact: Option<pd_solver::contact::ContactSettings>,
 }

@@ -91,6 +91,7 @@ impl Validator<'_> {
             .collect::<Result<Vec<_>>>()?;
         let output = self.output(raw.output)?;
         let solver = self.solver(raw.solver)?;
+        let contact = super::contact::validate(self.source, raw.colliders, raw.contact)?;
         Ok(Scene {
             source: self.source.to_path_buf(),
             steps: raw.simulation.steps,
@@ -100,6 +101,7 @@ impl Validator<'_> {
             bodies,
             output,
             solver,
+            contact,
         })
     }
 

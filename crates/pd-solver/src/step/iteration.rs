@@ -125,6 +125,7 @@ pub struct StepProblem<'a> {
     pub(crate) buffers: &'a mut IterationBuffers,
     pub(crate) stats: &'a mut StepStats,
     pub(crate) trace: Option<&'a mut Vec<f64>>,
+    pub(crate) contact: Option<&'a mut crate::contact::ContactState>,
 }
 
 impl StepProblem<'_> {
@@ -168,6 +169,9 @@ impl StepProblem<'_> {
             energy_factor,
             &mut b.rhs,
         );
+        if let Some(contact) = self.contact.as_deref_mut() {
+            contact.apply(x_n, self.masses, &b.displacement, &mut b.rhs);
+        }
         self.global.solve(&b.rhs);
         let mut change = IterationChange::default();
         for (f, &v) in self.global.free().iter().enumerate() {

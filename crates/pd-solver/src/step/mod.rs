@@ -195,6 +195,10 @@ impl Simulation {
         {
             *dx = if fixed { Point::zeros() } else { *target };
         }
+        if let Some(contact) = &mut self.contact {
+            let g = (h, c.gamma, self.settings.gravity);
+            contact.begin_step(x_n, v_n, &s.targets.anchor_displacement, g);
+        }
     }
 
     /// Phase 3: the iteration seam.
@@ -202,6 +206,15 @@ impl Simulation {
         let h = self.settings.dt;
         if let Some(trace) = &mut self.objective_trace {
             trace.clear();
+        }
+        if self.contact.is_some() && self.position_solver.name() != "local-global" {
+            return Err(SolverError::Unsupported {
+                what: format!(
+                    "the {} position solver with colliders: contact forces are not part of the \
+                     step objective it judges iterates by; use local-global (docs/contact.md)",
+                    self.position_solver.name()
+                ),
+            });
         }
         let mut problem = StepProblem {
             local: &self.local,
@@ -217,6 +230,7 @@ impl Simulation {
             buffers: &mut self.scratch.iteration,
             stats,
             trace: self.objective_trace.as_mut(),
+            contact: self.contact.as_mut(),
         };
         self.position_solver.find_positions(&mut problem)
     }
@@ -232,6 +246,11 @@ impl Simulation {
         let (x_n, v_n) = (&self.state.positions, &self.state.velocities);
         for ((x, x0), dx) in s.iterate.iter_mut().zip(x_n).zip(&s.iteration.displacement) {
             *x = x0 + dx;
+        }
+        if let Some(contact) = &mut self.contact {
+            let measured = contact.report(&s.iterate);
+            (stats.contacts, stats.penetration) = (measured.contacts, measured.penetration);
+            contact.project(&mut s.iterate);
         }
         let step = self.steps + 1;
         // From the step count, so that time does not drift by round-off.
@@ -253,10 +272,14 @@ impl Simulation {
         // history follows it (docs/integrators.md).
         let damping = &mut self.damping;
         let iterate = &s.iterate;
+        let contact = self.contact.as_ref();
         let mut report = DampingReport::default();
         self.integrator
             .filter_velocities(h, &mut s.velocities, &mut |velocities| {
                 report = damping.end_step(&context, iterate, velocities);
+                if let Some(contact) = contact {
+                    contact.filter_velocities(velocities);
+                }
                 zero_fixed(velocities, fixed);
             });
         stats.spin_axes_left = report.spin_axes_left;

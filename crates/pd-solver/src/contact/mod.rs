@@ -1,0 +1,407 @@
+//! Contact with static colliders, with Coulomb friction and restitution,
+//! keeping the prefactored global matrix (docs/contact.md).
+//!
+//! Each contact vertex carries a force `r` in the global step's right-hand
+//! side (units of `A dx`, i.e. `c1 c2` times newtons). After every global
+//! solve it is updated by one projected Uzawa step with the vertex's own
+//! mass stiffness, over-relaxed, `rho = 1.5 m / h^2`, which converges
+//! because the global matrix is at least `M / h^2`:
+//!
+//! `r <- Proj_cone(r + rho (x_target - x))`,
+//!
+//! where the target is the contact point on the surface thickened by the
+//! contact thickness (plus a lift for restitution) and, tangentially, the
+//! point where the vertex met the collider, moved with the collider's
+//! velocity over the step; the cone is Coulomb's, `|r_t| <= mu r_n`,
+//! `r_n >= 0`. Forces of contacts that stay active are warm-started from the
+//! previous step. Detection is continuous: the segment from `x_n` to the
+//! current iterate is tested against every collider. After the iterations,
+//! what they left behind a contact plane is projected onto it, and the
+//! normal velocity of every contact is clamped to `[0, bounce]`.
+
+mod geometry;
+mod mesh;
+
+pub use geometry::ColliderShape;
+pub use mesh::TriangleSurface;
+
+use pd_mesh::Point;
+
+use crate::SolverError;
+use geometry::Hit;
+
+/// Over-relaxation of the Uzawa step `rho = RELAXATION m / h^2`. With
+/// `A >= M / h^2` the eigenvalues of `(m / h^2) W` (`W` the contact block of
+/// `A^-1`) lie in `(0, 1]`, so any value in `(0, 2)` converges; 1.5 was the
+/// best of 0.5, 1, 1.5 and 1.9 on the contact tests (docs/contact.md).
+const RELAXATION: f64 = 1.5;
+
+/// A static collider: a shape, a Coulomb friction coefficient and a
+/// coefficient of restitution.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Collider {
+    /// The shape, in world coordinates (m).
+    pub shape: ColliderShape,
+    /// Coulomb coefficient (>= 0; the same for sticking and sliding).
+    pub friction: f64,
+    /// Coefficient of restitution, in `[0, 1]`: the ratio of the normal
+    /// speed leaving the collider to the speed hitting it.
+    pub restitution: f64,
+}
+
+impl Collider {
+    /// The collider's velocity at `p`, m/s (zero: colliders are static, but
+    /// friction and restitution are written relative to it).
+    fn velocity(&self, _p: &Point) -> Point {
+        Point::zeros()
+    }
+}
+
+/// Contact settings of a simulation.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ContactSettings {
+    /// The static colliders.
+    pub colliders: Vec<Collider>,
+    /// Contact offset, m (>= 0): vertices are kept this far outside every
+    /// collider.
+    pub thickness: f64,
+}
+
+impl ContactSettings {
+    /// Checks every value; normalises plane normals.
+    ///
+    /// # Errors
+    /// A non-finite value, a zero normal, a non-positive radius, a box with
+    /// `min > max`, a negative friction, a restitution outside `[0, 1]` or
+    /// a negative thickness, naming the collider (`collider[2].normal`).
+    pub fn validated(mut self) -> Result<Self, SolverError> {
+        let bad = |field: String, reason: &str| SolverError::InvalidModel {
+            reason: format!("{field}: {reason}"),
+        };
+        if !(self.thickness.is_finite() && self.thickness >= 0.0) {
+            return Err(bad("contact.thickness".into(), "must be finite and >= 0"));
+        }
+        for (i, c) in self.colliders.iter_mut().enumerate() {
+            let field = |name: &str| format!("collider[{i}].{name}");
+            if !(c.friction.is_finite() && c.friction >= 0.0) {
+                return Err(bad(field("friction"), "must be finite and >= 0"));
+            }
+            if !(0.0..=1.0).contains(&c.restitution) {
+                return Err(bad(field("restitution"), "must be in [0, 1]"));
+            }
+            match &mut c.shape {
+                ColliderShape::Plane { point, normal } => {
+                    if !point.iter().chain(normal.iter()).all(|v| v.is_finite()) {
+                        return Err(bad(field("normal"), "point and normal must be finite"));
+                    }
+                    let length = normal.norm();
+                    if length == 0.0 {
+                        return Err(bad(field("normal"), "zero vector"));
+                    }
+                    *normal /= length;
+                }
+                ColliderShape::Sphere { center, radius } => {
+                    if !(radius.is_finite() && *radius > 0.0) {
+                        return Err(bad(field("radius"), "must be finite and > 0"));
+                    }
+                    if !center.iter().all(|v| v.is_finite()) {
+                        return Err(bad(field("center"), "must be finite"));
+                    }
+                }
+                ColliderShape::Box { min, max } => {
+                    if !min.iter().chain(max.iter()).all(|v| v.is_finite()) {
+                        return Err(bad(field("min"), "min and max must be finite"));
+                    }
+                    if (0..3).any(|a| min[a] > max[a]) {
+                        return Err(bad(field("max"), "min > max"));
+                    }
+                }
+                ColliderShape::Mesh(surface) => {
+                    surface.prepare().map_err(|e| bad(field("file"), &e))?;
+                }
+            }
+        }
+        Ok(self)
+    }
+}
+
+/// One vertex's contact during a step.
+#[derive(Debug, Clone, Copy)]
+struct Slot {
+    collider: usize,
+    hit: Hit,
+    /// The force in the right-hand side (`A dx` units).
+    force: Point,
+    /// Extra normal distance the vertex must reach (restitution), m.
+    lift: f64,
+    /// Largest normal speed it may leave with, m/s (restitution).
+    bounce: f64,
+    /// Moved onto its contact plane after the iterations.
+    projected: bool,
+    /// Carried over from the previous step (its force is kept as is in the
+    /// first iteration, whose iterate is the inertial target, not a solve).
+    warm: bool,
+}
+
+impl Slot {
+    fn active(&self) -> bool {
+        self.force.dot(&self.hit.normal) > 0.0
+    }
+
+    /// Whether the velocity filter acts on it: active or projected.
+    fn filtered(&self) -> bool {
+        self.active() || self.projected
+    }
+}
+
+/// The contact state of a simulation: settings, per-vertex contacts, and
+/// the step's copies of what detection needs.
+#[derive(Debug)]
+pub(crate) struct ContactState {
+    settings: ContactSettings,
+    slots: Vec<Option<Slot>>,
+    /// Free-vertex index of each vertex (`usize::MAX` for fixed ones).
+    free_index: Vec<usize>,
+    velocities: Vec<Point>,
+    anchor: Vec<Point>,
+    h: f64,
+    gamma: f64,
+    /// Below this approach speed a hit does not bounce (2 |g| h), m/s.
+    rest_speed: f64,
+    iteration: usize,
+}
+
+/// What the contacts of a finished step measured.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(crate) struct ContactReport {
+    pub contacts: usize,
+    pub penetration: f64,
+}
+
+impl ContactState {
+    pub fn new(settings: ContactSettings, vertices: usize, free: &[usize]) -> Self {
+        let mut free_index = vec![usize::MAX; vertices];
+        for (f, &v) in free.iter().enumerate() {
+            free_index[v] = f;
+        }
+        Self {
+            settings,
+            slots: vec![None; vertices],
+            free_index,
+            velocities: vec![Point::zeros(); vertices],
+            anchor: vec![Point::zeros(); vertices],
+            h: 0.0,
+            gamma: 0.0,
+            rest_speed: 0.0,
+            iteration: 0,
+        }
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &ContactSettings {
+        &self.settings
+    }
+
+    /// Start of a step: keeps the contacts that ended the last step active
+    /// (re-anchored at `x_n`, forces warm-started), drops the others, and
+    /// copies the velocities and `x_hat - x_n` that restitution needs.
+    pub fn begin_step(
+        &mut self,
+        x_n: &[Point],
+        v_n: &[Point],
+        anchor_displacement: &[Point],
+        (h, gamma, gravity): (f64, f64, Point),
+    ) {
+        self.h = h;
+        self.gamma = gamma;
+        self.rest_speed = 2.0 * gravity.norm() * h;
+        self.iteration = 0;
+        self.velocities.copy_from_slice(v_n);
+        self.anchor.copy_from_slice(anchor_displacement);
+        let thickness = self.settings.thickness;
+        for (slot, x) in self.slots.iter_mut().zip(x_n) {
+            *slot = slot.filter(Slot::active).map(|s| {
+                let (gap, normal) = self.settings.colliders[s.collider].shape.gap(x, thickness);
+                Slot {
+                    hit: Hit {
+                        t: 0.0,
+                        point: x - normal * gap,
+                        normal,
+                    },
+                    lift: 0.0,
+                    bounce: 0.0,
+                    projected: false,
+                    warm: true,
+                    ..s
+                }
+            });
+        }
+    }
+
+    /// After the right-hand side of an iteration is built, before its
+    /// solve: detects new contacts on the segments `x_n -> x_n + dx`,
+    /// updates every contact force and adds it to `rhs` (one point per free
+    /// vertex).
+    pub fn apply(&mut self, x_n: &[Point], masses: &[f64], dx: &[Point], rhs: &mut [Point]) {
+        let first = self.iteration == 0;
+        self.iteration += 1;
+        let h = self.h;
+        for v in 0..x_n.len() {
+            let f = self.free_index[v];
+            if f == usize::MAX {
+                continue;
+            }
+            let x = x_n[v] + dx[v];
+            let slot = match self.slots[v] {
+                Some(slot) => slot,
+                None => match self.detect(v, &x_n[v], &x) {
+                    Some(slot) => slot,
+                    None => continue,
+                },
+            };
+            let mut slot = slot;
+            // The first iterate is the inertial target, reached without the
+            // warm-started force: that force is applied as is once, and
+            // updated from the first solve on.
+            if !(first && slot.warm) {
+                let rho = RELAXATION * masses[v] / (h * h);
+                let collider = &self.settings.colliders[slot.collider];
+                slot.force = update_force(&slot, collider, &x, rho, h);
+            }
+            rhs[f] += slot.force;
+            self.slots[v] = Some(slot);
+        }
+    }
+
+    /// The earliest hit of the segment `a -> b` among the colliders, as a
+    /// new contact of vertex `v`.
+    fn detect(&self, v: usize, a: &Point, b: &Point) -> Option<Slot> {
+        let thickness = self.settings.thickness;
+        let (collider, hit) = self
+            .settings
+            .colliders
+            .iter()
+            .enumerate()
+            .filter_map(|(c, collider)| collider.shape.first_hit(a, b, thickness).map(|h| (c, h)))
+            .min_by(|p, q| p.1.t.total_cmp(&q.1.t))?;
+        let col = &self.settings.colliders[collider];
+        let n = hit.normal;
+        let speed = -(self.velocities[v] - col.velocity(&hit.point)).dot(&n);
+        let (lift, bounce) = if col.restitution > 0.0 && speed > self.rest_speed {
+            let bounce = col.restitution * speed;
+            let x_hat = a + self.anchor[v];
+            (
+                (n.dot(&(x_hat - hit.point)) + bounce / self.gamma).max(0.0),
+                bounce,
+            )
+        } else {
+            (0.0, 0.0)
+        };
+        Some(Slot {
+            collider,
+            hit,
+            force: Point::zeros(),
+            lift,
+            bounce,
+            projected: false,
+            warm: false,
+        })
+    }
+
+    /// After the iterations: moves every contact vertex that the
+    /// iterations left behind its contact plane back onto it, along the
+    /// normal (the velocity filter then removes the normal speed this
+    /// creates). Returns the deepest such correction, m.
+    pub fn project(&mut self, positions: &mut [Point]) -> f64 {
+        let mut deepest = 0.0_f64;
+        for (slot, x) in self.slots.iter_mut().zip(positions.iter_mut()) {
+            let Some(slot) = slot else { continue };
+            let depth = slot.lift - slot.hit.normal.dot(&(*x - slot.hit.point));
+            slot.projected = depth > 0.0;
+            if slot.projected {
+                *x += slot.hit.normal * depth;
+                deepest = deepest.max(depth);
+            }
+        }
+        deepest
+    }
+
+    /// End of step, inside the integrator's velocity filter: the normal
+    /// velocity of every active contact relative to its collider is clamped
+    /// to `[0, bounce]`, and so is that of every vertex moved by
+    /// [`ContactState::project`] (never adds kinetic energy: it only shrinks the
+    /// normal component).
+    pub fn filter_velocities(&self, velocities: &mut [Point]) {
+        for (slot, v) in self.slots.iter().zip(velocities.iter_mut()) {
+            let Some(slot) = slot.filter(Slot::filtered) else {
+                continue;
+            };
+            let n = slot.hit.normal;
+            let collider = &self.settings.colliders[slot.collider];
+            let relative = (*v - collider.velocity(&slot.hit.point)).dot(&n);
+            let clamped = relative.clamp(0.0, slot.bounce);
+            if clamped != relative {
+                *v += n * (clamped - relative);
+            }
+        }
+    }
+
+    /// The active contacts and the deepest penetration of a free vertex of
+    /// `positions` into a thickened collider, m (0 if none).
+    pub fn report(&self, positions: &[Point]) -> ContactReport {
+        let thickness = self.settings.thickness;
+        let mut penetration = 0.0_f64;
+        for (x, &f) in positions.iter().zip(&self.free_index) {
+            if f == usize::MAX {
+                continue;
+            }
+            for collider in &self.settings.colliders {
+                penetration = penetration.max(-collider.shape.gap(x, thickness).0);
+            }
+        }
+        ContactReport {
+            contacts: self.slots.iter().flatten().filter(|s| s.active()).count(),
+            penetration,
+        }
+    }
+}
+
+/// One projected Uzawa step of a contact force at the iterate `x`.
+fn update_force(slot: &Slot, collider: &Collider, x: &Point, rho: f64, h: f64) -> Point {
+    let n = slot.hit.normal;
+    let anchor = slot.hit.point + collider.velocity(&slot.hit.point) * h;
+    let to_anchor = anchor - x;
+    let normal_error = slot.lift - n.dot(&(x - slot.hit.point));
+    let tangential_error = to_anchor - n * n.dot(&to_anchor);
+    let trial = slot.force + (tangential_error + n * normal_error) * rho;
+    let normal_force = trial.dot(&n).max(0.0);
+    let mut tangential = trial - n * trial.dot(&n);
+    let limit = collider.friction * normal_force;
+    let norm = tangential.norm();
+    if norm > limit {
+        tangential *= if norm > 0.0 { limit / norm } else { 0.0 };
+    }
+    n * normal_force + tangential
+}
+
+impl crate::Simulation {
+    /// Turns on contact with `settings`' colliders (replacing any earlier
+    /// contact settings). A simulation without it runs no contact code.
+    ///
+    /// # Errors
+    /// An invalid value ([`ContactSettings::validated`]).
+    pub fn set_contact(&mut self, settings: ContactSettings) -> Result<(), SolverError> {
+        let settings = settings.validated()?;
+        self.contact = Some(ContactState::new(
+            settings,
+            self.state.positions.len(),
+            self.global.free(),
+        ));
+        Ok(())
+    }
+
+    /// The contact settings, if contact is on.
+    pub fn contact(&self) -> Option<&ContactSettings> {
+        self.contact.as_ref().map(ContactState::settings)
+    }
+}
