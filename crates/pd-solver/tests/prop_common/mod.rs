@@ -58,7 +58,8 @@ pub enum Shape {
 pub enum Material {
     /// Zero-rest-length springs on every edge: a quadratic, convex energy.
     ZeroLengthSprings,
-    /// Corotational tet strain on boxes, rest-length springs on chains,
+    /// Corotational tet strain and volume preservation (`0.5 x stiffness`)
+    /// on boxes, rest-length springs on chains,
     /// triangle strain, bending (`D = 1e-3 m^2 x stiffness`) and area
     /// (`0.1 x stiffness`) on cloth: rotation-invariant, nonconvex.
     Elastic,
@@ -135,6 +136,7 @@ impl Scene {
                 }
                 (Material::Elastic, true) => {
                     model.add_tet_strain(body, self.stiffness, None).unwrap();
+                    model.add_volume(body, 0.5 * self.stiffness).unwrap();
                 }
                 (Material::Elastic, false) if is_cloth => {
                     model
