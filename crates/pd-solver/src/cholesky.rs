@@ -114,11 +114,15 @@ const SUPERNODE_COST: usize = 70;
 /// fewer values than the alternatives but in two to four times as many
 /// supernodes, most of them under 8 columns wide.
 fn solve_cost(symbolic: &SymbolicCholesky<usize>) -> usize {
-    let supernodes = match symbolic.raw() {
+    symbolic.len_val() + SUPERNODE_COST * supernode_count(symbolic)
+}
+
+/// Number of supernodes of `symbolic`'s factor (0 for a simplicial one).
+fn supernode_count(symbolic: &SymbolicCholesky<usize>) -> usize {
+    match symbolic.raw() {
         SymbolicCholeskyRaw::Supernodal(s) => s.n_supernodes(),
         SymbolicCholeskyRaw::Simplicial(_) => 0,
-    };
-    symbolic.len_val() + SUPERNODE_COST * supernodes
+    }
 }
 
 /// The adjacency of `pattern`'s graph (both triangles, no diagonal) as
@@ -329,6 +333,12 @@ impl SymbolicFactor {
                 (symbolic, cost) = (candidate, candidate_cost);
             }
         }
+        Ok(Self::with_symbolic(pattern, symbolic))
+    }
+
+    /// The factor of `pattern` with the symbolic analysis `symbolic` (its
+    /// ordering already chosen): structural count, scratch, solve plan.
+    fn with_symbolic(pattern: LowerPattern, symbolic: SymbolicCholesky<usize>) -> Self {
         let factor_nnz = match symbolic.perm() {
             Some(perm) => exact_factor_nnz(&pattern, perm.arrays().1),
             None => exact_factor_nnz(&pattern, &(0..pattern.n).collect::<Vec<_>>()),
@@ -338,14 +348,14 @@ impl SymbolicFactor {
             symbolic.solve_in_place_scratch::<f64>(3, Par::Seq),
         ]));
         let fast_solve = supernodal_solve::SupernodalSolve::new(&symbolic);
-        Ok(Self {
+        Self {
             points: vec![pd_mesh::Point::zeros(); pattern.n],
             pattern,
             symbolic,
             factor_nnz,
             scratch,
             fast_solve,
-        })
+        }
     }
 
     /// The elimination order chosen (old indices in pivot order), if any.
@@ -356,10 +366,7 @@ impl SymbolicFactor {
     /// Number of supernodes of the factor (0 for a simplicial factor).
     #[cfg(test)]
     pub fn supernodes(&self) -> usize {
-        match self.symbolic.raw() {
-            SymbolicCholeskyRaw::Supernodal(s) => s.n_supernodes(),
-            SymbolicCholeskyRaw::Simplicial(_) => 0,
-        }
+        supernode_count(&self.symbolic)
     }
 
     /// The analysed pattern.

@@ -38,17 +38,6 @@ impl Scene {
             self.settings.clone(),
         )
         .map_err(|e| self.field_error("scene", e))?;
-        if self.contact.is_some() && self.solver.method != pd_solver::SolverMethod::LocalGlobal {
-            return Err(self.field_error(
-                "solver.method",
-                format!(
-                    "{} does not support colliders yet: the contact forces are not part of the \
-                     step objective these methods judge their iterates by; use \"local-global\" \
-                     with [[collider]] (docs/contact.md)",
-                    self.solver.method.name()
-                ),
-            ));
-        }
         if self.solver != pd_solver::SolverSpec::default() {
             let solver = self
                 .solver
@@ -57,9 +46,14 @@ impl Scene {
             simulation.set_position_solver(solver);
         }
         if let Some(contact) = &self.contact {
-            simulation
-                .set_contact(contact.clone())
-                .map_err(|e| self.field_error("collider", e))?;
+            simulation.set_contact(contact.clone()).map_err(|e| {
+                // The method cannot run with colliders: the error is the method's.
+                let field = match e {
+                    pd_solver::SolverError::Unsupported { .. } => "solver.method",
+                    _ => "collider",
+                };
+                self.field_error(field, e)
+            })?;
         }
         self.apply_initial_states(&mut simulation, &offsets)?;
         for (b, body) in self.bodies.iter().enumerate() {

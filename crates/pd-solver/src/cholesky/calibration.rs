@@ -155,18 +155,7 @@ fn solve_cost_calibration() {
                 CholeskySymbolicParams::default(),
             )
             .unwrap();
-            let scratch = MemBuffer::new(StackReq::any_of(&[
-                symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-                symbolic.solve_in_place_scratch::<f64>(3, Par::Seq),
-            ]));
-            let factor = SymbolicFactor {
-                pattern: pattern.clone(),
-                fast_solve: supernodal_solve::SupernodalSolve::new(&symbolic),
-                points: vec![pd_mesh::Point::zeros(); pattern.n],
-                symbolic,
-                factor_nnz: 0,
-                scratch,
-            };
+            let factor = SymbolicFactor::with_symbolic(pattern.clone(), symbolic);
             measure(name, factor);
         }
         let chosen = SymbolicFactor::analyse(pattern.clone(), &candidates).unwrap();

@@ -391,6 +391,7 @@ impl crate::Simulation {
     /// # Errors
     /// An invalid value ([`ContactSettings::validated`]).
     pub fn set_contact(&mut self, settings: ContactSettings) -> Result<(), SolverError> {
+        self.check_solver_handles_contact()?;
         let settings = settings.validated()?;
         self.contact = Some(ContactState::new(
             settings,
@@ -398,6 +399,21 @@ impl crate::Simulation {
             self.global.free(),
         ));
         Ok(())
+    }
+
+    /// `Unsupported` if the position solver cannot run with colliders
+    /// ([`crate::PositionSolver::handles_contact`]).
+    pub(crate) fn check_solver_handles_contact(&self) -> Result<(), SolverError> {
+        if self.position_solver.handles_contact() {
+            return Ok(());
+        }
+        Err(SolverError::Unsupported {
+            what: format!(
+                "the {} position solver with colliders: contact forces are not part of the step \
+                 objective it judges iterates by; use local-global (docs/contact.md)",
+                self.position_solver.name()
+            ),
+        })
     }
 
     /// The contact settings, if contact is on.

@@ -39,6 +39,14 @@ pub trait PositionSolver: std::fmt::Debug + Send + Sync {
     /// # Errors
     /// A method that fails outright (the step then stops with the error).
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError>;
+
+    /// Whether the method works with colliders (docs/contact.md). The
+    /// contact forces advance with each local-global iteration and are not
+    /// part of the step objective, so a method that judges iterates by the
+    /// objective must say no (the default).
+    fn handles_contact(&self) -> bool {
+        false
+    }
 }
 
 /// Plain Projective Dynamics: local step, then global solve, `iterations`
@@ -50,6 +58,10 @@ pub struct LocalGlobal;
 impl PositionSolver for LocalGlobal {
     fn name(&self) -> &'static str {
         "local-global"
+    }
+
+    fn handles_contact(&self) -> bool {
+        true
     }
 
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {

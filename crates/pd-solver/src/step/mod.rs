@@ -207,14 +207,8 @@ impl Simulation {
         if let Some(trace) = &mut self.objective_trace {
             trace.clear();
         }
-        if self.contact.is_some() && self.position_solver.name() != "local-global" {
-            return Err(SolverError::Unsupported {
-                what: format!(
-                    "the {} position solver with colliders: contact forces are not part of the \
-                     step objective it judges iterates by; use local-global (docs/contact.md)",
-                    self.position_solver.name()
-                ),
-            });
+        if self.contact.is_some() {
+            self.check_solver_handles_contact()?;
         }
         let mut problem = StepProblem {
             local: &self.local,
