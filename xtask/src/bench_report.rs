@@ -517,7 +517,7 @@ fn markdown(r: &Value) -> String {
     let _ = writeln!(
         md,
         "Backward Euler, no damping, 10 iterations, 1 thread; each size in its own process. \
-         Factorisation: the numeric Cholesky factorisation (faer; AMD or nested-dissection ordering, whichever fills less); analysis: \
+         Factorisation: the numeric Cholesky factorisation (faer; AMD or nested-dissection ordering, whichever a cost model of the solve prefers); analysis: \
          assembly, ordering and symbolic factorisation. Peak memory: the process's `VmHWM`.\n"
     );
     let _ = writeln!(
