@@ -44,15 +44,7 @@ pub fn laplacian(
         }
     }
     triplets.retain(|t| t.row >= t.column);
-    let lower = CsrMatrix::from_triplets(num_vertices, num_vertices, &triplets);
-    let mut mirrored = Vec::with_capacity(2 * triplets.len());
-    for t in lower.triplets() {
-        mirrored.push(t);
-        if t.row != t.column {
-            mirrored.push(Triplet::new(t.column, t.row, t.value));
-        }
-    }
-    CsrMatrix::from_triplets(num_vertices, num_vertices, &mirrored)
+    CsrMatrix::from_triplet_vec(num_vertices, num_vertices, triplets).symmetric_from_lower()
 }
 
 /// First projection row of each block and the total number of rows, for a
@@ -76,7 +68,7 @@ pub fn projection_operator(blocks: &[Box<dyn ConstraintBlock>], num_vertices: us
     for (block, first_row) in blocks.iter().zip(offsets) {
         block.add_projection_operator(first_row, &mut triplets);
     }
-    CsrMatrix::from_triplets(num_vertices, total, &triplets)
+    CsrMatrix::from_triplet_vec(num_vertices, total, triplets)
 }
 
 #[cfg(test)]

@@ -18,6 +18,7 @@ use crate::SolverError;
 mod calibration;
 #[cfg(feature = "metis")]
 mod metis;
+mod solve_tree;
 mod supernodal_solve;
 
 /// The lower triangle of a symmetric n x n sparsity pattern in compressed
@@ -590,6 +591,35 @@ mod tests {
                         (a - t).abs() <= 1e-13 * (1.0 + t.abs()),
                         "row {r} column {c}: {a} vs {t}"
                     );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn split_supernodal_solve_is_the_same_on_one_and_two_threads() {
+        let (pattern, values, coordinates) = grid(14);
+        for order in dissection_candidates(&pattern, &coordinates) {
+            let mut factor = SymbolicFactor::analyse(pattern.clone(), &[order]).unwrap();
+            let numeric = factor.factorise(&values).unwrap();
+            assert!(
+                factor.fast_solve.as_ref().is_some_and(|f| f.is_split()),
+                "a dissection order of a 2,744-unknown grid has two subtrees worth a thread each"
+            );
+            let b = faer::Mat::from_fn(pattern.n, 3, |r, c| ((r * 7 + c * 5) % 13) as f64 - 6.0);
+            let solved = |threads: usize, factor: &mut SymbolicFactor| {
+                let mut x = b.clone();
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap()
+                    .install(|| factor.solve_in_place(&numeric, x.as_mut()));
+                x
+            };
+            let (one, two) = (solved(1, &mut factor), solved(2, &mut factor));
+            for r in 0..pattern.n {
+                for c in 0..3 {
+                    assert_eq!(one[(r, c)].to_bits(), two[(r, c)].to_bits(), "row {r}");
                 }
             }
         }

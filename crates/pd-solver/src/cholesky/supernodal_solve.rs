@@ -15,15 +15,23 @@
 //! as a dense `(c + r) x c` block at `values[value_ptr[s]..]`, the diagonal
 //! block (lower triangle meaningful) on top. The arithmetic order is fixed,
 //! so results do not depend on the thread count.
+//!
+//! Both cores: disjoint subtrees of the elimination tree touch disjoint
+//! columns, so two bins of them (`solve_tree.rs`) are solved at once, each
+//! on a compact copy of its columns, adding its updates of the rows above
+//! it (the top of the tree) into an accumulator of its own, which the top
+//! then subtracts in a fixed order.
 
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
 use pd_mesh::Point;
 
-/// The supernodal structure and permutation of a factor, copied once from
-/// faer's symbolic analysis, and the solve's scratch.
+use super::solve_tree::{TOP, TreeSplit};
+
+/// The supernodal structure of a factor, copied once from faer's symbolic
+/// analysis: read by both halves of a split solve.
 #[derive(Debug, Clone)]
-pub(crate) struct SupernodalSolve {
+struct Structure {
     begin: Vec<usize>,
     /// Where supernode `s`'s below-diagonal rows start in `row_idx`.
     row_ptr: Vec<usize>,
@@ -31,12 +39,31 @@ pub(crate) struct SupernodalSolve {
     row_len: Vec<usize>,
     row_idx: Vec<usize>,
     value_ptr: Vec<usize>,
+}
+
+/// One bin's scratch: its columns' compact copy, a supernode's
+/// below-diagonal rows, and the sums of its updates to the top's rows
+/// (indexed by row; only the top's rows are used).
+#[derive(Debug, Clone)]
+struct Lane {
+    x: Vec<Point>,
+    below: Vec<f64>,
+    top_updates: Vec<Point>,
+}
+
+/// The supernodal structure and permutation of a factor, the two-thread
+/// split of its elimination tree, and the solve's scratch.
+#[derive(Debug, Clone)]
+pub(crate) struct SupernodalSolve {
+    structure: Structure,
+    split: TreeSplit,
     /// `forward[new] = old`, `None` for the identity.
     forward: Option<Vec<usize>>,
     /// The permuted right-hand side and solution.
     x: Vec<Point>,
-    /// One supernode's below-diagonal rows: x, y, z arrays back to back.
+    /// The top's scratch, and each bin's.
     below: Vec<f64>,
+    lanes: [Lane; 2],
 }
 
 impl SupernodalSolve {
@@ -63,16 +90,36 @@ impl SupernodalSolve {
         if !dense_blocks || begin.len() != n_supernodes + 1 {
             return None;
         }
-        Some(Self {
-            below: vec![0.0; 3 * row_len.iter().copied().max().unwrap_or(0)],
+        let structure = Structure {
             begin,
             row_ptr: s.col_ptr_for_row_idx().to_vec(),
             row_len,
             row_idx: s.row_idx().to_vec(),
             value_ptr: s.col_ptr_for_val().to_vec(),
+        };
+        let split = structure.tree_split();
+        let n = symbolic.nrows();
+        let width = 3 * structure.row_len.iter().copied().max().unwrap_or(0);
+        let lane = |columns: &[usize]| Lane {
+            x: vec![Point::zeros(); columns.len()],
+            below: vec![0.0; width],
+            top_updates: vec![Point::zeros(); if split.is_split() { n } else { 0 }],
+        };
+        Some(Self {
+            below: vec![0.0; width],
+            lanes: [lane(&split.bin_columns[0]), lane(&split.bin_columns[1])],
+            structure,
+            split,
             forward: symbolic.perm().map(|p| p.arrays().0.to_vec()),
-            x: vec![Point::zeros(); symbolic.nrows()],
+            x: vec![Point::zeros(); n],
         })
+    }
+
+    /// Whether the solve runs in two halves (independent of the thread
+    /// count: with one thread they run one after the other).
+    #[cfg(test)]
+    pub fn is_split(&self) -> bool {
+        self.split.is_split()
     }
 
     /// Solves `L L^T x = b` in place, `b` given and returned as one point
@@ -86,7 +133,8 @@ impl SupernodalSolve {
             }
             None => self.x.copy_from_slice(rhs),
         }
-        self.substitutions(values);
+        self.forward_substitution(values);
+        self.backward_substitution(values);
         match &self.forward {
             Some(forward) => {
                 for (x, &old) in self.x.iter().zip(forward) {
@@ -97,95 +145,255 @@ impl SupernodalSolve {
         }
     }
 
-    /// Forward then backward substitution, compiled for AVX2 where the CPU
-    /// has it (`pulp` dispatches at run time). Rust does not contract
-    /// `a * b + c` into a fused multiply-add, so both paths compute the same
-    /// bits.
-    fn substitutions(&mut self, values: &[f64]) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(simd) = pulp::x86::V3::try_new() {
-            struct Op<'a>(&'a mut SupernodalSolve, &'a [f64]);
-            impl pulp::WithSimd for Op<'_> {
-                type Output = ();
-                #[inline(always)]
-                fn with_simd<S: pulp::Simd>(self, _: S) {
-                    self.0.forward_substitution(self.1);
-                    self.0.backward_substitution(self.1);
-                }
-            }
-            return pulp::Simd::vectorize(simd, Op(self, values));
-        }
-        self.forward_substitution(values);
-        self.backward_substitution(values);
-    }
-
-    /// `x <- L^-1 x`, supernodes in order.
-    #[inline(always)]
+    /// `x <- L^-1 x`: the bins' subtrees (at once when there are two
+    /// threads), their updates of the top's rows subtracted bin 0 first,
+    /// then the top's supernodes in order.
     fn forward_substitution(&mut self, values: &[f64]) {
         let Self {
-            begin,
-            row_ptr,
-            row_len,
-            row_idx,
-            value_ptr,
+            structure,
+            split,
             x,
             below,
+            lanes,
             ..
         } = self;
-        let mut below = Below::split(below);
-        for s in 0..begin.len() - 1 {
-            let (start, c) = (begin[s], begin[s + 1] - begin[s]);
-            let rows = &row_idx[row_ptr[s]..row_ptr[s] + row_len[s]];
-            let ld = c + rows.len();
-            let block = &values[value_ptr[s]..value_ptr[s] + ld * c];
-            for j in 0..c {
-                let column = &block[j * ld..(j + 1) * ld];
-                let xj = x[start + j] / column[j];
-                x[start + j] = xj;
-                for (i, &l) in column[j + 1..c].iter().enumerate() {
-                    x[start + j + 1 + i] -= xj * l;
+        if split.is_split() {
+            let [lane0, lane1] = lanes;
+            let shared: &[Point] = x;
+            rayon::join(
+                || structure.forward_bin(values, split, 0, shared, lane0),
+                || structure.forward_bin(values, split, 1, shared, lane1),
+            );
+            for (lane, columns) in lanes.iter().zip(&split.bin_columns) {
+                for (&column, p) in columns.iter().zip(&lane.x) {
+                    x[column] = *p;
+                }
+                for &row in &split.top_columns {
+                    x[row] -= lane.top_updates[row];
                 }
             }
-            below.update(block, ld, c, &x[start..start + c], rows.len());
-            for (k, &row) in rows.iter().enumerate() {
-                x[row] -= Point::new(below.x[k], below.y[k], below.z[k]);
+        }
+        vectorized(|| {
+            let mut below = Below::split(below);
+            for &s in &split.top {
+                let first = structure.begin[s];
+                structure.forward_supernode(values, s, x, first, Some, &mut below, |_, _| {});
+            }
+        });
+    }
+
+    /// `x <- L^-T x`: the top's supernodes in reverse order, then the bins'
+    /// subtrees (at once when there are two threads), which read the top's
+    /// rows from `x`.
+    fn backward_substitution(&mut self, values: &[f64]) {
+        let Self {
+            structure,
+            split,
+            x,
+            below,
+            lanes,
+            ..
+        } = self;
+        vectorized(|| {
+            let mut below = Below::split(below);
+            for &s in split.top.iter().rev() {
+                let first = structure.begin[s];
+                structure
+                    .backward_supernode(values, s, x, first, Some, &mut below, |_| Point::zeros());
+            }
+        });
+        if split.is_split() {
+            let [lane0, lane1] = lanes;
+            let shared: &[Point] = x;
+            rayon::join(
+                || structure.backward_bin(values, split, 0, shared, lane0),
+                || structure.backward_bin(values, split, 1, shared, lane1),
+            );
+            for (lane, columns) in lanes.iter().zip(&split.bin_columns) {
+                for (&column, p) in columns.iter().zip(&lane.x) {
+                    x[column] = *p;
+                }
+            }
+        }
+    }
+}
+
+impl Structure {
+    /// The two-thread split of this factor's elimination tree.
+    fn tree_split(&self) -> TreeSplit {
+        let n = self.row_len.len();
+        let mut supernode_of = vec![0; self.begin.last().copied().unwrap_or(0)];
+        for s in 0..n {
+            supernode_of[self.begin[s]..self.begin[s + 1]].fill(s);
+        }
+        let parent: Vec<Option<usize>> = (0..n)
+            .map(|s| {
+                let rows = &self.row_idx[self.row_ptr[s]..self.row_ptr[s] + self.row_len[s]];
+                rows.iter().min().map(|&r| supernode_of[r])
+            })
+            .collect();
+        let cost: Vec<usize> = (0..n)
+            .map(|s| self.value_ptr[s + 1] - self.value_ptr[s])
+            .collect();
+        TreeSplit::new(&self.begin, &parent, &cost)
+    }
+
+    /// Forward substitution over bin `bin`'s supernodes, on a compact copy
+    /// of its columns taken from `x`; its updates of the top's rows are
+    /// summed in `lane.top_updates`.
+    fn forward_bin(
+        &self,
+        values: &[f64],
+        split: &TreeSplit,
+        bin: usize,
+        x: &[Point],
+        lane: &mut Lane,
+    ) {
+        let Lane {
+            x: local,
+            below,
+            top_updates,
+        } = lane;
+        for &row in &split.top_columns {
+            top_updates[row] = Point::zeros();
+        }
+        for (p, &column) in local.iter_mut().zip(&split.bin_columns[bin]) {
+            *p = x[column];
+        }
+        let locate = |row: usize| Some(split.slot[row] as usize).filter(|_| split.slot[row] != TOP);
+        vectorized(|| {
+            let mut below = Below::split(below);
+            for &s in &split.bins[bin] {
+                let first = split.slot[self.begin[s]] as usize;
+                self.forward_supernode(values, s, local, first, locate, &mut below, |row, u| {
+                    top_updates[row] += u;
+                });
+            }
+        });
+    }
+
+    /// Backward substitution over bin `bin`'s supernodes, on a compact copy
+    /// of its columns taken from `x`, reading the top's rows from `x`.
+    fn backward_bin(
+        &self,
+        values: &[f64],
+        split: &TreeSplit,
+        bin: usize,
+        x: &[Point],
+        lane: &mut Lane,
+    ) {
+        let Lane {
+            x: local, below, ..
+        } = lane;
+        for (p, &column) in local.iter_mut().zip(&split.bin_columns[bin]) {
+            *p = x[column];
+        }
+        let locate = |row: usize| Some(split.slot[row] as usize).filter(|_| split.slot[row] != TOP);
+        vectorized(|| {
+            let mut below = Below::split(below);
+            for &s in split.bins[bin].iter().rev() {
+                let first = split.slot[self.begin[s]] as usize;
+                self.backward_supernode(values, s, local, first, locate, &mut below, |row| x[row]);
+            }
+        });
+    }
+
+    /// Supernode `s`'s forward step on `x`, where its columns start at
+    /// `first` and `locate` finds a row (`None`: not in `x`): its columns
+    /// solved with the diagonal block, and each row below updated in `x` or
+    /// handed to `outside`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn forward_supernode(
+        &self,
+        values: &[f64],
+        s: usize,
+        x: &mut [Point],
+        first: usize,
+        locate: impl Fn(usize) -> Option<usize>,
+        below: &mut Below,
+        mut outside: impl FnMut(usize, Point),
+    ) {
+        let c = self.begin[s + 1] - self.begin[s];
+        let rows = &self.row_idx[self.row_ptr[s]..self.row_ptr[s] + self.row_len[s]];
+        let ld = c + rows.len();
+        let block = &values[self.value_ptr[s]..self.value_ptr[s] + ld * c];
+        let top = &mut x[first..first + c];
+        for j in 0..c {
+            let column = &block[j * ld..(j + 1) * ld];
+            let xj = top[j] / column[j];
+            top[j] = xj;
+            for (i, &l) in column[j + 1..c].iter().enumerate() {
+                top[j + 1 + i] -= xj * l;
+            }
+        }
+        below.update(block, ld, c, top, rows.len());
+        for (k, &row) in rows.iter().enumerate() {
+            let update = Point::new(below.x[k], below.y[k], below.z[k]);
+            match locate(row) {
+                Some(i) => x[i] -= update,
+                None => outside(row, update),
             }
         }
     }
 
-    /// `x <- L^-T x`, supernodes in reverse order.
+    /// Supernode `s`'s backward step on `x`, where its columns start at
+    /// `first` and `locate` finds a row; rows not in `x` are read from
+    /// `outside`.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn backward_substitution(&mut self, values: &[f64]) {
-        let Self {
-            begin,
-            row_ptr,
-            row_len,
-            row_idx,
-            value_ptr,
-            x,
-            below,
-            ..
-        } = self;
-        let below = Below::split(below);
-        for s in (0..begin.len() - 1).rev() {
-            let (start, c) = (begin[s], begin[s + 1] - begin[s]);
-            let rows = &row_idx[row_ptr[s]..row_ptr[s] + row_len[s]];
-            let ld = c + rows.len();
-            let block = &values[value_ptr[s]..value_ptr[s] + ld * c];
-            for (k, &row) in rows.iter().enumerate() {
-                (below.x[k], below.y[k], below.z[k]) = (x[row].x, x[row].y, x[row].z);
+    fn backward_supernode(
+        &self,
+        values: &[f64],
+        s: usize,
+        x: &mut [Point],
+        first: usize,
+        locate: impl Fn(usize) -> Option<usize>,
+        below: &mut Below,
+        outside: impl Fn(usize) -> Point,
+    ) {
+        let c = self.begin[s + 1] - self.begin[s];
+        let rows = &self.row_idx[self.row_ptr[s]..self.row_ptr[s] + self.row_len[s]];
+        let ld = c + rows.len();
+        let block = &values[self.value_ptr[s]..self.value_ptr[s] + ld * c];
+        for (k, &row) in rows.iter().enumerate() {
+            let p = match locate(row) {
+                Some(i) => x[i],
+                None => outside(row),
+            };
+            (below.x[k], below.y[k], below.z[k]) = (p.x, p.y, p.z);
+        }
+        let top = &mut x[first..first + c];
+        below.subtract_products(block, ld, c, top, rows.len());
+        for j in (0..c).rev() {
+            let column = &block[j * ld..(j + 1) * ld];
+            let mut sum = top[j];
+            for (i, &l) in column[j + 1..c].iter().enumerate() {
+                sum -= top[j + 1 + i] * l;
             }
-            below.subtract_products(block, ld, c, &mut x[start..start + c], rows.len());
-            for j in (0..c).rev() {
-                let column = &block[j * ld..(j + 1) * ld];
-                let mut sum = x[start + j];
-                for (i, &l) in column[j + 1..c].iter().enumerate() {
-                    sum -= x[start + j + 1 + i] * l;
-                }
-                x[start + j] = sum / column[j];
-            }
+            top[j] = sum / column[j];
         }
     }
+}
+
+/// Runs `f` compiled for AVX2 where the CPU has it (`pulp` dispatches at
+/// run time). Rust does not contract `a * b + c` into a fused
+/// multiply-add, so both paths compute the same bits.
+#[inline(always)]
+fn vectorized(f: impl FnOnce()) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(simd) = pulp::x86::V3::try_new() {
+        struct Op<F>(F);
+        impl<F: FnOnce()> pulp::WithSimd for Op<F> {
+            type Output = ();
+            #[inline(always)]
+            fn with_simd<S: pulp::Simd>(self, _: S) {
+                (self.0)()
+            }
+        }
+        return pulp::Simd::vectorize(simd, Op(f));
+    }
+    f()
 }
 
 /// One supernode's below-diagonal rows, one array per coordinate, so that
