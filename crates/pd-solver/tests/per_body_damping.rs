@@ -1,0 +1,159 @@
+//! Per-body damping in the solver ([`PerBodyDamping`]): two bodies in one
+//! simulation, one undamped and one damped, keep their own energy laws, and
+//! a per-body model that gives every body the same coefficients steps bit
+//! for bit as the global model.
+//!
+//! **Energy law.** With zero-rest-length springs every projection is 0, so
+//! the energy is quadratic and each step is solved exactly (the global step
+//! is the minimiser after one iteration). Implicit midpoint then gives,
+//! body by body (the bodies share no constraint, so each body's equations
+//! are its own), `E1 - E0 = -h v_mid^T D_b v_mid` (`prop_energy.rs`): exact
+//! conservation for the undamped body, exactly that loss for the damped one
+//! with `D_b = a1 M_b + a2 L_d,b`. The bound on round-off is
+//! `prop_energy.rs`'s: the Cholesky backward error `u (|A| |x|)` per row
+//! adds `h v . rho`, at most `n u h V |A| X`, and evaluating the energies
+//! rounds by `n u` of their absolute sums; a factor 16 covers the constants.
+
+use pd_damping::{Damping, LaplacianDamping, NoDamping, PerBodyDamping};
+use pd_integrators::ImplicitMidpoint;
+use pd_mesh::{Point, generators};
+use pd_solver::{Model, Settings, Simulation, State};
+
+const STIFFNESS: f64 = 50.0;
+const MASS: f64 = 0.02;
+const U: f64 = f64::EPSILON / 2.0;
+
+/// Two chains of 8 vertices with zero-rest-length springs, both ends of
+/// each fixed, the second 1 m above the first.
+fn model() -> Model {
+    let mut model = Model::new();
+    for b in 0..2 {
+        let chain = generators::chain(8, 0.7).unwrap();
+        let chain = chain.translated(Point::new(0.0, b as f64, 0.0));
+        let body = model.add_body(chain, vec![MASS; 8]).unwrap();
+        model
+            .add_springs_with_rest_length(body, STIFFNESS, Some(0.0))
+            .unwrap();
+        model.fix_vertices(body, &[0, 7]).unwrap();
+    }
+    model
+}
+
+fn simulation(damping: Box<dyn Damping>, dt: f64) -> Simulation {
+    let settings = Settings {
+        dt,
+        iterations: 3,
+        gravity: Point::zeros(),
+        ..Settings::default()
+    };
+    let mut sim = Simulation::new(model(), Box::new(ImplicitMidpoint), damping, settings).unwrap();
+    let mut state = sim.state().clone();
+    for (v, velocity) in state.velocities.iter_mut().enumerate() {
+        let t = v as f64;
+        *velocity = Point::new(0.3 * (1.3 * t).sin(), 0.2 * (0.7 * t).cos(), 0.1 * t.sin());
+    }
+    sim.set_state(state).unwrap();
+    sim
+}
+
+/// Body `b`'s kinetic plus spring energy (J), with `x` and `v` of every
+/// vertex.
+fn body_energy(model: &Model, b: usize, x: &[Point], v: &[Point]) -> f64 {
+    let body = &model.bodies()[b];
+    let kinetic: f64 = body
+        .vertices()
+        .map(|i| 0.5 * model.masses()[i] * v[i].norm_squared())
+        .sum();
+    let springs: f64 = body
+        .mesh
+        .edges()
+        .iter()
+        .map(|e| 0.5 * STIFFNESS * (x[e[1] + body.offset] - x[e[0] + body.offset]).norm_squared())
+        .sum();
+    kinetic + springs
+}
+
+/// `v^T D_b v` for body `b` with `D_b = a1 M_b + a2 L_d,b` (J s / m^2 times
+/// m^2/s^2 ... : W for `v` in m/s).
+fn body_form(model: &Model, b: usize, (a1, a2): (f64, f64), v: &[Point]) -> f64 {
+    let body = &model.bodies()[b];
+    let mass: f64 = body
+        .vertices()
+        .map(|i| model.masses()[i] * v[i].norm_squared())
+        .sum();
+    let laplacian: f64 = body
+        .mesh
+        .edges()
+        .iter()
+        .map(|e| STIFFNESS * (v[e[1] + body.offset] - v[e[0] + body.offset]).norm_squared())
+        .sum();
+    a1 * mass + a2 * laplacian
+}
+
+#[test]
+fn undamped_body_keeps_its_energy_and_damped_body_loses_its_own_share() {
+    let (a1, a2, dt) = (0.5, 0.02, 0.01);
+    let per_body = PerBodyDamping::new(vec![
+        Box::new(NoDamping),
+        Box::new(LaplacianDamping::new(a2, a1, false).unwrap()),
+    ])
+    .unwrap();
+    let mut sim = simulation(Box::new(per_body), dt);
+    let n = sim.model().num_vertices() as f64;
+    // |A|_inf <= m (1/h^2 + a1/h) + |L|_inf (1 + a2/h), |L|_inf = 4 k
+    // (two springs per vertex, diagonal plus two off-diagonal entries).
+    let matrix_bound = MASS * (1.0 / (dt * dt) + a1 / dt) + 4.0 * STIFFNESS * (1.0 + a2 / dt);
+    let mut damped_loss = 0.0;
+    for step in 1..=200 {
+        let (x0, v0) = (sim.state().positions.clone(), sim.state().velocities.clone());
+        sim.step().unwrap();
+        let (x1, v1) = (&sim.state().positions, &sim.state().velocities);
+        let v_mid: Vec<Point> = v0.iter().zip(v1).map(|(a, b)| (a + b) * 0.5).collect();
+        let max = |p: &[Point]| p.iter().map(|q| q.amax()).fold(0.0, f64::max);
+        let speed = max(&v0).max(max(v1));
+        let extent = max(&x0).max(max(x1)) + dt * speed;
+        for b in 0..2 {
+            let before = body_energy(sim.model(), b, &x0, &v0);
+            let after = body_energy(sim.model(), b, x1, v1);
+            let loss = match b {
+                0 => 0.0,
+                _ => dt * body_form(sim.model(), b, (a1, a2), &v_mid),
+            };
+            let tolerance =
+                16.0 * U * n * (n * dt * speed * matrix_bound * extent + before + after);
+            assert!(
+                (after - before + loss).abs() <= tolerance,
+                "step {step}, body {b}: energy changed by {:e} J, predicted {:e} J \
+                 (tolerance {tolerance:e})",
+                after - before,
+                -loss
+            );
+            if b == 1 {
+                damped_loss += loss;
+            }
+        }
+    }
+    // The damped body did lose energy (the test above is not vacuous).
+    let start = simulation(Box::new(NoDamping), dt);
+    let initial = body_energy(
+        start.model(),
+        1,
+        &start.state().positions,
+        &start.state().velocities,
+    );
+    assert!(damped_loss > 0.5 * initial, "{damped_loss} of {initial}");
+}
+
+#[test]
+fn the_same_coefficients_on_every_body_step_as_the_global_model() {
+    let dt = 0.01;
+    let laplacian = || LaplacianDamping::new(0.02, 0.5, false).unwrap();
+    let per_body = PerBodyDamping::new(vec![Box::new(laplacian()), Box::new(laplacian())]).unwrap();
+    let mut weighted = simulation(Box::new(per_body), dt);
+    let mut global = simulation(Box::new(laplacian()), dt);
+    weighted.run(30).unwrap();
+    global.run(30).unwrap();
+    let (a, b): (&State, &State) = (weighted.state(), global.state());
+    assert_eq!(a, b);
+    assert_eq!(weighted.damping_name(), "per-body");
+}
