@@ -112,7 +112,8 @@ impl PerBodyDamping {
                 let Some(range) = bodies.get(b) else {
                     return BodyView::default();
                 };
-                let inside = |vertices: &[usize]| vertices.first().is_some_and(|v| range.contains(v));
+                let inside =
+                    |vertices: &[usize]| vertices.first().is_some_and(|v| range.contains(v));
                 let shift = |vertices: &[usize]| vertices.iter().map(|v| v - range.start).collect();
                 BodyView {
                     components: step

@@ -114,7 +114,10 @@ fn an_undamped_and_a_damped_beam_keep_their_own_behaviour() {
         &format!(
             "{}{}",
             beam_body(0.0, "damping = { model = \"none\" }"),
-            beam_body(0.5, &format!("damping = {{ model = \"laplacian\", ratio = {zeta} }}")),
+            beam_body(
+                0.5,
+                &format!("damping = {{ model = \"laplacian\", ratio = {zeta} }}")
+            ),
         ),
     );
     let mut sim = scene(&text).build().unwrap();
@@ -153,11 +156,16 @@ fn every_body_with_the_same_damping_runs_as_the_global_table() {
         ),
     );
     let own = format!("damping = {{ {damping} }}");
-    let per_body = scene_text(dt, &format!("{}{}", beam_body(0.0, &own), beam_body(0.5, &own)));
+    let per_body = scene_text(
+        dt,
+        &format!("{}{}", beam_body(0.0, &own), beam_body(0.5, &own)),
+    );
     let run = |text: &str| {
         let mut sim = scene(text).build().unwrap();
         let n = sim.model().num_vertices();
-        let kick: Vec<Point> = (0..n).map(|v| Point::new(0.0, 0.01 * v as f64, 0.0)).collect();
+        let kick: Vec<Point> = (0..n)
+            .map(|v| Point::new(0.0, 0.01 * v as f64, 0.0))
+            .collect();
         let mut state = sim.state().clone();
         state.velocities = kick;
         sim.set_state(state).unwrap();
@@ -171,7 +179,10 @@ fn every_body_with_the_same_damping_runs_as_the_global_table() {
 fn per_body_mistakes_name_the_body_and_key() {
     let parse = |extra: &str| {
         Scene::parse(
-            &scene_text(0.01, &format!("{}{}", beam_body(0.0, ""), beam_body(0.5, extra))),
+            &scene_text(
+                0.01,
+                &format!("{}{}", beam_body(0.0, ""), beam_body(0.5, extra)),
+            ),
             Syntax::Toml,
             Path::new("p.toml"),
         )
@@ -194,7 +205,10 @@ fn per_body_mistakes_name_the_body_and_key() {
     let bad = parse("damping = { model = \"laplacian\", stiffness = -1.0 }")
         .unwrap_err()
         .to_string();
-    assert!(bad.contains("body[1].damping") && bad.contains("stiffness"), "{bad}");
+    assert!(
+        bad.contains("body[1].damping") && bad.contains("stiffness"),
+        "{bad}"
+    );
     let typo = parse("damping = { model = \"laplacian\", stifness = 0.01 }")
         .unwrap_err()
         .to_string();
@@ -205,7 +219,10 @@ fn per_body_mistakes_name_the_body_and_key() {
         &format!(
             "{}{}",
             beam_body(0.0, "damping = { model = \"laplacian\", stiffness = 0.01 }"),
-            beam_body(0.5, "damping = { model = \"rayleigh-lagged\", stiffness = 0.01 }")
+            beam_body(
+                0.5,
+                "damping = { model = \"rayleigh-lagged\", stiffness = 0.01 }"
+            )
         ),
     ))
     .build()

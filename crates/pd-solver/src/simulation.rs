@@ -447,6 +447,13 @@ impl Simulation {
         self.damping.implicit_matrix()
     }
 
+    /// Each body's own implicit damping coefficients, in scene order, when
+    /// the damping model damps bodies differently (per-body damping);
+    /// `None` when [`Simulation::damping_matrix`] holds for every body.
+    pub fn damping_body_coefficients(&self) -> Option<&[pd_damping::DampingMatrix]> {
+        self.damping.body_coefficients()
+    }
+
     /// Simulated time in s.
     pub fn time(&self) -> f64 {
         self.time

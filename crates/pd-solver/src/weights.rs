@@ -127,7 +127,11 @@ pub(crate) fn combine_weighted(
         combine(values, coefficients, parts);
         return;
     };
-    combine(values, coefficients, [parts[0], parts[1], &weights.damping_part]);
+    combine(
+        values,
+        coefficients,
+        [parts[0], parts[1], &weights.damping_part],
+    );
     // (1/h^2 + c a1) M + c a1 (W1 - 1) M = M / h^2 + c a1 W1 M.
     for (value, excess) in values.iter_mut().zip(&weights.mass_excess) {
         *value += coefficients.mass_damping * excess;

@@ -105,7 +105,10 @@ fn undamped_body_keeps_its_energy_and_damped_body_loses_its_own_share() {
     let matrix_bound = MASS * (1.0 / (dt * dt) + a1 / dt) + 4.0 * STIFFNESS * (1.0 + a2 / dt);
     let mut damped_loss = 0.0;
     for step in 1..=200 {
-        let (x0, v0) = (sim.state().positions.clone(), sim.state().velocities.clone());
+        let (x0, v0) = (
+            sim.state().positions.clone(),
+            sim.state().velocities.clone(),
+        );
         sim.step().unwrap();
         let (x1, v1) = (&sim.state().positions, &sim.state().velocities);
         let v_mid: Vec<Point> = v0.iter().zip(v1).map(|(a, b)| (a + b) * 0.5).collect();
@@ -170,7 +173,12 @@ fn an_explicit_model_acts_on_its_own_body_only() {
     for sim in [&mut mixed, &mut undamped, &mut dragged] {
         sim.run(50).unwrap();
     }
-    let bodies: Vec<_> = mixed.model().bodies().iter().map(|b| b.vertices()).collect();
+    let bodies: Vec<_> = mixed
+        .model()
+        .bodies()
+        .iter()
+        .map(|b| b.vertices())
+        .collect();
     // Each body's equations are its own (no shared constraint, zero-length
     // springs: the solve is exact), so body 0 moves as in the undamped run
     // and body 1 as in the all-dragged run. The global solves differ only

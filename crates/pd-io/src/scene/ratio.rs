@@ -40,7 +40,8 @@ impl Scene {
         pd_damping::registry::DampingSpec,
         Option<FittedCoefficients>,
     )> {
-        let error = |e: &pd_damping::DampingError| super::per_body::damping_error(&self.source, field, e);
+        let error =
+            |e: &pd_damping::DampingError| super::per_body::damping_error(&self.source, field, e);
         let target = spec.ratio_target().map_err(|e| error(&e))?;
         let (Some(target), Some(quotient)) = (target, spec.model().ratio) else {
             return Ok((spec.clone(), None));

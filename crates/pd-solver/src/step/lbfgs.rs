@@ -30,8 +30,8 @@ use pd_mesh::Point;
 use super::iteration::{PositionSolver, StepProblem};
 use super::ops::{difference, mass_dot};
 use crate::SolverError;
-use crate::weights::combine_weighted;
 use crate::system::SystemCoefficients;
+use crate::weights::combine_weighted;
 
 /// Armijo's sufficient-decrease fraction of the line search.
 const ARMIJO: f64 = 1e-4;
