@@ -194,8 +194,9 @@ impl Damping for PerBodyDamping {
                 continue;
             };
             let r = range.clone();
-            let whole = [0..r.len()];
-            let sub = body_step(step, &r, &self.views[b], &whole);
+            // The body is the whole world its model sees.
+            let whole = 0..r.len();
+            let sub = body_step(step, &r, &self.views[b], std::slice::from_ref(&whole));
             let sub_targets = DampingTargets::new(
                 &mut targets.inertial_displacement[r.clone()],
                 &mut targets.anchor_displacement[r.clone()],
@@ -219,8 +220,9 @@ impl Damping for PerBodyDamping {
                 continue;
             };
             let r = range.clone();
-            let whole = [0..r.len()];
-            let sub = body_step(step, &r, &self.views[b], &whole);
+            // The body is the whole world its model sees.
+            let whole = 0..r.len();
+            let sub = body_step(step, &r, &self.views[b], std::slice::from_ref(&whole));
             let body = model.end_step(&sub, &positions[r.clone()], &mut velocities[r]);
             report.spin_axes_left += body.spin_axes_left;
         }
