@@ -55,7 +55,10 @@ pub(crate) fn modes(options: &SceneOptions, count: usize) -> Result<(), Failure>
         .map_err(|e| Failure::Output(format!("{}: {e}", out.display())))?;
     let dt = scene.settings.dt;
     let d = sim.damping_matrix();
-    let implicit_only = damping_is_implicit(&scene.damping);
+    // Per-body damping gives each body its own coefficients, which the
+    // one-coefficient modal estimate below does not split: no ratios then.
+    let per_body = sim.damping_body_coefficients().is_some();
+    let implicit_only = damping_is_implicit(&scene.damping) && !per_body;
     let make = || scene.integrator.create();
     let mut entries = Vec::new();
     for (i, mode) in analysis.modes.iter().enumerate() {
@@ -90,7 +93,10 @@ pub(crate) fn modes(options: &SceneOptions, count: usize) -> Result<(), Failure>
             "laplacian_stiffness_s": d.damping_laplacian,
             "lagged_stiffness_s": d.lagged_stiffness,
         },
-        "damping_ratios_note": if implicit_only {
+        "damping_ratios_note": if per_body {
+            "null: per-body damping ([[body]] damping); each body's ratio is set for its own \
+             lowest mode (docs/damping.md), which this estimate does not split by body"
+        } else if implicit_only {
             "discrete damping ratio of each mode under the scene's integrator at dt: the model's \
              damping plus the integrator's numerical damping"
         } else {

@@ -110,6 +110,17 @@ pub(crate) fn build(scene: &Scene) -> Result<Simulation, Failure> {
             d.mass, d.damping_laplacian, d.lagged_stiffness
         );
     }
+    for (b, d) in sim
+        .damping_body_coefficients()
+        .unwrap_or_default()
+        .iter()
+        .enumerate()
+    {
+        info!(
+            "body {b} damping: mass a1 = {:e} 1/s, Laplacian a2 = {:e} s",
+            d.mass, d.damping_laplacian
+        );
+    }
     Ok(sim)
 }
 

@@ -33,6 +33,7 @@ mod ether_drag;
 mod laplacian;
 mod none;
 mod pbd;
+pub mod per_body;
 pub mod ratio;
 mod rayleigh_lagged;
 pub mod registry;
@@ -44,6 +45,7 @@ pub use ether_drag::EtherDrag;
 pub use laplacian::LaplacianDamping;
 pub use none::NoDamping;
 pub use pbd::PbdDamping;
+pub use per_body::PerBodyDamping;
 pub use rayleigh_lagged::RayleighLagged;
 
 use std::ops::Range;
@@ -219,6 +221,15 @@ pub trait Damping: std::fmt::Debug + Send + Sync {
     /// The implicit damping matrix this model puts into the global step.
     fn implicit_matrix(&self) -> DampingMatrix {
         DampingMatrix::default()
+    }
+
+    /// Each body's own implicit matrix, in scene order, for a model that
+    /// damps bodies differently ([`PerBodyDamping`]); `None` (the default)
+    /// when [`Damping::implicit_matrix`] holds for every body. Each term of
+    /// each body is at most that of [`Damping::implicit_matrix`], and the
+    /// lagged term is the same for every body.
+    fn body_coefficients(&self) -> Option<&[DampingMatrix]> {
+        None
     }
 
     /// Adds an explicit damping force (N), evaluated at the start of the step,

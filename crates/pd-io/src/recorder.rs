@@ -361,11 +361,19 @@ fn json_number(value: f64) -> serde_json::Value {
 /// scene's `ratio` was turned into).
 fn damping_coefficients(sim: &Simulation) -> serde_json::Value {
     let d = sim.damping_matrix();
-    serde_json::json!({
+    let mut json = serde_json::json!({
         "mass_per_s": d.mass,
         "laplacian_stiffness_s": d.damping_laplacian,
         "lagged_stiffness_s": d.lagged_stiffness,
-    })
+    });
+    // Per-body damping: the above are the largest; each body's own follow.
+    if let Some(per_body) = sim.damping_body_coefficients() {
+        json["per_body"] = per_body
+            .iter()
+            .map(|d| serde_json::json!({"mass_per_s": d.mass, "laplacian_stiffness_s": d.damping_laplacian}))
+            .collect();
+    }
+    json
 }
 
 #[cfg(test)]

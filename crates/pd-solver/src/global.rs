@@ -3,6 +3,7 @@
 //! and its cached factorisations.
 
 use crate::cholesky::{LowerPattern, NumericFactor, SymbolicFactor, dissection_candidates};
+use crate::weights::combine_weighted;
 use crate::{SolverError, local::LocalStep};
 use pd_constraints::{CsrMatrix, assembly, assembly::LaplacianKind};
 
@@ -17,14 +18,18 @@ pub(crate) struct MatrixCoefficients {
     pub mass: f64,
     pub system: f64,
     pub damping: f64,
+    /// The part of `mass` that is damping, `c1 c2 gamma a1` (1/s^2): what
+    /// per-body weights scale (`weights.rs`).
+    pub mass_damping: f64,
 }
 
 impl MatrixCoefficients {
-    fn bits(&self) -> [u64; 3] {
+    fn bits(&self) -> [u64; 4] {
         [
             self.mass.to_bits(),
             self.system.to_bits(),
             self.damping.to_bits(),
+            self.mass_damping.to_bits(),
         ]
     }
 }
@@ -57,8 +62,10 @@ pub(crate) struct GlobalSystem {
     /// The elimination order chosen for the scalar system (free indices in
     /// pivot order), offered to the lagged 3n system as a candidate.
     pub order: Option<Vec<usize>>,
+    /// Per-body damping weights, when the damping model has them.
+    pub weights: Option<crate::weights::DampingWeights>,
     symbolic: SymbolicFactor,
-    cache: Vec<([u64; 3], NumericFactor)>,
+    cache: Vec<([u64; 4], NumericFactor)>,
     values: Vec<f64>,
 }
 
@@ -164,6 +171,7 @@ impl GlobalSystem {
             system_part,
             damping_part,
             order,
+            weights: None,
             symbolic,
             cache: Vec::new(),
             values: vec![0.0; len],
@@ -191,10 +199,11 @@ impl GlobalSystem {
         if let Some(i) = self.cache.iter().position(|(k, _)| *k == key) {
             return Ok((i, false));
         }
-        combine(
+        combine_weighted(
             &mut self.values,
             coefficients,
             [&self.mass_part, &self.system_part, &self.damping_part],
+            self.weights.as_ref(),
         );
         let factor = self.symbolic.factorise(&self.values)?;
         self.cache.push((key, factor));
@@ -213,10 +222,11 @@ impl GlobalSystem {
         if factorised {
             return Ok(());
         }
-        combine(
+        combine_weighted(
             &mut self.values,
             coefficients,
             [&self.mass_part, &self.system_part, &self.damping_part],
+            self.weights.as_ref(),
         );
         let (_, factor) = &mut self.cache[index];
         self.symbolic.refactorise(&self.values, factor)
@@ -225,10 +235,11 @@ impl GlobalSystem {
     /// The global matrix for `coefficients` (free vertices, full symmetric).
     pub fn matrix(&self, coefficients: MatrixCoefficients) -> CsrMatrix {
         let mut values = vec![0.0; self.pattern.row_idx.len()];
-        combine(
+        combine_weighted(
             &mut values,
             coefficients,
             [&self.mass_part, &self.system_part, &self.damping_part],
+            self.weights.as_ref(),
         );
         self.pattern.to_symmetric(&values)
     }

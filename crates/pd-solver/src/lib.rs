@@ -47,6 +47,7 @@ mod settings;
 mod simulation;
 mod step;
 mod system;
+mod weights;
 
 pub use checkpoint::Checkpoint;
 pub use model::{Body, BodyId, Model};

@@ -197,13 +197,17 @@ impl Simulation {
         };
         let analysis_start = Instant::now();
         let local = LocalStep::new(model.constraint_blocks());
-        let global = GlobalStep::new(
+        let mut global = GlobalStep::new(
             &local,
             model.masses(),
             model.fixed(),
             model.rest_positions(),
             d.is_lagged(),
         )?;
+        if let Some(per_body) = damping.body_coefficients() {
+            let bodies: Vec<_> = model.bodies().iter().map(|b| b.vertices()).collect();
+            global.set_damping_weights(per_body, d, &bodies)?;
+        }
         let topology = Topology::of(&model, local.blocks());
         let setup = SetupStats {
             analysis_seconds: analysis_start.elapsed().as_secs_f64(),
@@ -441,6 +445,13 @@ impl Simulation {
     /// and `a3` in s): what a `ratio` in the scene was turned into.
     pub fn damping_matrix(&self) -> pd_damping::DampingMatrix {
         self.damping.implicit_matrix()
+    }
+
+    /// Each body's own implicit damping coefficients, in scene order, when
+    /// the damping model damps bodies differently (per-body damping);
+    /// `None` when [`Simulation::damping_matrix`] holds for every body.
+    pub fn damping_body_coefficients(&self) -> Option<&[pd_damping::DampingMatrix]> {
+        self.damping.body_coefficients()
     }
 
     /// Simulated time in s.

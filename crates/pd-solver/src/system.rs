@@ -18,6 +18,7 @@ use crate::SolverError;
 use crate::global::{GlobalSystem, MatrixCoefficients};
 use crate::lagged::LaggedSystem;
 use crate::local::LocalStep;
+use crate::weights::DampingWeights;
 
 /// The matrix of the coming step and its factorisation.
 #[derive(Debug)]
@@ -48,6 +49,7 @@ impl SystemCoefficients {
                 mass: 1.0 / (h * h) + damping_factor * d.mass,
                 system: c.c1 * c.c2 * c.c2,
                 damping: damping_factor * d.damping_laplacian,
+                mass_damping: damping_factor * d.mass,
             },
             lagged_stiffness: damping_factor * d.lagged_stiffness,
         }
@@ -102,6 +104,33 @@ impl GlobalStep {
             }
         };
         Ok(Self { system, matrix })
+    }
+
+    /// Scales the damping terms per body (a per-body damping model:
+    /// `per_body` holds one implicit matrix per body of `bodies`, vertex
+    /// ranges, each term at most `reference`'s), before the first
+    /// factorisation (`weights.rs`).
+    ///
+    /// # Errors
+    /// As [`DampingWeights::new`].
+    pub fn set_damping_weights(
+        &mut self,
+        per_body: &[DampingMatrix],
+        reference: DampingMatrix,
+        bodies: &[std::ops::Range<usize>],
+    ) -> Result<(), SolverError> {
+        self.system.weights = Some(DampingWeights::new(
+            &self.system,
+            per_body,
+            reference,
+            bodies,
+        )?);
+        Ok(())
+    }
+
+    /// The per-body damping weights, if any.
+    pub fn damping_weights(&self) -> Option<&DampingWeights> {
+        self.system.weights.as_ref()
     }
 
     /// The constant operators over the free vertices.
@@ -224,13 +253,21 @@ impl GlobalStep {
                 + system.anchoring_rows.row_dot(f, x_n);
             let mut b = inertial[v] * (masses[v] * inv_h2) - elastic * energy_factor;
             if d.mass != 0.0 {
-                b += anchor[v] * (damping_factor * d.mass * masses[v]);
+                let mut a = damping_factor * d.mass * masses[v];
+                if let Some(w) = &system.weights {
+                    a *= w.mass[v];
+                }
+                b += anchor[v] * a;
             }
             if use_damping_laplacian {
+                let mut a = damping_factor * d.damping_laplacian;
+                if let Some(w) = &system.weights {
+                    a *= w.laplacian[v];
+                }
                 b += system
                     .damping_rows
                     .row_dot_relative(f, laplacian_anchor[v], laplacian_anchor)
-                    * (damping_factor * d.damping_laplacian);
+                    * a;
             }
             *out = b;
         });
@@ -294,7 +331,8 @@ impl GlobalStep {
     }
 
     /// `w^T L_d w` over the free vertices' rows (J s^2/m^2 scale: the
-    /// Laplacian's units times m^2), with `L_d` applied on differences.
+    /// Laplacian's units times m^2), with `L_d` applied on differences;
+    /// `w^T W2 L_d w` with per-body weights.
     /// Fixed vertices contribute nothing when `w` vanishes on them.
     pub fn damping_laplacian_form(&self, w: &[Point]) -> f64 {
         let rows = &self.system.damping_rows;
@@ -302,7 +340,13 @@ impl GlobalStep {
             .free
             .iter()
             .enumerate()
-            .map(|(f, &v)| w[v].dot(&rows.row_dot_relative(f, w[v], w)))
+            .map(|(f, &v)| {
+                let form = w[v].dot(&rows.row_dot_relative(f, w[v], w));
+                match &self.system.weights {
+                    Some(weights) => form * weights.laplacian[v],
+                    None => form,
+                }
+            })
             .sum()
     }
 

@@ -27,10 +27,7 @@ impl Scene {
         }
         self.check_probes(model.num_vertices())?;
         let offsets: Vec<_> = model.bodies().iter().map(|b| b.vertices()).collect();
-        let (damping, _) = self.resolve_damping(&model)?;
-        let damping = damping
-            .create()
-            .map_err(|e| self.field_error("damping", e))?;
+        let damping = self.damping_model(&model)?;
         let mut simulation = Simulation::new(
             model,
             self.integrator.create(),
@@ -66,7 +63,7 @@ impl Scene {
 
     /// Body `b`: its mesh (translated), masses, constraints and fixed
     /// vertices.
-    fn add_body(&self, model: &mut Model, b: usize, body: &BodySpec) -> Result<()> {
+    pub(super) fn add_body(&self, model: &mut Model, b: usize, body: &BodySpec) -> Result<()> {
         let field = |name: &str| format!("body[{b}].{name}");
         let mesh = self.mesh(&body.mesh, &field("mesh"))?;
         let mesh = if body.translate == Point::zeros() {

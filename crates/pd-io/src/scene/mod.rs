@@ -17,6 +17,7 @@
 
 mod build;
 mod contact;
+mod per_body;
 mod ratio;
 mod raw;
 mod solver;

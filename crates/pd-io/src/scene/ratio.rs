@@ -26,17 +26,30 @@ impl Scene {
         pd_damping::registry::DampingSpec,
         Option<FittedCoefficients>,
     )> {
-        let target = self
-            .damping
-            .ratio_target()
-            .map_err(|e| self.damping_field_error(&e))?;
-        let (Some(target), Some(quotient)) = (target, self.damping.model().ratio) else {
-            return Ok((self.damping.clone(), None));
+        self.resolve_spec(&self.damping, model, "damping")
+    }
+
+    /// [`Scene::resolve_damping`] for any `spec` against `model`, errors
+    /// at `field.KEY` (`damping`, or `body[i].damping` for a body's own).
+    pub(super) fn resolve_spec(
+        &self,
+        spec: &pd_damping::registry::DampingSpec,
+        model: &Model,
+        field: &str,
+    ) -> Result<(
+        pd_damping::registry::DampingSpec,
+        Option<FittedCoefficients>,
+    )> {
+        let error =
+            |e: &pd_damping::DampingError| super::per_body::damping_error(&self.source, field, e);
+        let target = spec.ratio_target().map_err(|e| error(&e))?;
+        let (Some(target), Some(quotient)) = (target, spec.model().ratio) else {
+            return Ok((spec.clone(), None));
         };
         let analysis = modes::elastic_modes(model, target.highest_mode()).map_err(|e| {
             super::field_error(
                 &self.source,
-                "damping",
+                field,
                 format!("the modal analysis for the damping ratio failed: {e}"),
             )
         })?;
@@ -48,22 +61,8 @@ impl Scene {
                 laplacian_quotient: m.laplacian_quotient,
             })
             .collect();
-        let coefficients = target
-            .fit(quotient, &data)
-            .map_err(|e| self.damping_field_error(&e))?;
-        let spec = self
-            .damping
-            .resolved(coefficients)
-            .map_err(|e| self.damping_field_error(&e))?;
-        Ok((spec, Some(coefficients)))
-    }
-
-    fn damping_field_error(&self, error: &pd_damping::DampingError) -> crate::Error {
-        match error.key_and_reason() {
-            Some((key, reason)) => {
-                super::field_error(&self.source, format!("damping.{key}"), reason)
-            }
-            None => super::field_error(&self.source, "damping", error.to_string()),
-        }
+        let coefficients = target.fit(quotient, &data).map_err(|e| error(&e))?;
+        let resolved = spec.resolved(coefficients).map_err(|e| error(&e))?;
+        Ok((resolved, Some(coefficients)))
     }
 }

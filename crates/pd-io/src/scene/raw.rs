@@ -55,6 +55,7 @@ pub(super) struct Body {
     pub(super) initial_velocity: Option<[f64; 3]>,
     pub(super) angular_velocity: Option<[f64; 3]>,
     pub(super) translate: Option<[f64; 3]>,
+    pub(super) damping: Option<Damping>,
 }
 
 #[derive(Debug, Deserialize)]

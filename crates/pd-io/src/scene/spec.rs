@@ -167,6 +167,9 @@ pub struct BodySpec {
     pub angular_velocity: Point,
     /// Offset added to the mesh's rest positions (m).
     pub translate: Point,
+    /// This body's own damping (`[[body]] damping = { ... }`), overriding
+    /// the scene's `[damping]` for it; `None` uses `[damping]`.
+    pub damping: Option<DampingSpec>,
 }
 
 /// Frame file formats.

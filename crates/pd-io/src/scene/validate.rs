@@ -156,6 +156,13 @@ impl Validator<'_> {
         }
     }
 
+    /// Body `b`'s own damping, errors at `body[b].damping.KEY`.
+    fn body_damping(&self, b: usize, raw: raw::Damping) -> Result<DampingSpec> {
+        DampingSpec::new(&raw.model, raw.arguments).map_err(|e| {
+            super::per_body::damping_error(self.source, &format!("body[{b}].damping"), &e)
+        })
+    }
+
     fn output(&self, raw: Option<raw::Output>) -> Result<OutputSpec> {
         let Some(o) = raw else {
             return Ok(OutputSpec {
@@ -218,6 +225,7 @@ impl Validator<'_> {
             initial_velocity: zero_or("initial_velocity", raw.initial_velocity)?,
             angular_velocity: zero_or("angular_velocity", raw.angular_velocity)?,
             translate: zero_or("translate", raw.translate)?,
+            damping: raw.damping.map(|d| self.body_damping(b, d)).transpose()?,
         })
     }
 

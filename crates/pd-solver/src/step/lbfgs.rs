@@ -30,8 +30,8 @@ use pd_mesh::Point;
 use super::iteration::{PositionSolver, StepProblem};
 use super::ops::{difference, mass_dot};
 use crate::SolverError;
-use crate::global::combine;
 use crate::system::SystemCoefficients;
+use crate::weights::combine_weighted;
 
 /// Armijo's sufficient-decrease fraction of the line search.
 const ARMIJO: f64 = 1e-4;
@@ -119,10 +119,11 @@ impl Lbfgs {
             self.product = vec![Point::zeros(); system.free.len()];
         }
         let coefficients = SystemCoefficients::of(step.coefficients, step.damping, step.h).matrix;
-        combine(
+        combine_weighted(
             &mut self.values,
             coefficients,
             [&system.mass_part, &system.system_part, &system.damping_part],
+            system.weights.as_ref(),
         );
         Ok(())
     }

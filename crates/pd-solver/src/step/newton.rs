@@ -88,6 +88,15 @@ impl Newton {
                     .into(),
             });
         }
+        if step.global.damping_weights().is_some() {
+            // Its Hessian reuses L_d as the elastic part of L_sys, which
+            // per-body weights would scale too.
+            return Err(SolverError::Unsupported {
+                what: "solver method \"newton\" with per-body damping ([[body]] damping): \
+                       use another method or one [damping] for every body"
+                    .into(),
+            });
+        }
         if self.hessian.is_none() {
             let system = step.global.system();
             self.hessian = Some(Box::new(LaggedSystem::new(system, step.local.blocks())?));
@@ -124,6 +133,7 @@ impl Newton {
             system: elastic,
             // L_anchor = L_sys - L_d: the elastic L_d is inside K.
             damping: coefficients.damping - elastic,
+            mass_damping: coefficients.mass_damping,
         };
         let hessian = self.hessian.as_mut().expect("built by prepare");
         hessian.refactorise(step.local.blocks(), &self.q, hessian_coefficients, elastic)?;

@@ -37,12 +37,15 @@ pub(crate) fn objective_with(
     let laplacian_anchor = problem.laplacian_anchor;
     let mut inertia = 0.0;
     let mut mass_form = 0.0;
+    // Per-body damping scales the a1 M term per vertex (weights.rs).
+    let weights = problem.global.damping_weights().map(|w| &w.mass);
+    let mass_weight = |v: usize| weights.map_or(1.0, |w| w[v]);
     for v in 0..x_n.len() {
         b.q[v] = x_n[v] + dx[v] * c.c2;
         offset[v] = dx[v] - targets.anchor_displacement[v];
         laplacian_offset[v] = dx[v] - laplacian_anchor[v];
         inertia += masses[v] * (dx[v] - targets.inertial_displacement[v]).norm_squared();
-        mass_form += masses[v] * offset[v].norm_squared();
+        mass_form += masses[v] * offset[v].norm_squared() * mass_weight(v);
     }
     let laplacian_form = if d.damping_laplacian != 0.0 {
         problem.global.damping_laplacian_form(laplacian_offset)
