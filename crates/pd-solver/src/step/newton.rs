@@ -25,6 +25,7 @@ use pd_constraints::EnergyBound;
 use pd_mesh::Point;
 
 use super::iteration::{PositionSolver, StepProblem};
+use super::materials::MaterialGradient;
 use super::ops::{difference, mass_dot};
 use crate::SolverError;
 use crate::global::{GlobalSystem, MatrixCoefficients, combine};
@@ -54,6 +55,8 @@ pub struct Newton {
     direction: Vec<Point>,
     /// Per-chunk scratch of the objective's energy sum.
     partials: Vec<EnergyBound>,
+    /// The hyperelastic materials' gradient correction (step/materials.rs).
+    materials: MaterialGradient,
 }
 
 /// `out_f = (A w)_f` for every free vertex `f`, `A` given by its values over
@@ -144,6 +147,10 @@ impl PositionSolver for Newton {
         "newton"
     }
 
+    fn handles_materials(&self) -> bool {
+        true
+    }
+
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {
         self.prepare(step)?;
         step.record_objective();
@@ -153,10 +160,20 @@ impl PositionSolver for Newton {
         // Trial points are judged from their local step's projections,
         // which then serve the next global step.
         let mut merit = step.project_with_objective(&mut self.partials);
+        let materials = MaterialGradient::present(step);
         for _ in 0..step.iterations() {
             self.iterate.copy_from_slice(step.displacement());
             step.global_half();
             difference(step.displacement(), &self.iterate, &mut self.update);
+            if materials {
+                // w' = -A^{-1} grad g; the plain iterate is x + w'.
+                self.materials
+                    .correct(step, &self.iterate, &mut self.update);
+                let dx = step.displacement_mut();
+                for ((x, x0), w) in dx.iter_mut().zip(&self.iterate).zip(&self.update) {
+                    *x = x0 + w;
+                }
+            }
             let masses = step.masses();
             let change = mass_dot(masses, &self.update, &self.update);
             let size = mass_dot(masses, step.displacement(), step.displacement());
