@@ -4,11 +4,15 @@
 //! isotropic materials a scene names (`docs/materials.md`):
 //!
 //! - `neo-hookean`: the stable Neo-Hookean energy of Smith, de Goes and Kim
-//!   (2018) without its `log(I_C + 1)` term,
-//!   `Psi = mu/2 (|F|^2 - 3) + l/2 (J - a)^2 - mu^2/(2 l)`, with
-//!   `l = lambda + mu` and `a = 1 + mu/l`: a polynomial in `F`, defined for
-//!   every `F` (flat and inverted elements included, no log barrier), zero
-//!   with zero stress at rest, and linearising to Lame's `(mu, lambda)`.
+//!   (2018), `Psi = m/2 (I_C - 3) + l/2 (J - a)^2 - m/2 log(I_C + 1) - Psi_0`
+//!   with `I_C = |F|^2`, their parameters `m = 4/3 mu`,
+//!   `l = lambda + 5/6 mu` (so that it linearises to Lame's `(mu, lambda)`),
+//!   `a = 1 + 3 m / (4 l)` (zero stress at rest) and the constant `Psi_0`
+//!   that makes the rest energy zero. It is defined and smooth for every `F`
+//!   (flat and inverted elements included: no `log J` barrier), and the
+//!   `log(I_C + 1)` term keeps the collapsed state `F = 0` from being a
+//!   local minimum (without it, `F = 0` is stationary with Hessian `m I`;
+//!   a fully inverted cube then collapsed and stayed there in our test).
 //! - `stvk`: Saint Venant-Kirchhoff, `Psi = mu |E|^2 + lambda/2 tr(E)^2`,
 //!   `E = (F^T F - I)/2`.
 //! - `corotated`: `Psi = mu |F - R|^2 + lambda/2 (J - 1)^2` (the volume term
@@ -112,11 +116,12 @@ fn cofactor_differential(f: &Matrix3<f64>, df: &Matrix3<f64>) -> Matrix3<f64> {
     ])
 }
 
-/// `(l, a)` of the stable Neo-Hookean energy: `l = lambda + mu`,
-/// `a = 1 + mu / l`.
-fn neo_hookean_constants(lame: Lame) -> (f64, f64) {
-    let l = lame.lambda + lame.mu;
-    (l, 1.0 + lame.mu / l)
+/// `(m, l, a)` of the stable Neo-Hookean energy: `m = 4/3 mu`,
+/// `l = lambda + 5/6 mu`, `a = 1 + 3 m / (4 l)`.
+fn neo_hookean_constants(lame: Lame) -> (f64, f64, f64) {
+    let m = 4.0 / 3.0 * lame.mu;
+    let l = lame.lambda + 5.0 / 6.0 * lame.mu;
+    (m, l, 1.0 + 0.75 * m / l)
 }
 
 /// Everything the stress and its differential need of one `F`.
@@ -161,9 +166,12 @@ impl MaterialPoint {
         let f = &self.f;
         match self.kind {
             MaterialKind::NeoHookean => {
-                let (l, a) = neo_hookean_constants(self.lame);
-                0.5 * mu * (f.norm_squared() - 3.0) + 0.5 * l * (self.j - a).powi(2)
-                    - mu * mu / (2.0 * l)
+                let (m, l, a) = neo_hookean_constants(self.lame);
+                let ic = f.norm_squared();
+                let rest = 0.5 * l * (1.0 - a).powi(2) - 0.5 * m * 4.0_f64.ln();
+                0.5 * m * (ic - 3.0) + 0.5 * l * (self.j - a).powi(2)
+                    - 0.5 * m * (ic + 1.0).ln()
+                    - rest
             }
             MaterialKind::Stvk => {
                 let e = (f.transpose() * f - Matrix3::identity()) * 0.5;
@@ -181,8 +189,9 @@ impl MaterialPoint {
         let f = &self.f;
         match self.kind {
             MaterialKind::NeoHookean => {
-                let (l, a) = neo_hookean_constants(self.lame);
-                f * mu + self.cofactor * (l * (self.j - a))
+                let (m, l, a) = neo_hookean_constants(self.lame);
+                let ic = f.norm_squared();
+                f * (m * (1.0 - 1.0 / (ic + 1.0))) + self.cofactor * (l * (self.j - a))
             }
             MaterialKind::Stvk => {
                 let e = (f.transpose() * f - Matrix3::identity()) * 0.5;
@@ -202,8 +211,12 @@ impl MaterialPoint {
         let dj = c.dot(df);
         match self.kind {
             MaterialKind::NeoHookean => {
-                let (l, a) = neo_hookean_constants(self.lame);
-                df * mu + c * (l * dj) + cofactor_differential(f, df) * (l * (self.j - a))
+                let (m, l, a) = neo_hookean_constants(self.lame);
+                let ic1 = f.norm_squared() + 1.0;
+                df * (m * (1.0 - 1.0 / ic1))
+                    + f * (2.0 * m * f.dot(df) / (ic1 * ic1))
+                    + c * (l * dj)
+                    + cofactor_differential(f, df) * (l * (self.j - a))
             }
             MaterialKind::Stvk => {
                 let identity = Matrix3::identity();

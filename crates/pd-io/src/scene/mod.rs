@@ -17,6 +17,7 @@
 
 mod build;
 mod contact;
+mod material;
 mod ratio;
 mod raw;
 mod solver;
