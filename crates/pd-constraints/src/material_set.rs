@@ -11,7 +11,7 @@
 //! - projection: the identity `P(G q) = G q`, so that in a local-global
 //!   iteration the material exerts no force and only adds the proximal term
 //!   `w G^T G` to the matrix: its Laplacian, with weight
-//!   `w = young * rest volume`, is the *preconditioner* that the L-BFGS
+//!   `w = (2 mu + lambda) * rest volume`, is the *preconditioner* that the L-BFGS
 //!   initial Hessian and the global solve use (Liu, Bouaziz and Kavan 2017
 //!   use such a PD matrix for hyperelastic materials);
 //! - [`ConstraintBlock::is_energy_element`]: `true`, so that a solver knows
@@ -140,9 +140,11 @@ impl MaterialSet {
         &self.tets
     }
 
-    /// The preconditioner weight of an element: `young * volume` (N m).
+    /// The preconditioner weight of an element: the P-wave modulus times
+    /// the rest volume, `(2 mu + lambda) V` (N m; docs/materials.md for the
+    /// measured choice).
     fn weight(&self, tet: &MaterialTet) -> f64 {
-        self.young * tet.volume
+        (2.0 * self.lame.mu + self.lame.lambda) * tet.volume
     }
 
     fn point(&self, tet: &MaterialTet, q: &[Point]) -> MaterialPoint {

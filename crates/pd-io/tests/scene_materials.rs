@@ -18,7 +18,11 @@ fn scene(constraint: &str, solver: &str) -> String {
 }
 
 fn parse(constraint: &str, solver: &str) -> pd_io::Result<Scene> {
-    Scene::parse(&scene(constraint, solver), Syntax::Toml, Path::new("s.toml"))
+    Scene::parse(
+        &scene(constraint, solver),
+        Syntax::Toml,
+        Path::new("s.toml"),
+    )
 }
 
 #[test]
@@ -26,7 +30,10 @@ fn every_material_is_read_built_and_stepped() {
     for kind in MaterialKind::ALL {
         for method in ["lbfgs", "newton"] {
             let s = parse(
-                &format!("{{ kind = \"{}\", young = 1.0e6, poisson = 0.45 }}", kind.name()),
+                &format!(
+                    "{{ kind = \"{}\", young = 1.0e6, poisson = 0.45 }}",
+                    kind.name()
+                ),
                 &format!("[solver]\nmethod = \"{method}\""),
             )
             .unwrap();

@@ -1,6 +1,9 @@
 //! L-BFGS on the step objective with the prefactored matrix as initial
 //! Hessian (Liu, Bouaziz and Kavan 2017, "Quasi-Newton methods for
-//! real-time simulation of hyperelastic materials"), for PD energies.
+//! real-time simulation of hyperelastic materials"), for PD energies and
+//! hyperelastic materials (whose gradient `step/materials.rs` adds to `w`,
+//! making it `w' = -A^{-1} grad g`; with materials the last iteration runs
+//! its line search too).
 //!
 //! One local-global iteration from `x_k` gives `w_k = G(x_k) - x_k =
 //! -A^{-1} grad g(x_k)` (docs/solver.md), so the gradient is
