@@ -11,6 +11,8 @@
 //! of `1e-7` relative to the largest entry (at least 1) is three orders above
 //! both and still catches any wrong term (an error in a formula is `O(1)`).
 
+#![allow(clippy::needless_range_loop)] // index loops mirror the (vertex, axis) notation
+
 use nalgebra::{Matrix3, Rotation3, SymmetricEigen, Vector3};
 use pd_constraints::{ConstraintBlock, MaterialKind, MaterialSet, MaterialTet};
 use pd_mesh::Point;
