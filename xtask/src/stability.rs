@@ -47,6 +47,7 @@ use pd_damping::registry::{self, Preset, Value};
 use pd_io::scene::{ConstraintSpec, DampingSpec, IntegratorKind, MassSpec, Scene, Syntax};
 use pd_solver::{SolverError, State};
 
+mod methods;
 mod shard;
 
 /// Steps per run: enough for an instability that grows by 5 % per step to
@@ -61,6 +62,13 @@ const RISE_REPORTED: f64 = 0.01;
 /// release build (the matrix is tens of thousands of runs); in a release
 /// build, runs the matrix and writes `docs/stability.md`.
 pub fn main(root: &Path, args: &[String]) -> ExitCode {
+    // The method axis (issue 16): its own reduced matrix and report.
+    if args
+        .windows(2)
+        .any(|w| w[0] == "--only" && w[1] == "methods")
+    {
+        return crate::report(methods::run(root));
+    }
     let quick = args.iter().any(|a| a == "--quick");
     let mode = match shard::Mode::parse(root, args) {
         Ok(mode) => mode,
@@ -262,6 +270,8 @@ struct Case {
     iterations: usize,
     start: Start,
     body: Body,
+    /// The iteration method (local-global outside the method axis).
+    method: pd_solver::SolverMethod,
 }
 
 impl Case {
@@ -336,6 +346,7 @@ fn run_case(case: &Case) -> Ending {
         scene.settings.iterations = case.iterations;
         scene.settings.threads = 1;
         scene.integrator = case.integrator;
+        scene.solver.method = case.method;
         scene.damping = damping(&presets()[case.model], case.coefficient)?;
         let mut sim = scene.build().map_err(|e| e.to_string())?;
         let start = case.start.apply(sim.state());
@@ -460,6 +471,7 @@ impl Axes {
                                                 iterations,
                                                 start,
                                                 body,
+                                                method: pd_solver::SolverMethod::LocalGlobal,
                                             });
                                         }
                                     }

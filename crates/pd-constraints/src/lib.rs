@@ -32,6 +32,8 @@ pub mod assembly;
 mod attachment;
 pub mod bending;
 mod constraint;
+pub mod material;
+mod material_set;
 pub mod plate_bending;
 pub mod polar;
 pub mod polar_batch;
@@ -50,6 +52,8 @@ pub use area::Area;
 pub use attachment::Attachment;
 pub use bending::Bending;
 pub use constraint::Constraint;
+pub use material::{Lame, MaterialKind};
+pub use material_set::{MaterialSet, MaterialTet};
 pub use plate_bending::PlateBending;
 pub use set::{ConstraintBlock, ConstraintSet, EnergyBound, MAX_ROWS};
 pub use sparse::{CsrMatrix, Triplet};
@@ -93,6 +97,18 @@ pub enum ConstraintError {
     DegenerateElement {
         /// Its vertices.
         vertices: Vec<usize>,
+    },
+    /// Young's modulus not finite and > 0.
+    #[error("young must be finite and > 0 Pa, got {young}")]
+    InvalidYoung {
+        /// The rejected value, Pa.
+        young: f64,
+    },
+    /// Poisson's ratio outside `[0, 0.5)`.
+    #[error("poisson must be in [0, 0.5), got {poisson}")]
+    InvalidPoisson {
+        /// The rejected value.
+        poisson: f64,
     },
     /// An edge shared by more than two triangles (bending needs a manifold
     /// surface).

@@ -80,6 +80,15 @@ pub trait ConstraintBlock: std::fmt::Debug + Send + Sync {
     fn rows_per_constraint(&self) -> usize;
     /// Whether every constraint has `G 1 = 0` (no net force).
     fn translation_invariant(&self) -> bool;
+    /// Whether the block is an *energy element* (a hyperelastic material,
+    /// [`crate::MaterialSet`]) rather than a PD constraint: its projection is
+    /// the identity, so a local-global iteration sees none of its force, and
+    /// its energy, gradient and Hessian are the material's. Only solvers that
+    /// add [`ConstraintBlock::add_gradient`] to the local-global gradient
+    /// (L-BFGS, Newton) can run it.
+    fn is_energy_element(&self) -> bool {
+        false
+    }
     /// Largest vertex index used, if any.
     fn max_vertex(&self) -> Option<usize>;
     /// Appends the entries of `sum_i w_i G_i^T G_i` (n x n, duplicates to be

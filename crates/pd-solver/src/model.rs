@@ -9,6 +9,7 @@ use pd_mesh::{Mesh, Point};
 
 use crate::SolverError;
 
+mod materials;
 mod shells;
 
 /// Index of a body in a [`Model`].

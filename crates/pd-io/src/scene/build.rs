@@ -101,6 +101,11 @@ impl Scene {
                 }
                 ConstraintSpec::Area { stiffness } => model.add_area(id, *stiffness).map(drop),
                 ConstraintSpec::Volume { stiffness } => model.add_volume(id, *stiffness).map(drop),
+                ConstraintSpec::Material {
+                    kind,
+                    young,
+                    poisson,
+                } => model.add_material(id, *kind, *young, *poisson).map(drop),
                 ConstraintSpec::Attachment {
                     stiffness,
                     selection,

@@ -17,6 +17,7 @@
 
 mod build;
 mod contact;
+mod material;
 mod per_body;
 mod ratio;
 mod raw;

@@ -73,7 +73,11 @@ pub(super) struct Mesh {
 #[serde(deny_unknown_fields)]
 pub(super) struct Constraint {
     pub(super) kind: String,
-    pub(super) stiffness: f64,
+    pub(super) stiffness: Option<f64>,
+    /// Materials (scene/material.rs): Young's modulus, Pa.
+    pub(super) young: Option<f64>,
+    /// Materials: Poisson's ratio.
+    pub(super) poisson: Option<f64>,
     pub(super) limits: Option<[f64; 2]>,
     pub(super) vertices: Option<Vec<usize>>,
     #[serde(rename = "box")]

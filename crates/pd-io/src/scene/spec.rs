@@ -137,6 +137,16 @@ pub enum ConstraintSpec {
         /// Pa.
         stiffness: f64,
     },
+    /// A hyperelastic material on every tetrahedron (`neo-hookean`, `stvk`,
+    /// `corotated`; docs/materials.md).
+    Material {
+        /// The law.
+        kind: pd_constraints::MaterialKind,
+        /// Young's modulus, Pa.
+        young: f64,
+        /// Poisson's ratio, in `[0, 0.5)`.
+        poisson: f64,
+    },
     /// `attachment` of selected vertices to their rest positions: N/m.
     Attachment {
         /// N/m.

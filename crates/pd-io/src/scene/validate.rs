@@ -91,6 +91,7 @@ impl Validator<'_> {
             .collect::<Result<Vec<_>>>()?;
         let output = self.output(raw.output)?;
         let solver = self.solver(raw.solver)?;
+        self.check_material_method(&bodies, &solver)?;
         let contact = super::contact::validate(self.source, raw.colliders, raw.contact)?;
         Ok(Scene {
             source: self.source.to_path_buf(),
@@ -359,7 +360,14 @@ impl Validator<'_> {
 
     fn constraint(&self, field: &str, raw: raw::Constraint) -> Result<ConstraintSpec> {
         let sub = |name: &str| format!("{field}.{name}");
-        let stiffness = self.non_negative(&sub("stiffness"), raw.stiffness)?;
+        if let Some(kind) = pd_constraints::MaterialKind::parse(&raw.kind) {
+            return self.material(field, kind, &raw);
+        }
+        self.no_material_keys(field, &raw)?;
+        let stiffness = raw
+            .stiffness
+            .ok_or_else(|| self.error(sub("stiffness"), "missing"))?;
+        let stiffness = self.non_negative(&sub("stiffness"), stiffness)?;
         let selection_given = raw.vertices.is_some() || raw.bounds.is_some();
         match raw.kind.as_str() {
             "tet-strain" | "spring" | "triangle-strain" | "bending" | "area" | "volume"
@@ -414,7 +422,8 @@ impl Validator<'_> {
                 sub("kind"),
                 format!(
                     "unknown constraint kind \"{other}\"; expected \"tet-strain\", \"spring\", \
-                     \"attachment\", \"triangle-strain\", \"bending\", \"area\" or \"volume\""
+                     \"attachment\", \"triangle-strain\", \"bending\", \"area\", \"volume\", \
+                     \"neo-hookean\", \"stvk\" or \"corotated\""
                 ),
             )),
         }

@@ -47,6 +47,14 @@ pub trait PositionSolver: std::fmt::Debug + Send + Sync {
     fn handles_contact(&self) -> bool {
         false
     }
+
+    /// Whether the method runs hyperelastic materials (energy elements,
+    /// `docs/materials.md`): it must add their gradient to the local-global
+    /// one. Plain PD methods (the default) do not, and a step of a model
+    /// with materials refuses them with [`SolverError::Unsupported`].
+    fn handles_materials(&self) -> bool {
+        false
+    }
 }
 
 /// Plain Projective Dynamics: local step, then global solve, `iterations`

@@ -1,6 +1,9 @@
 //! L-BFGS on the step objective with the prefactored matrix as initial
 //! Hessian (Liu, Bouaziz and Kavan 2017, "Quasi-Newton methods for
-//! real-time simulation of hyperelastic materials"), for PD energies.
+//! real-time simulation of hyperelastic materials"), for PD energies and
+//! hyperelastic materials (whose gradient `step/materials.rs` adds to `w`,
+//! making it `w' = -A^{-1} grad g`; with materials the last iteration runs
+//! its line search too).
 //!
 //! One local-global iteration from `x_k` gives `w_k = G(x_k) - x_k =
 //! -A^{-1} grad g(x_k)` (docs/solver.md), so the gradient is
@@ -28,6 +31,7 @@ use pd_constraints::EnergyBound;
 use pd_mesh::Point;
 
 use super::iteration::{PositionSolver, StepProblem};
+use super::materials::MaterialGradient;
 use super::ops::{difference, mass_dot};
 use crate::SolverError;
 use crate::system::SystemCoefficients;
@@ -66,6 +70,8 @@ pub struct Lbfgs {
     product: Vec<Point>,
     /// Per-chunk scratch of the objective's energy sum.
     partials: Vec<EnergyBound>,
+    /// The hyperelastic materials' gradient correction (step/materials.rs).
+    materials: MaterialGradient,
 }
 
 impl Lbfgs {
@@ -87,6 +93,7 @@ impl Lbfgs {
             q: Vec::new(),
             product: Vec::new(),
             partials: Vec::new(),
+            materials: MaterialGradient::default(),
         }
     }
 
@@ -186,6 +193,10 @@ impl PositionSolver for Lbfgs {
         "lbfgs"
     }
 
+    fn handles_materials(&self) -> bool {
+        true
+    }
+
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {
         self.prepare(step)?;
         step.record_objective();
@@ -197,6 +208,10 @@ impl PositionSolver for Lbfgs {
         let mut merit = step.project_with_objective(&mut self.partials);
         let (mut stored, mut newest) = (0usize, self.window - 1);
         let iterations = step.iterations();
+        // With materials, `update` is the corrected `w'` and the plain
+        // iterate `x + w'` is not safeguarded: the last iteration runs its
+        // line search too.
+        let materials = MaterialGradient::present(step);
         for k in 0..iterations {
             self.iterate.swap(0, 1);
             self.update.swap(0, 1);
@@ -204,10 +219,18 @@ impl PositionSolver for Lbfgs {
             self.iterate[0].copy_from_slice(step.displacement());
             step.global_half();
             difference(step.displacement(), &self.iterate[0], &mut self.update[0]);
+            if materials {
+                self.materials
+                    .correct(step, &self.iterate[0], &mut self.update[0]);
+                let dx = step.displacement_mut();
+                for ((x, x0), w) in dx.iter_mut().zip(&self.iterate[0]).zip(&self.update[0]) {
+                    *x = x0 + w;
+                }
+            }
             let masses = step.masses();
             let change = mass_dot(masses, &self.update[0], &self.update[0]);
             let size = mass_dot(masses, step.displacement(), step.displacement());
-            if step.record_residual(change, size) || k + 1 == iterations {
+            if step.record_residual(change, size) || (k + 1 == iterations && !materials) {
                 step.record_objective();
                 break;
             }

@@ -22,7 +22,7 @@ pub enum SolverMethod {
     /// Chebyshev semi-iterative acceleration (Wang 2015).
     Chebyshev,
     /// L-BFGS with the prefactored matrix as initial Hessian (Liu, Bouaziz
-    /// and Kavan 2017), for PD energies.
+    /// and Kavan 2017), for PD energies and hyperelastic materials.
     Lbfgs,
     /// Newton's method with per-element PSD-projected Hessians and a line
     /// search on the step objective: the converged reference.
@@ -56,8 +56,8 @@ impl SolverMethod {
     }
 
     /// Whether the method only minimises Projective Dynamics' energies
-    /// (local-global, anderson, chebyshev): non-quadratic materials, once
-    /// they exist, need `lbfgs` or `newton`.
+    /// (local-global, anderson, chebyshev): hyperelastic materials
+    /// (docs/materials.md) need `lbfgs` or `newton`.
     pub fn pd_only(self) -> bool {
         matches!(
             self,

@@ -17,6 +17,7 @@ pub(crate) mod chebyshev;
 pub(crate) mod divergence;
 pub(crate) mod iteration;
 pub(crate) mod lbfgs;
+pub(crate) mod materials;
 pub(crate) mod method;
 pub(crate) mod newton;
 pub(crate) mod objective;
@@ -210,6 +211,7 @@ impl Simulation {
         if self.contact.is_some() {
             self.check_solver_handles_contact()?;
         }
+        self.check_solver_handles_materials()?;
         let mut problem = StepProblem {
             local: &self.local,
             global: &mut self.global,

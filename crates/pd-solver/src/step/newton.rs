@@ -18,6 +18,10 @@
 //! The iteration stops on the same residual as every method
 //! (`|G(x) - x|_M <= tolerance |G(x) - x_n|_M`) and ends on `G(x)`.
 //!
+//! Hyperelastic materials (docs/materials.md): their element Hessians are
+//! in `K` (the 9 x 9 stress Hessian eigen-clamped), and `step/materials.rs`
+//! adds their gradient, making `w` the full `-A^{-1} grad g`.
+//!
 //! Refused: lagged damping models (`rayleigh-lagged`), whose step matrix
 //! already is the 3n system; their damping Hessian would have to be added.
 
@@ -25,6 +29,7 @@ use pd_constraints::EnergyBound;
 use pd_mesh::Point;
 
 use super::iteration::{PositionSolver, StepProblem};
+use super::materials::MaterialGradient;
 use super::ops::{difference, mass_dot};
 use crate::SolverError;
 use crate::global::{GlobalSystem, MatrixCoefficients, combine};
@@ -54,6 +59,8 @@ pub struct Newton {
     direction: Vec<Point>,
     /// Per-chunk scratch of the objective's energy sum.
     partials: Vec<EnergyBound>,
+    /// The hyperelastic materials' gradient correction (step/materials.rs).
+    materials: MaterialGradient,
 }
 
 /// `out_f = (A w)_f` for every free vertex `f`, `A` given by its values over
@@ -154,6 +161,10 @@ impl PositionSolver for Newton {
         "newton"
     }
 
+    fn handles_materials(&self) -> bool {
+        true
+    }
+
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {
         self.prepare(step)?;
         step.record_objective();
@@ -163,10 +174,20 @@ impl PositionSolver for Newton {
         // Trial points are judged from their local step's projections,
         // which then serve the next global step.
         let mut merit = step.project_with_objective(&mut self.partials);
+        let materials = MaterialGradient::present(step);
         for _ in 0..step.iterations() {
             self.iterate.copy_from_slice(step.displacement());
             step.global_half();
             difference(step.displacement(), &self.iterate, &mut self.update);
+            if materials {
+                // w' = -A^{-1} grad g; the plain iterate is x + w'.
+                self.materials
+                    .correct(step, &self.iterate, &mut self.update);
+                let dx = step.displacement_mut();
+                for ((x, x0), w) in dx.iter_mut().zip(&self.iterate).zip(&self.update) {
+                    *x = x0 + w;
+                }
+            }
             let masses = step.masses();
             let change = mass_dot(masses, &self.update, &self.update);
             let size = mass_dot(masses, step.displacement(), step.displacement());
