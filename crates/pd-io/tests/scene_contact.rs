@@ -80,6 +80,16 @@ fn a_scene_without_colliders_builds_no_contact() {
 }
 
 #[test]
+fn contact_between_bodies_builds_without_colliders() {
+    let scene = parse("\n[contact]\nbodies = true\nthickness = 0.002\nfriction = 0.4\n").unwrap();
+    assert_eq!(scene.body_contact.as_ref().unwrap().friction, 0.4);
+    let contact = scene.contact.as_ref().unwrap();
+    assert!(contact.colliders.is_empty());
+    assert_eq!(contact.thickness, 0.002);
+    assert!(scene.build().unwrap().contact().is_some());
+}
+
+#[test]
 fn bad_colliders_name_their_field() {
     let cases = [
         (
@@ -124,8 +134,12 @@ fn bad_colliders_name_their_field() {
             "contact.thickness: must be finite and >= 0",
         ),
         (
-            "[contact]\nbodies = true\n",
-            "contact.bodies: contact between bodies is not supported yet",
+            "[contact]\nbodies = true\nfriction = -1.0\n",
+            "contact.friction: must be finite and >= 0, got -1",
+        ),
+        (
+            "[contact]\nfriction = 0.5\n",
+            "contact.friction: only with bodies = true",
         ),
         (
             "[contact]\nself = true\n",

@@ -55,6 +55,10 @@ impl Scene {
                 self.field_error(field, e)
             })?;
         }
+        if let Some(bodies) = &self.body_contact {
+            (simulation.set_body_contact(bodies.clone()))
+                .map_err(|e| self.field_error("contact", e))?;
+        }
         self.apply_initial_states(&mut simulation, &offsets)?;
         for (b, body) in self.bodies.iter().enumerate() {
             if body.initial_velocity != Point::zeros() || body.angular_velocity != Point::zeros() {

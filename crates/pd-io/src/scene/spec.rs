@@ -238,4 +238,7 @@ pub struct Scene {
     /// Contact with colliders (`[[collider]]`, `[contact]`); `None` when
     /// the scene names no collider.
     pub contact: Option<pd_solver::contact::ContactSettings>,
+    /// Contact between bodies (`[contact] bodies = true`), on top of
+    /// `contact` (which then holds its thickness).
+    pub body_contact: Option<pd_solver::contact::BodyContactSettings>,
 }

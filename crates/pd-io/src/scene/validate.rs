@@ -91,7 +91,8 @@ impl Validator<'_> {
             .collect::<Result<Vec<_>>>()?;
         let output = self.output(raw.output)?;
         let solver = self.solver(raw.solver)?;
-        let contact = super::contact::validate(self.source, raw.colliders, raw.contact)?;
+        let (contact, body_contact) =
+            super::contact::validate(self.source, raw.colliders, raw.contact)?;
         Ok(Scene {
             source: self.source.to_path_buf(),
             steps: raw.simulation.steps,
@@ -102,6 +103,7 @@ impl Validator<'_> {
             output,
             solver,
             contact,
+            body_contact,
         })
     }
 
