@@ -188,6 +188,7 @@ impl Scene {
             MeshSource::Box { size, cells } => generators::box_tets(*size, *cells),
             MeshSource::Chain { points, length } => generators::chain(*points, *length),
             MeshSource::Cloth { size, cells } => generators::cloth(*size, *cells),
+            MeshSource::Ball { radius, cells } => generators::ball(*radius, *cells),
             MeshSource::TetGen(path) => return tetgen::read_tetgen_base(path),
             MeshSource::TetGenSurface(path) => return tetgen::read_tetgen_surface_base(path),
             MeshSource::Gmsh(path) => return gmsh::read_gmsh(path),

@@ -74,6 +74,14 @@ pub enum MeshSource {
         /// Cells per axis (x, z).
         cells: [usize; 2],
     },
+    /// `generator = "ball"`: a tet ball centred at the origin, the cube grid
+    /// mapped radially onto the sphere ([`pd_mesh::generators::ball`]).
+    Ball {
+        /// Radius in m.
+        radius: f64,
+        /// Cells across the diameter (>= 2).
+        cells: usize,
+    },
     /// `file = "..."`: a TetGen `.node`/`.ele` pair (path resolved against the
     /// scene file's folder).
     TetGen(PathBuf),

@@ -14,8 +14,8 @@ use crate::{Mesh, MeshError, Point};
 /// s` lands on the sphere of radius `s radius`, the cube's surface on the
 /// ball's. The mesh has `(cells + 1)^3` vertices and `6 cells^3`
 /// tetrahedra, all positively oriented; their quality
-/// ([`tet_quality`](crate::generators::tet_quality)) is at least 0.2 for
-/// `cells` up to 16 (the generator's tests). Vertex `(i, j, k)` has index
+/// ([`tet_quality`](crate::generators::tet_quality)) is at least 0.38 for
+/// `cells` up to 16 (the generator's tests; 1 is a regular tetrahedron). Vertex `(i, j, k)` has index
 /// `i + (cells+1) (j + (cells+1) k)`.
 ///
 /// ```
@@ -120,7 +120,10 @@ mod tests {
                 .map(|t| tet_quality(ball.vertices(), t))
                 .fold(f64::INFINITY, f64::min);
             println!("cells {cells}: worst quality {worst}");
-            assert!(worst > 0.2, "cells {cells}: worst quality {worst}");
+            // Measured: 0.81 at 2 cells, 0.45-0.53 at 3-7, falling slowly
+            // to 0.386 at 16 (the corner cells of the cube flatten as the
+            // map bends them); bound 0.35: nothing inverted or near flat.
+            assert!(worst > 0.35, "cells {cells}: worst quality {worst}");
             // The volume approaches the ball's from below (a polyhedron
             // inscribed in the sphere).
             let volume: f64 = ball.tet_volumes().iter().sum();
