@@ -42,11 +42,11 @@ struct Face {
 /// A vertex's contact with a triangle of another body, for one step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Pair {
-    face: usize,
+    pub(super) face: usize,
     weights: [f64; 3],
-    normal: Point,
+    pub(super) normal: Point,
     /// The force on the vertex (`A dx` units); the triangle gets `-w_i f`.
-    force: Point,
+    pub(super) force: Point,
     /// Moved apart by the end-of-step projection.
     projected: bool,
     /// Carried over from the previous step.
@@ -54,7 +54,7 @@ pub(crate) struct Pair {
 }
 
 impl Pair {
-    fn active(&self) -> bool {
+    pub(super) fn active(&self) -> bool {
         self.force.dot(&self.normal) > 0.0
     }
 }
@@ -128,6 +128,28 @@ impl BodyContact {
             count: vec![0; rest.len()],
             grid: Grid::default(),
             boxes: Vec::new(),
+        }
+    }
+
+    /// The number of surface triangles.
+    pub fn faces(&self) -> usize {
+        self.faces.len()
+    }
+
+    /// Replaces the pairs by saved ones (checked by the caller): what
+    /// [`BodyContact::begin_step`] needs of them, the triangle, the normal's
+    /// side and the force.
+    pub fn load(&mut self, saved: &[super::saved::SavedContact]) {
+        self.pairs.iter_mut().for_each(|p| *p = None);
+        for c in saved {
+            self.pairs[c.vertex] = Some(Pair {
+                face: c.other,
+                weights: [0.0; 3],
+                normal: Point::from(c.normal),
+                force: Point::from(c.force),
+                projected: false,
+                warm: true,
+            });
         }
     }
 

@@ -23,9 +23,11 @@ mod bodies;
 mod geometry;
 mod grid;
 mod mesh;
+mod saved;
 
 pub use geometry::ColliderShape;
 pub use mesh::TriangleSurface;
+pub use saved::{ContactCheckpoint, SavedContact};
 
 use pd_mesh::Point;
 
@@ -154,7 +156,7 @@ struct Slot {
 }
 
 impl Slot {
-    fn active(&self) -> bool {
+    pub(super) fn active(&self) -> bool {
         self.force.dot(&self.hit.normal) > 0.0
     }
 
