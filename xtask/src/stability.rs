@@ -61,6 +61,13 @@ const RISE_REPORTED: f64 = 0.01;
 /// release build (the matrix is tens of thousands of runs); in a release
 /// build, runs the matrix and writes `docs/stability.md`.
 pub fn main(root: &Path, args: &[String]) -> ExitCode {
+    // The contact axis alone, in this build (docs/stability-contact.md).
+    if args
+        .windows(2)
+        .any(|w| w[0] == "--only" && w[1] == "contact")
+    {
+        return crate::report(crate::stability_contact::run(root));
+    }
     let quick = args.iter().any(|a| a == "--quick");
     let mode = match shard::Mode::parse(root, args) {
         Ok(mode) => mode,

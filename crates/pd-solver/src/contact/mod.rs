@@ -368,8 +368,57 @@ impl ContactState {
                 deepest = deepest.max(depth);
             }
         }
-        if let Some(bodies) = &mut self.bodies {
-            deepest = deepest.max(bodies.project(positions, self.settings.thickness));
+        if self.bodies.is_some() {
+            deepest = deepest.max(self.project_after_bodies(positions));
+        }
+        deepest
+    }
+
+    /// With contact between bodies: the pairs' corrections, then the
+    /// colliders once more, since a pair's correction can push a vertex
+    /// (one resting on the floor, under a crushed body) behind a collider:
+    /// colliders are static, so they win. A vertex found behind a collider
+    /// without a contact gets one, marked projected, so that the velocity
+    /// filter clamps it.
+    fn project_after_bodies(&mut self, positions: &mut [Point]) -> f64 {
+        let thickness = self.settings.thickness;
+        let mut deepest = match &mut self.bodies {
+            Some(bodies) => bodies.project(positions, thickness),
+            None => 0.0,
+        };
+        for (v, x) in positions.iter_mut().enumerate() {
+            if self.free_index[v] == usize::MAX {
+                continue;
+            }
+            if let Some(slot) = &mut self.slots[v] {
+                let depth = slot.lift - slot.hit.normal.dot(&(*x - slot.hit.point));
+                if depth > 0.0 {
+                    *x += slot.hit.normal * depth;
+                    slot.projected = true;
+                    deepest = deepest.max(depth);
+                }
+                continue;
+            }
+            for (c, collider) in self.settings.colliders.iter().enumerate() {
+                let (gap, normal) = collider.shape.gap(x, thickness);
+                if gap < 0.0 {
+                    *x -= normal * gap;
+                    deepest = deepest.max(-gap);
+                    self.slots[v] = Some(Slot {
+                        collider: c,
+                        hit: Hit {
+                            t: 0.0,
+                            point: *x,
+                            normal,
+                        },
+                        force: Point::zeros(),
+                        lift: 0.0,
+                        bounce: 0.0,
+                        projected: true,
+                        warm: false,
+                    });
+                }
+            }
         }
         deepest
     }
