@@ -13,6 +13,7 @@
 //!   every integrator and damping model over a matrix of extreme parameters
 //!   (or one shard of it; docs/tools.md) and writes `docs/stability.md`.
 
+mod bench_contact;
 mod bench_cpp;
 mod bench_limits;
 mod bench_methods;

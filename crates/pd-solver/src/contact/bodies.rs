@@ -236,11 +236,14 @@ impl BodyContact {
     fn first_hit(&self, v: usize, x_n: &[Point], dx: &[Point], thickness: f64) -> Option<Pair> {
         let (a, b) = (x_n[v], x_n[v] + dx[v]);
         let m = Point::repeat(thickness);
+        let (lo, hi) = (a.inf(&b) - m, a.sup(&b) + m);
         let mut best: Option<(f64, Pair)> = None;
         let mut seen = usize::MAX;
-        self.grid.query(&(a.inf(&b) - m), &(a.sup(&b) + m), |f| {
+        self.grid.query(&lo, &hi, |f| {
             let face = self.faces[f];
-            if face.body == self.body_of[v] || f == seen {
+            let (f_lo, f_hi) = &self.boxes[f];
+            let apart = (0..3).any(|k| hi[k] < f_lo[k] || lo[k] > f_hi[k]);
+            if apart || face.body == self.body_of[v] || f == seen {
                 return;
             }
             seen = f;
