@@ -77,9 +77,12 @@ fn stack(integrator: Box<dyn Integrator>, damping: Box<dyn Damping>, threads: us
     simulation(model, integrator, damping, settings, vec![floor()])
 }
 
+/// A test case: its name, integrator and damping model.
+type Case = (&'static str, Box<dyn Integrator>, Box<dyn Damping>);
+
 #[test]
 fn a_body_dropped_on_another_comes_to_rest_on_it() {
-    let cases: Vec<(&str, Box<dyn Integrator>, Box<dyn Damping>)> = vec![
+    let cases: Vec<Case> = vec![
         (
             "backward-euler",
             Box::new(BackwardEuler),

@@ -340,8 +340,8 @@ impl BodyContact {
                 }
             };
             add(v, pair.force);
-            for k in 0..3 {
-                add(tri[k], -pair.force * pair.weights[k]);
+            for (&i, &w) in tri.iter().zip(&pair.weights) {
+                add(i, -pair.force * w);
             }
             self.pairs[v] = Some(pair);
         }
