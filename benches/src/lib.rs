@@ -20,6 +20,7 @@ use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
 use pd_mesh::{Mesh, Point};
 use pd_solver::{Model, Settings, Simulation};
 
+pub mod contact;
 pub mod methods;
 
 /// The damping models every benchmark runs: the main preset of each model

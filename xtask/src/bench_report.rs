@@ -283,10 +283,13 @@ pub fn run(root: &Path, quick: bool, meshes: &[PathBuf]) -> Result<PathBuf, Stri
     let limits = crate::bench_limits::measure(&p, quick, meshes)?;
     eprintln!("iteration methods...");
     let methods = crate::bench_methods::measure(&p, quick)?;
+    eprintln!("contact...");
+    let contact = crate::bench_contact::measure(&p, quick)?;
 
     let report = json!({
         "limits": limits,
         "methods": methods,
+        "contact": contact,
         "mode": if quick { "quick" } else { "full" },
         "commit": commit,
         "date": date,
@@ -512,6 +515,7 @@ fn markdown(r: &Value) -> String {
     );
 
     md.push_str(&crate::bench_methods::markdown(&r["methods"]));
+    md.push_str(&crate::bench_contact::markdown(&r["contact"]));
     let _ = writeln!(md, "## Scaling\n");
     let scaling = r["scaling"].as_array().unwrap_or(&empty);
     let _ = writeln!(

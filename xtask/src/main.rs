@@ -13,6 +13,7 @@
 //!   every integrator and damping model over a matrix of extreme parameters
 //!   (or one shard of it; docs/tools.md) and writes `docs/stability.md`.
 
+mod bench_contact;
 mod bench_cpp;
 mod bench_limits;
 mod bench_methods;
@@ -20,6 +21,7 @@ mod bench_plot;
 mod bench_report;
 mod damping_table;
 mod stability;
+mod stability_contact;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
@@ -66,7 +68,7 @@ fn main() -> ExitCode {
         Some("stability") => stability::main(&workspace_root(), &args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy and docs (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md\n  bench-report [--quick] [--mesh BASE]...\n                            speed/accuracy/scaling/limits report: docs/bench-report.md\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N] [--mesh BASE]...\n                            pd vs the C++ reference: docs/cpp-comparison.md\n  stability [--quick] [--shard I/N [--out DIR] | --merge DIR]\n                            run the matrix of extreme parameters (or one shard of it, or merge shards), write docs/stability.md (use --release)"
+                "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy and docs (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md\n  bench-report [--quick] [--mesh BASE]...\n                            speed/accuracy/scaling/limits report: docs/bench-report.md\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N] [--mesh BASE]...\n                            pd vs the C++ reference: docs/cpp-comparison.md\n  stability [--quick] [--shard I/N [--out DIR] | --merge DIR]\n                            run the matrix of extreme parameters (or one shard of it, or merge shards), write docs/stability.md (use --release)\n  stability --only contact  the contact axis alone (dev profile), write docs/stability-contact.md"
             );
             ExitCode::from(2)
         }

@@ -69,6 +69,13 @@ pub fn main(root: &Path, args: &[String]) -> ExitCode {
     {
         return crate::report(methods::run(root));
     }
+    // The contact axis alone, in this build (docs/stability-contact.md).
+    if args
+        .windows(2)
+        .any(|w| w[0] == "--only" && w[1] == "contact")
+    {
+        return crate::report(crate::stability_contact::run(root));
+    }
     let quick = args.iter().any(|a| a == "--quick");
     let mode = match shard::Mode::parse(root, args) {
         Ok(mode) => mode,

@@ -111,6 +111,11 @@ fn run(args: &[String]) -> Result<Value, String> {
         Some("accuracy") => accuracy(&options, &beam),
         Some("bandwidth") => bandwidth(&options),
         Some("methods") => methods(&options, &beam),
+        Some("contact") => pd_benches::contact::measure(
+            options.parse("--side-cells", 4usize)?,
+            options.parse("--warmup", 20usize)?,
+            options.parse("--steps", 100usize)?,
+        ),
         _ => Err(
             "usage: pd-probe step|overhead|phases|accuracy|bandwidth [options] (see the source)"
                 .into(),

@@ -21,6 +21,7 @@ mod compare;
 mod modes;
 mod pictures;
 mod run;
+mod scenery;
 
 use std::path::PathBuf;
 use std::process::ExitCode;

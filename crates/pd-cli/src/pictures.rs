@@ -6,7 +6,7 @@ use pd_io::recorder::MetricsRow;
 use pd_viz::image::{write_gif, write_png};
 use pd_viz::obj::read_obj;
 use pd_viz::plot::{Plot, Series};
-use pd_viz::render::{Panel, render_panels};
+use pd_viz::render::{Panel, render_panels_with};
 use tracing::info;
 
 use crate::Failure;
@@ -87,7 +87,12 @@ pub(crate) fn render(
             frames,
         });
     }
-    let images = render_panels(&panels, options.width, options.height)
+    // The colliders of the first run's scene (panels compare one scene).
+    let scenery = runs
+        .first()
+        .map(|(_, dir)| crate::scenery::of_run(dir))
+        .unwrap_or_default();
+    let images = render_panels_with(&panels, &scenery, options.width, options.height)
         .map_err(|e| Failure::Input(e.to_string()))?;
     std::fs::create_dir_all(out).map_err(|e| Failure::Output(format!("{}: {e}", out.display())))?;
     for (i, image) in images.iter().enumerate() {

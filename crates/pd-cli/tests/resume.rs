@@ -234,3 +234,68 @@ fn bad_checkpoints_are_input_errors() {
         stderr(&output)
     );
 }
+
+/// The tiny scene with a floor under the beam and a cube resting on its
+/// free end (`contact.bodies = true`): contacts with the floor and between
+/// the bodies are active at every checkpoint, so the resumed run is
+/// bit-identical only if their warm-started forces are saved.
+#[test]
+fn contact_with_colliders_and_between_bodies() {
+    let dir = temp_dir("resume-contact");
+    let scene = tiny_scene(&dir, "scene", "bdf2", "model = \"none\"");
+    let text = std::fs::read_to_string(&scene).unwrap();
+    let contact = r#"
+[[collider]]
+shape = "plane"
+point = [0.0, -0.003, 0.0]
+normal = [0.0, 1.0, 0.0]
+friction = 0.5
+
+[contact]
+bodies = true
+thickness = 0.001
+friction = 0.5
+
+[[body]]
+mesh = { generator = "box", size = [0.05, 0.05, 0.05], cells = [1, 1, 1] }
+density = 1000.0
+constraints = [ { kind = "tet-strain", stiffness = 1.0e5 } ]
+translate = [0.03, 0.1005, 0.03]
+
+[output]"#;
+    std::fs::write(&scene, text.replace("\n[output]", contact)).unwrap();
+    let (whole, interrupted) = (dir.join("whole"), dir.join("interrupted"));
+    pd_ok(&["run", arg(&scene), "--out", arg(&whole)]);
+    pd_ok(&[
+        "run",
+        arg(&scene),
+        "--out",
+        arg(&interrupted),
+        "--checkpoint-every",
+        "4",
+    ]);
+    assert_same_results(&whole, &interrupted);
+    let checkpoint = std::fs::read_to_string(interrupted.join("checkpoint.json")).unwrap();
+    // Both kinds of contact are in the checkpoint (step 8).
+    assert!(
+        checkpoint.contains("\"contact\":{\"colliders\":[{"),
+        "no collider contact saved"
+    );
+    assert!(
+        !checkpoint.contains("\"pairs\":[]"),
+        "no contact between bodies saved"
+    );
+    // Killed during step 10: as in `check_resume_with_formats`.
+    cut(&interrupted.join("metrics.csv"), 1 + 10);
+    cut(&interrupted.join("probes.csv"), 1 + 10);
+    for entry in std::fs::read_dir(interrupted.join("frames")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.file_stem().is_some_and(|s| s == "frame_00005") {
+            std::fs::remove_file(path).unwrap();
+        }
+    }
+    std::fs::remove_file(interrupted.join("final_state.json")).unwrap();
+    std::fs::remove_file(interrupted.join("summary.json")).unwrap();
+    pd_ok(&["resume", arg(&interrupted)]);
+    assert_same_results(&whole, &interrupted);
+}

@@ -120,6 +120,10 @@ struct Raw {
     history: Vec<RawState>,
     energy_reference: f64,
     energy_scale: f64,
+    /// Written only when a contact is active, so that files without
+    /// contact are as before.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    contact: Option<crate::checkpoint_contact::RawContact>,
 }
 
 const FORMAT: &str = "pd-checkpoint";
@@ -147,7 +151,9 @@ pub fn write_checkpoint(path: &Path, file: &CheckpointFile) -> Result<()> {
         && history_finite
         && c.time.is_finite()
         && c.energy_reference.is_finite()
-        && c.energy_scale.is_finite())
+        && c.energy_scale.is_finite()
+        && (c.contact.colliders.iter().chain(&c.contact.pairs))
+            .all(|s| s.force.iter().chain(&s.normal).all(|x| x.is_finite())))
     {
         return Err(Error::Content {
             path: path.to_path_buf(),
@@ -185,6 +191,7 @@ pub fn write_checkpoint(path: &Path, file: &CheckpointFile) -> Result<()> {
             .collect(),
         energy_reference: c.energy_reference,
         energy_scale: c.energy_scale,
+        contact: crate::checkpoint_contact::RawContact::of(&c.contact),
     };
     write_atomically(path, |w| {
         serde_json::to_writer(&mut *w, &raw)?;
@@ -302,6 +309,7 @@ pub fn read_checkpoint(path: &Path) -> Result<CheckpointFile> {
             },
             energy_reference: raw.energy_reference,
             energy_scale: raw.energy_scale,
+            contact: raw.contact.map(Into::into).unwrap_or_default(),
         },
     })
 }
@@ -337,6 +345,7 @@ mod tests {
                 },
                 energy_reference: -2.0 / 7.0,
                 energy_scale: 1e-17 / 3.0,
+                contact: Default::default(),
             },
         }
     }

@@ -39,6 +39,7 @@
 
 mod atomic;
 pub mod checkpoint;
+mod checkpoint_contact;
 mod error;
 pub mod frames;
 pub mod gmsh;

@@ -80,6 +80,59 @@ fn a_scene_without_colliders_builds_no_contact() {
 }
 
 #[test]
+fn the_ball_generator_builds_a_ball_and_names_its_bad_keys() {
+    let text = BODY.replace(
+        r#"{ generator = "box", size = [0.2, 0.2, 0.2], cells = [2, 2, 2] }"#,
+        r#"{ generator = "ball", radius = 0.1, cells = [4] }"#,
+    );
+    let scene = Scene::parse(&text, Syntax::Toml, Path::new("t.toml")).unwrap();
+    let sim = scene.build().unwrap();
+    assert_eq!(sim.state().positions.len(), 125);
+    let far = (sim.state().positions.iter())
+        .map(|p| p.norm())
+        .fold(0.0, f64::max);
+    // The cube grid's corners land on the sphere, up to round-off.
+    assert!((far - 0.1).abs() < 1e-15, "{far}");
+    for (from, to, expected) in [
+        ("radius = 0.1", "radius = -0.1", "body[0].mesh.radius"),
+        (
+            "cells = [4]",
+            "cells = [4, 4]",
+            "body[0].mesh.cells: needs 1 values",
+        ),
+        ("radius = 0.1, ", "", "body[0].mesh.radius: missing"),
+        (
+            "cells = [4]",
+            "cells = [4], size = [1.0]",
+            "body[0].mesh.size: is not a parameter",
+        ),
+    ] {
+        let bad = text.replace(from, to);
+        let message = Scene::parse(&bad, Syntax::Toml, Path::new("t.toml"))
+            .and_then(|s| s.build().map(drop))
+            .unwrap_err()
+            .to_string();
+        assert!(message.contains(expected), "{to}: {message}");
+    }
+    let one = text.replace("cells = [4]", "cells = [1]");
+    let message = Scene::parse(&one, Syntax::Toml, Path::new("t.toml"))
+        .and_then(|s| s.build().map(drop))
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("at least 2 cells"), "{message}");
+}
+
+#[test]
+fn contact_between_bodies_builds_without_colliders() {
+    let scene = parse("\n[contact]\nbodies = true\nthickness = 0.002\nfriction = 0.4\n").unwrap();
+    assert_eq!(scene.body_contact.as_ref().unwrap().friction, 0.4);
+    let contact = scene.contact.as_ref().unwrap();
+    assert!(contact.colliders.is_empty());
+    assert_eq!(contact.thickness, 0.002);
+    assert!(scene.build().unwrap().contact().is_some());
+}
+
+#[test]
 fn bad_colliders_name_their_field() {
     let cases = [
         (
@@ -124,8 +177,12 @@ fn bad_colliders_name_their_field() {
             "contact.thickness: must be finite and >= 0",
         ),
         (
-            "[contact]\nbodies = true\n",
-            "contact.bodies: contact between bodies is not supported yet",
+            "[contact]\nbodies = true\nfriction = -1.0\n",
+            "contact.friction: must be finite and >= 0, got -1",
+        ),
+        (
+            "[contact]\nfriction = 0.5\n",
+            "contact.friction: only with bodies = true",
         ),
         (
             "[contact]\nself = true\n",

@@ -1,5 +1,6 @@
 //! Generators for the meshes that tests, benchmarks and demo scenes need: a
-//! box of tetrahedra, a chain of springs and a sheet of cloth.
+//! box of tetrahedra, a ball of tetrahedra, a chain of springs and a sheet
+//! of cloth.
 //!
 //! All lengths are in metres. Every generator validates its parameters and
 //! returns [`MeshError::InvalidParameter`] instead of panicking; meshes with
@@ -19,6 +20,9 @@
 //! ```
 
 use crate::{Mesh, MeshError, Point};
+
+mod ball;
+pub use ball::{ball, tet_quality};
 
 /// Largest number of vertices or elements a generator will produce.
 const MAX_COUNT: usize = 1 << 31;

@@ -31,6 +31,9 @@ pub struct Checkpoint {
     pub energy_reference: f64,
     /// The energy scale of the divergence check, J.
     pub energy_scale: f64,
+    /// The contacts active at the end of the step, with their
+    /// warm-started forces (empty without contact).
+    pub contact: crate::contact::ContactCheckpoint,
 }
 
 impl Simulation {
@@ -73,6 +76,11 @@ impl Simulation {
             history: self.integrator.history(),
             energy_reference: self.divergence.reference,
             energy_scale: self.divergence.scale,
+            contact: self
+                .contact
+                .as_ref()
+                .map(crate::contact::ContactState::save)
+                .unwrap_or_default(),
         }
     }
 
@@ -122,6 +130,20 @@ impl Simulation {
                 .restore_history(&before, n)
                 .expect("the integrator's own history restores");
             return Err(invalid(reason.to_string()));
+        }
+        // Checked before it changes anything; the history goes back if not.
+        let contact = match &mut self.contact {
+            Some(contact) => contact.load(&checkpoint.contact),
+            None if !checkpoint.contact.is_empty() => {
+                Err("the checkpoint has contacts, the simulation has no contact".into())
+            }
+            None => Ok(()),
+        };
+        if let Err(reason) = contact {
+            self.integrator
+                .restore_history(&before, n)
+                .expect("the integrator's own history restores");
+            return Err(invalid(reason));
         }
         self.state = checkpoint.state.clone();
         self.steps = checkpoint.steps;

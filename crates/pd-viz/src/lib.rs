@@ -18,6 +18,7 @@ pub mod image;
 pub mod obj;
 pub mod plot;
 pub mod render;
+pub mod scenery;
 mod sheet;
 
 use std::path::PathBuf;

@@ -13,6 +13,7 @@ use plotters::prelude::*;
 
 use crate::image::RgbImage;
 use crate::obj::Surface;
+pub use crate::scenery::Scenery;
 use crate::{Error, Result};
 
 /// The background colour.
@@ -20,6 +21,8 @@ pub const BACKGROUND: [u8; 3] = [255, 255, 255];
 const GROUND: [u8; 3] = [236, 236, 232];
 const GRID: [u8; 3] = [190, 190, 185];
 const LINE: [u8; 3] = [40, 40, 40];
+/// Colour of static solids (colliders).
+const SOLID: [f64; 3] = [175.0, 175.0, 170.0];
 /// Body colours of successive panels.
 const BODY: [[f64; 3]; 5] = [
     [70.0, 120.0, 190.0],
@@ -85,6 +88,15 @@ impl Camera {
     /// # Errors
     /// [`Error::Input`] if there is no vertex at all or the size is zero.
     pub fn fit(panels: &[Panel], width: u32, height: u32) -> Result<Self> {
+        Self::fit_with(panels, &Scenery::default(), width, height)
+    }
+
+    /// [`Camera::fit`] that also fits the scenery's solids and puts the
+    /// ground grid at the scenery's ground height when it has one.
+    ///
+    /// # Errors
+    /// As [`Camera::fit`].
+    pub fn fit_with(panels: &[Panel], scenery: &Scenery, width: u32, height: u32) -> Result<Self> {
         if width == 0 || height == 0 {
             return Err(Error::Input("the image size must be positive".into()));
         }
@@ -103,6 +115,7 @@ impl Camera {
         if !lo[0].is_finite() {
             return Err(Error::Input("the frames have no vertices to draw".into()));
         }
+        scenery.widen(&mut lo, &mut hi);
         let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max).max(1e-9);
         let margin = 0.25 * extent;
         let ground = [
@@ -122,7 +135,7 @@ impl Camera {
             centre: [0.0; 2],
             scale: 1.0,
             size: (width * SUPERSAMPLE, height * SUPERSAMPLE),
-            ground_y: lo[1],
+            ground_y: scenery.ground.unwrap_or(lo[1]),
             ground,
             grid_step,
         };
@@ -256,6 +269,17 @@ impl Canvas {
 
 /// Draws one surface with the camera into a panel-sized image.
 pub fn render_surface(camera: &Camera, surface: &Surface, body: usize) -> RgbImage {
+    render_surface_with(camera, surface, body, &Scenery::default())
+}
+
+/// [`render_surface`] with the scenery's solids drawn (grey) behind and
+/// around the body.
+pub fn render_surface_with(
+    camera: &Camera,
+    surface: &Surface,
+    body: usize,
+    scenery: &Scenery,
+) -> RgbImage {
     let (w, h) = camera.size;
     let mut canvas = Canvas {
         image: RgbImage::filled(w, h, BACKGROUND),
@@ -292,8 +316,11 @@ pub fn render_surface(camera: &Camera, surface: &Surface, body: usize) -> RgbIma
         z += step;
     }
 
-    let base = BODY[body % BODY.len()];
     let light = normalised([0.35, 1.0, 0.6]);
+    for solid in &scenery.solids {
+        draw_solid(&mut canvas, camera, solid, light);
+    }
+    let base = BODY[body % BODY.len()];
     let projected: Vec<_> = surface
         .positions
         .iter()
@@ -359,6 +386,19 @@ pub fn render_surface(camera: &Camera, surface: &Surface, body: usize) -> RgbIma
 /// [`Error::Input`] for no panels, a panel without frames or nothing to
 /// draw; [`Error::Encode`] if drawing a label fails.
 pub fn render_panels(panels: &[Panel], width: u32, height: u32) -> Result<Vec<RgbImage>> {
+    render_panels_with(panels, &Scenery::default(), width, height)
+}
+
+/// [`render_panels`] with the static scenery (colliders) in every panel.
+///
+/// # Errors
+/// As [`render_panels`].
+pub fn render_panels_with(
+    panels: &[Panel],
+    scenery: &Scenery,
+    width: u32,
+    height: u32,
+) -> Result<Vec<RgbImage>> {
     if panels.is_empty() {
         return Err(Error::Input("no panels to render".into()));
     }
@@ -368,7 +408,7 @@ pub fn render_panels(panels: &[Panel], width: u32, height: u32) -> Result<Vec<Rg
             empty.label
         )));
     }
-    let camera = Camera::fit(panels, width, height)?;
+    let camera = Camera::fit_with(panels, scenery, width, height)?;
     let count = panels.iter().map(|p| p.frames.len()).max().unwrap_or(0);
     let total_width = width * panels.len() as u32;
     let mut images = Vec::with_capacity(count);
@@ -376,13 +416,32 @@ pub fn render_panels(panels: &[Panel], width: u32, height: u32) -> Result<Vec<Rg
         let mut image = RgbImage::filled(total_width, height, BACKGROUND);
         for (k, panel) in panels.iter().enumerate() {
             let surface = &panel.frames[frame.min(panel.frames.len() - 1)];
-            let picture = render_surface(&camera, surface, k);
+            let picture = render_surface_with(&camera, surface, k, scenery);
             image.blit(&picture, k as u32 * width, 0);
         }
         draw_labels(&mut image, panels, width)?;
         images.push(image);
     }
     Ok(images)
+}
+
+/// A static solid: grey Lambert shading, depth-tested; only the faces
+/// turned towards the camera are drawn (a closed solid's outside; the
+/// inside of an open bowl, whose normals point into it).
+fn draw_solid(canvas: &mut Canvas, camera: &Camera, solid: &Surface, light: V3) {
+    let projected: Vec<_> = solid.positions.iter().map(|&p| camera.project(p)).collect();
+    for t in &solid.triangles {
+        let [a, b, c] = t.map(|i| solid.positions[i]);
+        let n = cross(sub(b, a), sub(c, a));
+        let len = dot(n, n).sqrt();
+        if !(len > 0.0) || dot(n, camera.towards_eye) <= 0.0 {
+            continue;
+        }
+        let shade = 0.55 + 0.45 * (dot(n, light) / len).abs();
+        let colour = SOLID.map(|c| (c * shade).round().clamp(0.0, 255.0) as u8);
+        let [pa, pb, pc] = t.map(|i| projected[i]);
+        canvas.triangle(pa, pb, pc, colour, true);
+    }
 }
 
 fn draw_labels(image: &mut RgbImage, panels: &[Panel], width: u32) -> Result<()> {

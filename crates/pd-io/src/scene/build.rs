@@ -52,6 +52,10 @@ impl Scene {
                 self.field_error(field, e)
             })?;
         }
+        if let Some(bodies) = &self.body_contact {
+            (simulation.set_body_contact(bodies.clone()))
+                .map_err(|e| self.field_error("contact", e))?;
+        }
         self.apply_initial_states(&mut simulation, &offsets)?;
         for (b, body) in self.bodies.iter().enumerate() {
             if body.initial_velocity != Point::zeros() || body.angular_velocity != Point::zeros() {
@@ -186,6 +190,7 @@ impl Scene {
             MeshSource::Box { size, cells } => generators::box_tets(*size, *cells),
             MeshSource::Chain { points, length } => generators::chain(*points, *length),
             MeshSource::Cloth { size, cells } => generators::cloth(*size, *cells),
+            MeshSource::Ball { radius, cells } => generators::ball(*radius, *cells),
             MeshSource::TetGen(path) => return tetgen::read_tetgen_base(path),
             MeshSource::TetGenSurface(path) => return tetgen::read_tetgen_surface_base(path),
             MeshSource::Gmsh(path) => return gmsh::read_gmsh(path),

@@ -5,7 +5,9 @@
 use std::path::{Path, PathBuf};
 
 use pd_mesh::Point;
-use pd_solver::contact::{Collider, ColliderShape, ContactSettings, TriangleSurface};
+use pd_solver::contact::{
+    BodyContactSettings, Collider, ColliderShape, ContactSettings, TriangleSurface,
+};
 use serde::Deserialize;
 
 use crate::Result;
@@ -34,22 +36,40 @@ pub(super) struct RawContact {
     #[serde(rename = "self")]
     self_contact: Option<bool>,
     thickness: Option<f64>,
+    /// Coulomb coefficient between bodies (with `bodies = true`).
+    friction: Option<f64>,
 }
 
+/// What the `[[collider]]` and `[contact]` sections ask for: the collider
+/// settings (`None` without colliders and without contact between bodies)
+/// and contact between bodies.
+pub(super) type Validated = (Option<ContactSettings>, Option<BodyContactSettings>);
+
 /// Validates the colliders and the `[contact]` table of the scene `source`.
-/// `None` when the scene names no collider: then no contact code runs.
+/// `None` when the scene names no collider and no contact between bodies:
+/// then no contact code runs.
 pub(super) fn validate(
     source: &Path,
     colliders: Vec<RawCollider>,
     contact: Option<RawContact>,
-) -> Result<Option<ContactSettings>> {
+) -> Result<Validated> {
     let error = |field: String, message: String| super::field_error(source, field, message);
     let mut thickness = 0.0;
+    let mut bodies = None;
     if let Some(c) = contact {
         if c.bodies == Some(true) {
+            let friction = c.friction.unwrap_or(0.0);
+            if !(friction.is_finite() && friction >= 0.0) {
+                return Err(error(
+                    "contact.friction".into(),
+                    format!("must be finite and >= 0, got {friction}"),
+                ));
+            }
+            bodies = Some(BodyContactSettings { friction });
+        } else if c.friction.is_some() {
             return Err(error(
-                "contact.bodies".into(),
-                "contact between bodies is not supported yet (docs/contact.md)".into(),
+                "contact.friction".into(),
+                "only with bodies = true (a collider's friction is its own key)".into(),
             ));
         }
         if c.self_contact == Some(true) {
@@ -69,17 +89,24 @@ pub(super) fn validate(
         }
     }
     if colliders.is_empty() {
-        return Ok(None);
+        let only_bodies = bodies.as_ref().map(|_| ContactSettings {
+            colliders: Vec::new(),
+            thickness,
+        });
+        return Ok((only_bodies, bodies));
     }
     let colliders = colliders
         .into_iter()
         .enumerate()
         .map(|(i, raw)| collider(source, i, raw))
         .collect::<Result<Vec<_>>>()?;
-    Ok(Some(ContactSettings {
-        colliders,
-        thickness,
-    }))
+    Ok((
+        Some(ContactSettings {
+            colliders,
+            thickness,
+        }),
+        bodies,
+    ))
 }
 
 /// One collider, `collider[i]`.

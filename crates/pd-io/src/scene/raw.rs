@@ -67,6 +67,7 @@ pub(super) struct Mesh {
     pub(super) cells: Option<Vec<usize>>,
     pub(super) points: Option<usize>,
     pub(super) length: Option<f64>,
+    pub(super) radius: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -74,6 +74,14 @@ pub enum MeshSource {
         /// Cells per axis (x, z).
         cells: [usize; 2],
     },
+    /// `generator = "ball"`: a tet ball centred at the origin, the cube grid
+    /// mapped radially onto the sphere ([`pd_mesh::generators::ball`]).
+    Ball {
+        /// Radius in m.
+        radius: f64,
+        /// Cells across the diameter (>= 2).
+        cells: usize,
+    },
     /// `file = "..."`: a TetGen `.node`/`.ele` pair (path resolved against the
     /// scene file's folder).
     TetGen(PathBuf),
@@ -251,4 +259,7 @@ pub struct Scene {
     /// Contact with colliders (`[[collider]]`, `[contact]`); `None` when
     /// the scene names no collider.
     pub contact: Option<pd_solver::contact::ContactSettings>,
+    /// Contact between bodies (`[contact] bodies = true`), on top of
+    /// `contact` (which then holds its thickness).
+    pub body_contact: Option<pd_solver::contact::BodyContactSettings>,
 }

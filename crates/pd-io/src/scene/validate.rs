@@ -92,7 +92,8 @@ impl Validator<'_> {
         let output = self.output(raw.output)?;
         let solver = self.solver(raw.solver)?;
         self.check_material_method(&bodies, &solver)?;
-        let contact = super::contact::validate(self.source, raw.colliders, raw.contact)?;
+        let (contact, body_contact) =
+            super::contact::validate(self.source, raw.colliders, raw.contact)?;
         Ok(Scene {
             source: self.source.to_path_buf(),
             steps: raw.simulation.steps,
@@ -103,6 +104,7 @@ impl Validator<'_> {
             output,
             solver,
             contact,
+            body_contact,
         })
     }
 
@@ -257,7 +259,7 @@ impl Validator<'_> {
             (Some(_), Some(_)) => Err(self.error(field, "give a generator or a file, not both")),
             (None, None) => Err(self.error(
                 field,
-                "give generator = \"box\" | \"chain\" | \"cloth\", or file = \"...\"",
+                "give generator = \"box\" | \"ball\" | \"chain\" | \"cloth\", or file = \"...\"",
             )),
             (None, Some(file)) => self.mesh_file(field, &raw, file),
             (Some(generator), None) => self.generator(field, generator, &raw),
@@ -284,6 +286,7 @@ impl Validator<'_> {
                 ("cells", raw.cells.is_some()),
                 ("points", raw.points.is_some()),
                 ("length", raw.length.is_some()),
+                ("radius", raw.radius.is_some()),
             ],
             "a mesh file",
         )?;
@@ -312,6 +315,7 @@ impl Validator<'_> {
         let line_keys = [
             ("points", raw.points.is_some()),
             ("length", raw.length.is_some()),
+            ("radius", raw.radius.is_some()),
         ];
         match generator {
             "box" => {
@@ -331,7 +335,11 @@ impl Validator<'_> {
             "chain" => {
                 self.unexpected(
                     field,
-                    &[("size", raw.size.is_some()), ("cells", raw.cells.is_some())],
+                    &[
+                        ("size", raw.size.is_some()),
+                        ("cells", raw.cells.is_some()),
+                        ("radius", raw.radius.is_some()),
+                    ],
                     "the chain generator",
                 )?;
                 let missing = |name: &str| self.error(sub(name), "missing");
@@ -341,11 +349,33 @@ impl Validator<'_> {
                         .positive(&sub("length"), raw.length.ok_or_else(|| missing("length"))?)?,
                 })
             }
+            "ball" => self.ball(field, raw),
             other => Err(self.error(
                 sub("generator"),
-                format!("unknown generator \"{other}\"; expected \"box\", \"chain\" or \"cloth\""),
+                format!(
+                    "unknown generator \"{other}\"; expected \"box\", \"ball\", \"chain\" or \"cloth\""
+                ),
             )),
         }
+    }
+
+    /// `generator = "ball"`: `radius` (m) and `cells = [n]` across it.
+    fn ball(&self, field: &str, raw: &raw::Mesh) -> Result<MeshSource> {
+        let sub = |name: &str| format!("{field}.{name}");
+        let others = [
+            ("size", raw.size.is_some()),
+            ("points", raw.points.is_some()),
+            ("length", raw.length.is_some()),
+        ];
+        self.unexpected(field, &others, "the ball generator")?;
+        let radius = raw
+            .radius
+            .ok_or_else(|| self.error(sub("radius"), "missing"))?;
+        let [cells] = self.array(&sub("cells"), raw.cells.clone())?;
+        Ok(MeshSource::Ball {
+            radius: self.positive(&sub("radius"), radius)?,
+            cells,
+        })
     }
 
     fn array<T: Copy + std::fmt::Debug, const N: usize>(

@@ -19,11 +19,15 @@
 //! what they left behind a contact plane is projected onto it, and the
 //! normal velocity of every contact is clamped to `[0, bounce]`.
 
+mod bodies;
 mod geometry;
+mod grid;
 mod mesh;
+mod saved;
 
 pub use geometry::ColliderShape;
 pub use mesh::TriangleSurface;
+pub use saved::{ContactCheckpoint, SavedContact};
 
 use pd_mesh::Point;
 
@@ -125,6 +129,14 @@ impl ContactSettings {
     }
 }
 
+/// Contact between bodies (`contact.bodies = true`): vertices of each body
+/// against the surface triangles of every other body (docs/contact.md).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct BodyContactSettings {
+    /// Coulomb coefficient between bodies (>= 0; default 0).
+    pub friction: f64,
+}
+
 /// One vertex's contact during a step.
 #[derive(Debug, Clone, Copy)]
 struct Slot {
@@ -144,7 +156,7 @@ struct Slot {
 }
 
 impl Slot {
-    fn active(&self) -> bool {
+    pub(super) fn active(&self) -> bool {
         self.force.dot(&self.hit.normal) > 0.0
     }
 
@@ -169,6 +181,8 @@ pub(crate) struct ContactState {
     /// Below this approach speed a hit does not bounce (2 |g| h), m/s.
     rest_speed: f64,
     iteration: usize,
+    /// Contact between bodies, when asked for (`bodies.rs`).
+    bodies: Option<bodies::BodyContact>,
 }
 
 /// What the contacts of a finished step measured.
@@ -194,6 +208,7 @@ impl ContactState {
             gamma: 0.0,
             rest_speed: 0.0,
             iteration: 0,
+            bodies: None,
         }
     }
 
@@ -236,6 +251,9 @@ impl ContactState {
                 }
             });
         }
+        if let Some(bodies) = &mut self.bodies {
+            bodies.begin_step(x_n);
+        }
     }
 
     /// After the right-hand side of an iteration is built, before its
@@ -246,6 +264,9 @@ impl ContactState {
         let first = self.iteration == 0;
         self.iteration += 1;
         let h = self.h;
+        if self.bodies.is_some() {
+            self.detect_bodies(x_n, dx);
+        }
         for v in 0..x_n.len() {
             let f = self.free_index[v];
             if f == usize::MAX {
@@ -254,6 +275,8 @@ impl ContactState {
             let x = x_n[v] + dx[v];
             let slot = match self.slots[v] {
                 Some(slot) => slot,
+                // With bodies, detection ran before (`detect_bodies`).
+                None if self.bodies.is_some() => continue,
                 None => match self.detect(v, &x_n[v], &x) {
                     Some(slot) => slot,
                     None => continue,
@@ -264,12 +287,34 @@ impl ContactState {
             // warm-started force: that force is applied as is once, and
             // updated from the first solve on.
             if !(first && slot.warm) {
-                let rho = RELAXATION * masses[v] / (h * h);
+                let mut rho = RELAXATION * masses[v] / (h * h);
+                if let Some(bodies) = &self.bodies {
+                    rho /= f64::from(bodies.count[v].max(1));
+                }
                 let collider = &self.settings.colliders[slot.collider];
                 slot.force = update_force(&slot, collider, &x, rho, h);
             }
             rhs[f] += slot.force;
             self.slots[v] = Some(slot);
+        }
+        if let Some(bodies) = &mut self.bodies {
+            let settings = (h, RELAXATION, self.settings.thickness);
+            bodies.apply(x_n, dx, settings, first, &self.free_index, rhs);
+        }
+    }
+
+    /// With contact between bodies: detects the new collider contacts of
+    /// every free vertex, then the new vertex-triangle pairs, and counts
+    /// every vertex's contacts (the Uzawa steps are shared by them).
+    fn detect_bodies(&mut self, x_n: &[Point], dx: &[Point]) {
+        for v in 0..x_n.len() {
+            if self.free_index[v] != usize::MAX && self.slots[v].is_none() {
+                self.slots[v] = self.detect(v, &x_n[v], &(x_n[v] + dx[v]));
+            }
+        }
+        let slots = &self.slots;
+        if let Some(bodies) = &mut self.bodies {
+            bodies.detect(x_n, dx, self.settings.thickness, |v| slots[v].is_some());
         }
     }
 
@@ -323,6 +368,58 @@ impl ContactState {
                 deepest = deepest.max(depth);
             }
         }
+        if self.bodies.is_some() {
+            deepest = deepest.max(self.project_after_bodies(positions));
+        }
+        deepest
+    }
+
+    /// With contact between bodies: the pairs' corrections, then the
+    /// colliders once more, since a pair's correction can push a vertex
+    /// (one resting on the floor, under a crushed body) behind a collider:
+    /// colliders are static, so they win. A vertex found behind a collider
+    /// without a contact gets one, marked projected, so that the velocity
+    /// filter clamps it.
+    fn project_after_bodies(&mut self, positions: &mut [Point]) -> f64 {
+        let thickness = self.settings.thickness;
+        let mut deepest = match &mut self.bodies {
+            Some(bodies) => bodies.project(positions, thickness),
+            None => 0.0,
+        };
+        for (v, x) in positions.iter_mut().enumerate() {
+            if self.free_index[v] == usize::MAX {
+                continue;
+            }
+            if let Some(slot) = &mut self.slots[v] {
+                let depth = slot.lift - slot.hit.normal.dot(&(*x - slot.hit.point));
+                if depth > 0.0 {
+                    *x += slot.hit.normal * depth;
+                    slot.projected = true;
+                    deepest = deepest.max(depth);
+                }
+                continue;
+            }
+            for (c, collider) in self.settings.colliders.iter().enumerate() {
+                let (gap, normal) = collider.shape.gap(x, thickness);
+                if gap < 0.0 {
+                    *x -= normal * gap;
+                    deepest = deepest.max(-gap);
+                    self.slots[v] = Some(Slot {
+                        collider: c,
+                        hit: Hit {
+                            t: 0.0,
+                            point: *x,
+                            normal,
+                        },
+                        force: Point::zeros(),
+                        lift: 0.0,
+                        bounce: 0.0,
+                        projected: true,
+                        warm: false,
+                    });
+                }
+            }
+        }
         deepest
     }
 
@@ -344,6 +441,9 @@ impl ContactState {
                 *v += n * (clamped - relative);
             }
         }
+        if let Some(bodies) = &self.bodies {
+            bodies.filter_velocities(velocities);
+        }
     }
 
     /// The active contacts and the deepest penetration of a free vertex of
@@ -359,8 +459,14 @@ impl ContactState {
                 penetration = penetration.max(-collider.shape.gap(x, thickness).0);
             }
         }
+        let mut contacts = self.slots.iter().flatten().filter(|s| s.active()).count();
+        if let Some(bodies) = &self.bodies {
+            let (active, deepest) = bodies.report(positions, thickness);
+            contacts += active;
+            penetration = penetration.max(deepest);
+        }
         ContactReport {
-            contacts: self.slots.iter().flatten().filter(|s| s.active()).count(),
+            contacts,
             penetration,
         }
     }
@@ -398,6 +504,49 @@ impl crate::Simulation {
             self.state.positions.len(),
             self.global.free(),
         ));
+        Ok(())
+    }
+
+    /// Turns on contact between bodies: every vertex of a body's surface
+    /// against the surface triangles (tet boundary faces; cloth triangles,
+    /// two-sided) of every other body, with the thickness of the contact
+    /// settings (contact with no collider and zero thickness is turned on
+    /// if [`Simulation::set_contact`](crate::Simulation::set_contact) was
+    /// not called). Call it after `set_contact`, which replaces it.
+    ///
+    /// # Errors
+    /// A negative or non-finite friction (`contact.friction`), or a
+    /// position solver that cannot run with contact.
+    pub fn set_body_contact(&mut self, settings: BodyContactSettings) -> Result<(), SolverError> {
+        if !(settings.friction.is_finite() && settings.friction >= 0.0) {
+            return Err(SolverError::InvalidModel {
+                reason: "contact.friction: must be finite and >= 0".into(),
+            });
+        }
+        if self.contact.is_none() {
+            self.set_contact(ContactSettings::default())?;
+        }
+        let surfaces = self
+            .model
+            .bodies()
+            .iter()
+            .map(|b| bodies::BodySurface {
+                triangles: (b.mesh.surface_triangles().iter())
+                    .map(|t| t.map(|v| v + b.offset))
+                    .collect(),
+                two_sided: b.mesh.tets().is_empty(),
+            })
+            .collect();
+        let model = &self.model;
+        let state = bodies::BodyContact::new(
+            surfaces,
+            model.rest_positions(),
+            (model.masses(), model.fixed()),
+            settings.friction,
+        );
+        if let Some(contact) = &mut self.contact {
+            contact.bodies = Some(state);
+        }
         Ok(())
     }
 

@@ -1,0 +1,487 @@
+//! Contact between bodies (`contact.bodies = true`, docs/contact.md):
+//! vertices of each body against the surface triangles (tet boundary faces,
+//! cloth triangles) of every other body, in the same projected Uzawa
+//! framework as the colliders.
+//!
+//! A pair is a vertex `v` and a triangle `(a, b, c)` with barycentric
+//! weights `w` and unit normal `n`, both fixed for the step (a linearised
+//! constraint, as for colliders). Its relative position is
+//! `r = x_v - sum_i w_i x_i`; the constraint keeps `n . r >= thickness`
+//! and, while sticking, `r` tangentially where the vertex met the
+//! triangle's material point, so friction acts relative to the triangle's
+//! motion. The force `f` enters the right-hand side at `v` and, times
+//! `-w_i`, at the triangle's vertices: the forces sum to zero and momentum
+//! is exchanged, never created.
+//!
+//! Step size. With `J` the pairs' rows (`1` at `v`, `-w_i` at `a, b, c`),
+//! the response of the pairs to their forces is `J A^-1 J^T <= h^2 J M^-1
+//! J^T`, and by Cauchy-Schwarz `J M^-1 J^T <= D`, `D_k = sum_{i in k}
+//! count_i w_ki^2 / m_i`, where `count_i` is the number of contacts (pairs
+//! and collider contacts) vertex `i` takes part in. So `rho_k = omega /
+//! (h^2 D_k)` converges for `omega` in `(0, 2)`, however many pairs share
+//! a vertex; a collider contact's step `omega m_v / h^2` is divided by
+//! `count_v` for the same reason.
+
+use pd_mesh::Point;
+
+use super::grid::Grid;
+
+/// Barycentric slack of the inside test (a vertex on a shared edge or
+/// corner belongs to either triangle; the first in triangle order wins).
+const INSIDE_SLACK: f64 = 1e-9;
+
+/// One surface triangle of a body.
+#[derive(Debug, Clone, Copy)]
+struct Face {
+    vertices: [usize; 3],
+    body: usize,
+    /// Cloth: either side is outside (the side the vertex comes from).
+    two_sided: bool,
+}
+
+/// A vertex's contact with a triangle of another body, for one step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Pair {
+    pub(super) face: usize,
+    weights: [f64; 3],
+    pub(super) normal: Point,
+    /// The force on the vertex (`A dx` units); the triangle gets `-w_i f`.
+    pub(super) force: Point,
+    /// Moved apart by the end-of-step projection.
+    projected: bool,
+    /// Carried over from the previous step.
+    warm: bool,
+}
+
+impl Pair {
+    pub(super) fn active(&self) -> bool {
+        self.force.dot(&self.normal) > 0.0
+    }
+}
+
+/// Body-contact state: the surface, the per-vertex pairs and the broad
+/// phase's buffers.
+#[derive(Debug, Clone)]
+pub(crate) struct BodyContact {
+    faces: Vec<Face>,
+    /// Body of each vertex, `usize::MAX` for vertices on no surface.
+    body_of: Vec<usize>,
+    masses: Vec<f64>,
+    fixed: Vec<bool>,
+    /// Coulomb coefficient between bodies.
+    friction: f64,
+    /// Largest depth behind a triangle at the step's start at which a
+    /// vertex still counts as in front of it, m (a quarter of the mean
+    /// surface edge): what lies deeper is the far side of the other body.
+    reach: f64,
+    pub(super) pairs: Vec<Option<Pair>>,
+    /// Contacts each vertex takes part in, this iteration.
+    pub(super) count: Vec<u32>,
+    grid: Grid,
+    boxes: Vec<(Point, Point)>,
+}
+
+/// A body's surface for [`BodyContact::new`]: its triangles in global
+/// vertex numbers and whether it is a cloth (two-sided).
+pub(crate) struct BodySurface {
+    pub triangles: Vec<[usize; 3]>,
+    pub two_sided: bool,
+}
+
+impl BodyContact {
+    pub fn new(
+        surfaces: Vec<BodySurface>,
+        rest: &[Point],
+        (masses, fixed): (&[f64], &[bool]),
+        friction: f64,
+    ) -> Self {
+        let mut faces = Vec::new();
+        let mut body_of = vec![usize::MAX; rest.len()];
+        let (mut edges, mut edge_sum) = (0usize, 0.0);
+        for (body, surface) in surfaces.into_iter().enumerate() {
+            for t in surface.triangles {
+                for (k, &v) in t.iter().enumerate() {
+                    body_of[v] = body;
+                    edge_sum += (rest[v] - rest[t[(k + 1) % 3]]).norm();
+                    edges += 1;
+                }
+                faces.push(Face {
+                    vertices: t,
+                    body,
+                    two_sided: surface.two_sided,
+                });
+            }
+        }
+        let reach = if edges > 0 {
+            0.25 * edge_sum / edges as f64
+        } else {
+            0.0
+        };
+        Self {
+            faces,
+            body_of,
+            masses: masses.to_vec(),
+            fixed: fixed.to_vec(),
+            friction,
+            reach,
+            pairs: vec![None; rest.len()],
+            count: vec![0; rest.len()],
+            grid: Grid::default(),
+            boxes: Vec::new(),
+        }
+    }
+
+    /// The number of surface triangles.
+    pub fn faces(&self) -> usize {
+        self.faces.len()
+    }
+
+    /// Replaces the pairs by saved ones (checked by the caller): what
+    /// [`BodyContact::begin_step`] needs of them, the triangle, the normal's
+    /// side and the force.
+    pub fn load(&mut self, saved: &[super::saved::SavedContact]) {
+        self.pairs.iter_mut().for_each(|p| *p = None);
+        for c in saved {
+            self.pairs[c.vertex] = Some(Pair {
+                face: c.other,
+                weights: [0.0; 3],
+                normal: Point::from(c.normal),
+                force: Point::from(c.force),
+                projected: false,
+                warm: true,
+            });
+        }
+    }
+
+    /// Start of a step: keeps the pairs that ended the last one active,
+    /// re-anchored at `x_n` (the vertex's projection onto its triangle
+    /// becomes the contact point; a vertex that left its triangle loses the
+    /// pair and is detected anew), forces warm-started.
+    pub fn begin_step(&mut self, x_n: &[Point]) {
+        for (v, pair) in self.pairs.iter_mut().enumerate() {
+            let Some(p) = pair.filter(Pair::active) else {
+                *pair = None;
+                continue;
+            };
+            let face = self.faces[p.face];
+            let tri = face.vertices.map(|i| x_n[i]);
+            *pair = project_onto(&tri, &x_n[v]).and_then(|(weights, normal, _)| {
+                let normal = if normal.dot(&p.normal) >= 0.0 {
+                    normal
+                } else {
+                    -normal
+                };
+                inside(&weights).then_some(Pair {
+                    weights,
+                    normal,
+                    projected: false,
+                    warm: true,
+                    ..p
+                })
+            });
+        }
+    }
+
+    /// Detects new pairs for the free surface vertices without one (the
+    /// linearised swept test of [`BodyContact::first_hit`]), then counts
+    /// every vertex's contacts; `collider` says which vertices hold a
+    /// collider contact.
+    pub fn detect(
+        &mut self,
+        x_n: &[Point],
+        dx: &[Point],
+        thickness: f64,
+        collider: impl Fn(usize) -> bool,
+    ) {
+        let margin = thickness + self.reach;
+        self.boxes.clear();
+        for face in &self.faces {
+            let (mut lo, mut hi) = (x_n[face.vertices[0]], x_n[face.vertices[0]]);
+            for &i in &face.vertices {
+                for p in [x_n[i], x_n[i] + dx[i]] {
+                    lo = lo.inf(&p);
+                    hi = hi.sup(&p);
+                }
+            }
+            let m = Point::repeat(margin);
+            self.boxes.push((lo - m, hi + m));
+        }
+        self.grid.build(&self.boxes);
+        for v in 0..x_n.len() {
+            if self.pairs[v].is_some() || self.body_of[v] == usize::MAX || self.fixed[v] {
+                continue;
+            }
+            self.pairs[v] = self.first_hit(v, x_n, dx, thickness);
+        }
+        self.count.iter_mut().for_each(|c| *c = 0);
+        for (v, pair) in self.pairs.iter().enumerate() {
+            let Some(p) = pair else { continue };
+            self.count[v] += 1;
+            for (&i, &w) in self.faces[p.face].vertices.iter().zip(&p.weights) {
+                if w != 0.0 {
+                    self.count[i] += 1;
+                }
+            }
+        }
+        for (v, c) in self.count.iter_mut().enumerate() {
+            *c += u32::from(collider(v));
+        }
+    }
+
+    /// The earliest triangle of another body that the segment `x_n[v] ->
+    /// x_n[v] + dx[v]` meets, relative to the triangle's own motion from
+    /// `x_n` to `x_n + dx` (both linearised: the signed distance to the
+    /// triangle's plane is interpolated between the segment's ends, and the
+    /// crossing point is tested against the interpolated triangle).
+    fn first_hit(&self, v: usize, x_n: &[Point], dx: &[Point], thickness: f64) -> Option<Pair> {
+        let (a, b) = (x_n[v], x_n[v] + dx[v]);
+        let m = Point::repeat(thickness);
+        let (lo, hi) = (a.inf(&b) - m, a.sup(&b) + m);
+        let mut best: Option<(f64, Pair)> = None;
+        let mut seen = usize::MAX;
+        self.grid.query(&lo, &hi, |f| {
+            let face = self.faces[f];
+            let (f_lo, f_hi) = &self.boxes[f];
+            let apart = (0..3).any(|k| hi[k] < f_lo[k] || lo[k] > f_hi[k]);
+            if apart || face.body == self.body_of[v] || f == seen {
+                return;
+            }
+            seen = f;
+            let start = face.vertices.map(|i| x_n[i]);
+            let end = face.vertices.map(|i| x_n[i] + dx[i]);
+            let Some(hit) = self.crossing(&face, (&start, &end), (&a, &b), thickness) else {
+                return;
+            };
+            if best.is_none_or(|(s, _)| hit.0 < s) {
+                best = Some((hit.0, Pair { face: f, ..hit.1 }));
+            }
+        });
+        best.map(|(_, p)| p)
+    }
+
+    /// Where the vertex segment `a -> b` comes within `thickness` of the
+    /// triangle moving from `start` to `end`: the fraction and the pair.
+    fn crossing(
+        &self,
+        face: &Face,
+        (start, end): (&[Point; 3], &[Point; 3]),
+        (a, b): (&Point, &Point),
+        thickness: f64,
+    ) -> Option<(f64, Pair)> {
+        let (_, n0, d0) = project_onto(start, a)?;
+        let (_, n1, _) = project_onto(end, b)?;
+        let side = if face.two_sided && d0 < 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
+        let (d0, n0) = (side * d0, side * n0);
+        let n1 = if n1.dot(&n0) >= 0.0 { n1 } else { -n1 };
+        let d1 = n1.dot(&(b - end[0]));
+        if d0 < -(thickness + self.reach) || d1 >= thickness {
+            return None;
+        }
+        let s = if d0 > d1 {
+            ((d0 - thickness) / (d0 - d1)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let lerp = |p: &Point, q: &Point| p + (q - p) * s;
+        let tri = [0, 1, 2].map(|k| lerp(&start[k], &end[k]));
+        let (weights, normal, _) = project_onto(&tri, &lerp(a, b))?;
+        let normal = if normal.dot(&n0) >= 0.0 {
+            normal
+        } else {
+            -normal
+        };
+        inside(&weights).then_some((
+            s,
+            Pair {
+                face: 0,
+                weights,
+                normal,
+                force: Point::zeros(),
+                projected: false,
+                warm: false,
+            },
+        ))
+    }
+
+    /// Updates every pair's force (one projected Uzawa step at the iterate
+    /// `x_n + dx`) and adds it to `rhs` at the free vertices (`free_index`,
+    /// `usize::MAX` for fixed ones). In the first iteration a warm force is
+    /// applied as it is.
+    #[allow(clippy::too_many_arguments)]
+    pub fn apply(
+        &mut self,
+        x_n: &[Point],
+        dx: &[Point],
+        (h, omega, thickness): (f64, f64, f64),
+        first: bool,
+        free_index: &[usize],
+        rhs: &mut [Point],
+    ) {
+        for v in 0..self.pairs.len() {
+            let Some(mut pair) = self.pairs[v] else {
+                continue;
+            };
+            let tri = self.faces[pair.face].vertices;
+            if !(first && pair.warm) {
+                let compliance = h * h * self.compliance(v, &tri, &pair.weights, true);
+                if compliance > 0.0 {
+                    let x = |i: usize| x_n[i] + dx[i];
+                    let r = x(v) - (0..3).map(|k| x(tri[k]) * pair.weights[k]).sum::<Point>();
+                    pair.force = self.update_force(&pair, &r, omega / compliance, thickness);
+                }
+            }
+            let mut add = |i: usize, f: Point| {
+                if free_index[i] != usize::MAX {
+                    rhs[free_index[i]] += f;
+                }
+            };
+            add(v, pair.force);
+            for (&i, &w) in tri.iter().zip(&pair.weights) {
+                add(i, -pair.force * w);
+            }
+            self.pairs[v] = Some(pair);
+        }
+    }
+
+    /// `sum_i share_i w_i^2 / m_i` over the free vertices of a pair, with
+    /// `share_i` the contact count (`shared`) or 1.
+    fn compliance(&self, v: usize, tri: &[usize; 3], weights: &[f64; 3], shared: bool) -> f64 {
+        let term = |i: usize, w: f64| {
+            if self.fixed[i] {
+                0.0
+            } else {
+                let share = if shared {
+                    f64::from(self.count[i].max(1))
+                } else {
+                    1.0
+                };
+                share * w * w / self.masses[i]
+            }
+        };
+        term(v, 1.0) + (0..3).map(|k| term(tri[k], weights[k])).sum::<f64>()
+    }
+
+    /// One projected Uzawa step of a pair's force at relative position `r`.
+    fn update_force(&self, pair: &Pair, r: &Point, rho: f64, thickness: f64) -> Point {
+        let n = pair.normal;
+        let normal_error = thickness - n.dot(r);
+        let tangential_error = -(r - n * n.dot(r));
+        let trial = pair.force + (tangential_error + n * normal_error) * rho;
+        let normal_force = trial.dot(&n).max(0.0);
+        let mut tangential = trial - n * trial.dot(&n);
+        let limit = self.friction * normal_force;
+        let norm = tangential.norm();
+        if norm > limit {
+            tangential *= if norm > 0.0 { limit / norm } else { 0.0 };
+        }
+        n * normal_force + tangential
+    }
+
+    /// After the iterations: separates every pair left closer than the
+    /// thickness along its normal, splitting the correction by inverse
+    /// mass so that the centre of mass does not move. Returns the deepest
+    /// correction, m.
+    pub fn project(&mut self, positions: &mut [Point], thickness: f64) -> f64 {
+        let mut deepest = 0.0_f64;
+        for v in 0..self.pairs.len() {
+            let Some(mut pair) = self.pairs[v] else {
+                continue;
+            };
+            let tri = self.faces[pair.face].vertices;
+            let r = positions[v]
+                - (0..3)
+                    .map(|k| positions[tri[k]] * pair.weights[k])
+                    .sum::<Point>();
+            let depth = thickness - pair.normal.dot(&r);
+            let compliance = self.compliance(v, &tri, &pair.weights, false);
+            pair.projected = depth > 0.0 && compliance > 0.0;
+            if pair.projected {
+                let impulse = pair.normal * (depth / compliance);
+                self.push(positions, v, &tri, &pair.weights, impulse);
+                deepest = deepest.max(depth);
+            }
+            self.pairs[v] = Some(pair);
+        }
+        deepest
+    }
+
+    /// Moves (or accelerates) the pair's free vertices by `impulse / m`:
+    /// `+` at the vertex, `-w_i` at the triangle.
+    fn push(&self, values: &mut [Point], v: usize, tri: &[usize; 3], w: &[f64; 3], impulse: Point) {
+        if !self.fixed[v] {
+            values[v] += impulse / self.masses[v];
+        }
+        for k in 0..3 {
+            if !self.fixed[tri[k]] {
+                values[tri[k]] -= impulse * (w[k] / self.masses[tri[k]]);
+            }
+        }
+    }
+
+    /// Inside the velocity filter: the relative normal velocity of every
+    /// active or projected pair is set to zero by an equal and opposite
+    /// impulse (momentum is kept; kinetic energy only falls, as in a
+    /// perfectly inelastic contact).
+    pub fn filter_velocities(&self, velocities: &mut [Point]) {
+        for (v, pair) in self.pairs.iter().enumerate() {
+            let Some(pair) = pair.filter(|p| p.active() || p.projected) else {
+                continue;
+            };
+            let tri = self.faces[pair.face].vertices;
+            let relative = velocities[v]
+                - (0..3)
+                    .map(|k| velocities[tri[k]] * pair.weights[k])
+                    .sum::<Point>();
+            let speed = pair.normal.dot(&relative);
+            let compliance = self.compliance(v, &tri, &pair.weights, false);
+            if speed != 0.0 && compliance > 0.0 {
+                let impulse = pair.normal * (-speed / compliance);
+                self.push(velocities, v, &tri, &pair.weights, impulse);
+            }
+        }
+    }
+
+    /// Active pairs and the deepest penetration (below the thickness) of
+    /// a pair at `positions`, m.
+    pub fn report(&self, positions: &[Point], thickness: f64) -> (usize, f64) {
+        let mut deepest = 0.0_f64;
+        let mut active = 0;
+        for (v, pair) in self.pairs.iter().enumerate() {
+            let Some(pair) = pair else { continue };
+            active += usize::from(pair.active());
+            let tri = self.faces[pair.face].vertices;
+            let r = positions[v]
+                - (0..3)
+                    .map(|k| positions[tri[k]] * pair.weights[k])
+                    .sum::<Point>();
+            deepest = deepest.max(thickness - pair.normal.dot(&r));
+        }
+        (active, deepest)
+    }
+}
+
+/// Projection of `p` onto the plane of triangle `t`: barycentric weights,
+/// unit normal `(b - a) x (c - a)` and signed distance along it; `None`
+/// for a degenerate triangle.
+fn project_onto(t: &[Point; 3], p: &Point) -> Option<([f64; 3], Point, f64)> {
+    let (e1, e2) = (t[1] - t[0], t[2] - t[0]);
+    let cross = e1.cross(&e2);
+    let area2 = cross.norm_squared();
+    if !(area2 > 0.0) {
+        return None;
+    }
+    let normal = cross / area2.sqrt();
+    let q = p - t[0];
+    let distance = normal.dot(&q);
+    let w1 = e2.cross(&q).dot(&(-cross)) / area2;
+    let w2 = e1.cross(&q).dot(&cross) / area2;
+    Some(([1.0 - w1 - w2, w1, w2], normal, distance))
+}
+
+fn inside(w: &[f64; 3]) -> bool {
+    w.iter().all(|&x| x >= -INSIDE_SLACK)
+}

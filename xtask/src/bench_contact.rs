@@ -1,0 +1,63 @@
+//! The "Contact" section of `cargo xtask bench-report`: step time with
+//! contact against the same scene without any, at equal iterations
+//! (`pd-probe contact`, `benches/src/contact.rs`); target at most 1.5x
+//! (issue 14).
+
+use std::fmt::Write as _;
+
+use serde_json::Value;
+
+/// Runs `pd-probe contact` for the cube sizes of the mode.
+///
+/// # Errors
+/// A probe that fails.
+pub fn measure(
+    probe: &dyn Fn(Vec<String>) -> Result<Value, String>,
+    quick: bool,
+) -> Result<Value, String> {
+    let sides: &[usize] = if quick { &[4] } else { &[4, 8] };
+    let steps = if quick { "40" } else { "100" };
+    let mut runs = Vec::new();
+    for side in sides {
+        let args = [
+            "contact",
+            "--side-cells",
+            &side.to_string(),
+            "--steps",
+            steps,
+        ];
+        runs.push(probe(args.iter().map(|a| a.to_string()).collect())?);
+    }
+    Ok(Value::Array(runs))
+}
+
+/// The section's markdown.
+pub fn markdown(contact: &Value) -> String {
+    let mut md = String::from(
+        "## Contact\n\n\
+         Median step time with contact against the same scene with no contact at all (the \
+         body then falls freely: same matrix, same 20 iterations, no contact work), backward \
+         Euler, 1 thread: a 0.2 m cube resting on a floor plane, and two stacked on it with \
+         `contact.bodies = true` (`benches/src/contact.rs`). Target (issue 14): at most 1.5x. \
+         `docs/contact.md` has load-independent instruction counts for the floor case.\n\n\
+         | scene | vertices per cube | contacts | without (ms) | with (ms) | ratio |\n\
+         |---|---|---|---|---|---|\n",
+    );
+    for run in contact.as_array().into_iter().flatten() {
+        for row in run["rows"].as_array().into_iter().flatten() {
+            let cells = row["cells"].as_u64().unwrap_or(0) + 1;
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {:.3} | {:.3} | {:.2}x |",
+                row["scene"].as_str().unwrap_or("?"),
+                cells * cells * cells,
+                row["contacts"],
+                row["without_ms"].as_f64().unwrap_or(f64::NAN),
+                row["with_ms"].as_f64().unwrap_or(f64::NAN),
+                row["ratio"].as_f64().unwrap_or(f64::NAN),
+            );
+        }
+    }
+    md.push('\n');
+    md
+}
