@@ -142,12 +142,12 @@ impl Grid {
     /// The dense table's linear index of a cell, `None` outside its range.
     fn linear(&self, cell: [i64; 3]) -> Option<usize> {
         let mut l = 0i64;
-        for d in 0..3 {
-            let offset = cell[d].checked_sub(self.origin[d])?;
-            if !(0..self.dims[d]).contains(&offset) {
+        for ((c, o), n) in cell.iter().zip(&self.origin).zip(&self.dims) {
+            let offset = c.checked_sub(*o)?;
+            if !(0..*n).contains(&offset) {
                 return None;
             }
-            l = l * self.dims[d] + offset;
+            l = l * n + offset;
         }
         usize::try_from(l).ok()
     }
