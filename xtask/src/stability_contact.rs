@@ -11,7 +11,8 @@
 //!
 //! Matrix: a 0.2 m cube (2 cells across, 48 tets) dropped on a floor, alone
 //! ("drop") or onto a second cube resting on the floor with `bodies = true`
-//! ("stack"); drop height 0.01, 1, 100 m; tet-strain stiffness 1e3, 1e6,
+//! ("stack"), the same with `self = true` as well ("stack-self": the crushed
+//! soft cubes fold onto themselves); drop height 0.01, 1, 100 m; tet-strain stiffness 1e3, 1e6,
 //! 1e9 Pa; friction 0, 0.5, 10; time step 1e-4, 1e-2, 0.1 s; the three
 //! integrators; no damping and Laplacian damping (0.01 s). 1000 kg/m^3, 20
 //! iterations, thickness 1 mm, 100 steps. Runs in the dev profile (opt-level
@@ -32,7 +33,7 @@ const FRICTION: [f64; 3] = [0.0, 0.5, 10.0];
 const DT: [f64; 3] = [1e-4, 1e-2, 0.1];
 const INTEGRATORS: [&str; 3] = ["backward-euler", "implicit-midpoint", "bdf2"];
 const DAMPING: [&str; 2] = ["none", "laplacian"];
-const BODIES: [&str; 2] = ["drop", "stack"];
+const BODIES: [&str; 3] = ["drop", "stack", "stack-self"];
 /// How far behind the floor a vertex may end a step, m (the thickness is
 /// 1 mm and the projection leaves round-off only; 1 mm is a tunnelled
 /// vertex, not round-off).
@@ -96,12 +97,20 @@ fn scene_text(case: &Case) -> String {
             case.stiffness, translate[0], translate[1], translate[2]
         )
     };
-    let (bodies, contact) = if BODIES[case.body] == "stack" {
+    let (bodies, contact) = if BODIES[case.body].starts_with("stack") {
         let bottom = cube([-0.1, 0.001, -0.1]);
         let top = cube([-0.07, 0.201 + case.height, -0.12]);
+        let self_contact = if BODIES[case.body] == "stack-self" {
+            "self = true\n"
+        } else {
+            ""
+        };
         (
             format!("{bottom}\n{top}"),
-            format!("bodies = true\nfriction = {:?}\n", case.friction),
+            format!(
+                "bodies = true\n{self_contact}friction = {:?}\n",
+                case.friction
+            ),
         )
     } else {
         (cube([-0.1, 0.001 + case.height, -0.1]), String::new())
@@ -271,7 +280,8 @@ fn report(cases: &[Case], results: &[(usize, Ending)], seconds: f64, threads: us
          error; one more for contact: no vertex ends a completed step more than 1 mm behind the \
          floor. Anything else is a bug and fails the command.\n\n\
          Matrix: a 0.2 m cube (2 cells across) dropped on a floor plane, alone (drop) or onto a \
-         second one resting on the floor with `bodies = true` (stack); drop height {HEIGHTS:?} m; \
+         second one resting on the floor with `bodies = true` (stack), and the same with \
+         `self = true` as well (stack-self); drop height {HEIGHTS:?} m; \
          tet-strain stiffness {STIFFNESS:?} Pa; friction (floor and between bodies) \
          {FRICTION:?}; time step {DT:?} s; {INTEGRATORS:?}; damping {DAMPING:?} (Laplacian \
          0.01 s); 1000 kg/m^3, 20 iterations, thickness 1 mm.\n\n\

@@ -184,10 +184,6 @@ fn bad_colliders_name_their_field() {
             "[contact]\nfriction = 0.5\n",
             "contact.friction: only with bodies = true",
         ),
-        (
-            "[contact]\nself = true\n",
-            "contact.self: self-contact is not supported yet",
-        ),
     ];
     for (extra, expected) in cases {
         let message = error(extra);

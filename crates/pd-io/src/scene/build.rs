@@ -53,7 +53,7 @@ impl Scene {
             })?;
         }
         if let Some(bodies) = &self.body_contact {
-            (simulation.set_body_contact(bodies.clone()))
+            (simulation.set_surface_contact(bodies.clone(), self.surface_pairs))
                 .map_err(|e| self.field_error("contact", e))?;
         }
         self.apply_initial_states(&mut simulation, &offsets)?;

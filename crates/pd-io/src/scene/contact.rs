@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use pd_mesh::Point;
 use pd_solver::contact::{
-    BodyContactSettings, Collider, ColliderShape, ContactSettings, TriangleSurface,
+    BodyContactSettings, Collider, ColliderShape, ContactSettings, SurfacePairs, TriangleSurface,
 };
 use serde::Deserialize;
 
@@ -36,14 +36,18 @@ pub(super) struct RawContact {
     #[serde(rename = "self")]
     self_contact: Option<bool>,
     thickness: Option<f64>,
-    /// Coulomb coefficient between bodies (with `bodies = true`).
+    /// Coulomb coefficient of surface contact (with `bodies` or `self`).
     friction: Option<f64>,
 }
 
 /// What the `[[collider]]` and `[contact]` sections ask for: the collider
 /// settings (`None` without colliders and without contact between bodies)
-/// and contact between bodies.
-pub(super) type Validated = (Option<ContactSettings>, Option<BodyContactSettings>);
+/// and contact of the bodies' surfaces (between bodies, self-contact).
+pub(super) type Validated = (
+    Option<ContactSettings>,
+    Option<BodyContactSettings>,
+    SurfacePairs,
+);
 
 /// Validates the colliders and the `[contact]` table of the scene `source`.
 /// `None` when the scene names no collider and no contact between bodies:
@@ -56,8 +60,13 @@ pub(super) fn validate(
     let error = |field: String, message: String| super::field_error(source, field, message);
     let mut thickness = 0.0;
     let mut bodies = None;
+    let mut pairs = SurfacePairs::default();
     if let Some(c) = contact {
-        if c.bodies == Some(true) {
+        pairs = SurfacePairs {
+            between_bodies: c.bodies == Some(true),
+            self_contact: c.self_contact == Some(true),
+        };
+        if pairs.between_bodies || pairs.self_contact {
             let friction = c.friction.unwrap_or(0.0);
             if !(friction.is_finite() && friction >= 0.0) {
                 return Err(error(
@@ -69,13 +78,8 @@ pub(super) fn validate(
         } else if c.friction.is_some() {
             return Err(error(
                 "contact.friction".into(),
-                "only with bodies = true (a collider's friction is its own key)".into(),
-            ));
-        }
-        if c.self_contact == Some(true) {
-            return Err(error(
-                "contact.self".into(),
-                "self-contact is not supported yet (docs/contact.md)".into(),
+                "only with bodies = true or self = true (a collider's friction is its own key)"
+                    .into(),
             ));
         }
         if let Some(t) = c.thickness {
@@ -93,7 +97,7 @@ pub(super) fn validate(
             colliders: Vec::new(),
             thickness,
         });
-        return Ok((only_bodies, bodies));
+        return Ok((only_bodies, bodies, pairs));
     }
     let colliders = colliders
         .into_iter()
@@ -106,6 +110,7 @@ pub(super) fn validate(
             thickness,
         }),
         bodies,
+        pairs,
     ))
 }
 

@@ -262,4 +262,6 @@ pub struct Scene {
     /// Contact between bodies (`[contact] bodies = true`), on top of
     /// `contact` (which then holds its thickness).
     pub body_contact: Option<pd_solver::contact::BodyContactSettings>,
+    /// Which surface pairs `body_contact` admits (`bodies`, `self`).
+    pub surface_pairs: pd_solver::contact::SurfacePairs,
 }

@@ -92,7 +92,7 @@ impl Validator<'_> {
         let output = self.output(raw.output)?;
         let solver = self.solver(raw.solver)?;
         self.check_material_method(&bodies, &solver)?;
-        let (contact, body_contact) =
+        let (contact, body_contact, surface_pairs) =
             super::contact::validate(self.source, raw.colliders, raw.contact)?;
         Ok(Scene {
             source: self.source.to_path_buf(),
@@ -105,6 +105,7 @@ impl Validator<'_> {
             solver,
             contact,
             body_contact,
+            surface_pairs,
         })
     }
 

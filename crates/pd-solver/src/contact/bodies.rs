@@ -21,10 +21,17 @@
 //! (h^2 D_k)` converges for `omega` in `(0, 2)`, however many pairs share
 //! a vertex; a collider contact's step `omega m_v / h^2` is divided by
 //! `count_v` for the same reason.
+//!
+//! Self-contact (`contact.self = true`) is the same constraint with the
+//! vertex and the triangle on one body: only the admission of candidates
+//! differs ([`BodyContact::admits`]), which leaves out the vertex's rest
+//! neighbours (`neighbourhood.rs`).
 
 use pd_mesh::Point;
 
+use super::SurfacePairs;
 use super::grid::Grid;
+use super::neighbourhood::RestNeighbourhood;
 
 /// Barycentric slack of the inside test (a vertex on a shared edge or
 /// corner belongs to either triangle; the first in triangle order wins).
@@ -74,6 +81,10 @@ pub(crate) struct BodyContact {
     /// vertex still counts as in front of it, m (a quarter of the mean
     /// surface edge): what lies deeper is the far side of the other body.
     reach: f64,
+    /// Pairs between different bodies are admitted.
+    between: bool,
+    /// With self-contact: the rest neighbours each vertex never pairs with.
+    neighbourhood: Option<RestNeighbourhood>,
     pub(super) pairs: Vec<Option<Pair>>,
     /// Contacts each vertex takes part in, this iteration.
     pub(super) count: Vec<u32>,
@@ -89,11 +100,13 @@ pub(crate) struct BodySurface {
 }
 
 impl BodyContact {
+    /// `thickness` (m) only sets the self-contact neighbourhood's radius.
     pub fn new(
         surfaces: Vec<BodySurface>,
         rest: &[Point],
         (masses, fixed): (&[f64], &[bool]),
-        friction: f64,
+        (friction, thickness): (f64, f64),
+        which: SurfacePairs,
     ) -> Self {
         let mut faces = Vec::new();
         let mut body_of = vec![usize::MAX; rest.len()];
@@ -117,6 +130,10 @@ impl BodyContact {
         } else {
             0.0
         };
+        let neighbourhood = which.self_contact.then(|| {
+            let triangles: Vec<_> = faces.iter().map(|f| (f.vertices, f.body)).collect();
+            RestNeighbourhood::new(&triangles, &body_of, rest, 4.0 * reach + thickness)
+        });
         Self {
             faces,
             body_of,
@@ -124,6 +141,8 @@ impl BodyContact {
             fixed: fixed.to_vec(),
             friction,
             reach,
+            between: which.between_bodies,
+            neighbourhood,
             pairs: vec![None; rest.len()],
             count: vec![0; rest.len()],
             grid: Grid::default(),
@@ -228,7 +247,7 @@ impl BodyContact {
         }
     }
 
-    /// The earliest triangle of another body that the segment `x_n[v] ->
+    /// The earliest admitted triangle ([`BodyContact::admits`]) that the segment `x_n[v] ->
     /// x_n[v] + dx[v]` meets, relative to the triangle's own motion from
     /// `x_n` to `x_n + dx` (both linearised: the signed distance to the
     /// triangle's plane is interpolated between the segment's ends, and the
@@ -243,7 +262,7 @@ impl BodyContact {
             let face = self.faces[f];
             let (f_lo, f_hi) = &self.boxes[f];
             let apart = (0..3).any(|k| hi[k] < f_lo[k] || lo[k] > f_hi[k]);
-            if apart || face.body == self.body_of[v] || f == seen {
+            if apart || f == seen || !self.admits(v, f) {
                 return;
             }
             seen = f;
@@ -257,6 +276,18 @@ impl BodyContact {
             }
         });
         best.map(|(_, p)| p)
+    }
+
+    /// Whether vertex `v` may pair with triangle `f`: another body's with
+    /// `between`, its own body's with self-contact unless they are rest
+    /// neighbours.
+    fn admits(&self, v: usize, f: usize) -> bool {
+        if self.faces[f].body != self.body_of[v] {
+            return self.between;
+        }
+        self.neighbourhood
+            .as_ref()
+            .is_some_and(|near| !near.excludes(v, f))
     }
 
     /// Where the vertex segment `a -> b` comes within `thickness` of the

@@ -23,11 +23,14 @@ mod bodies;
 mod geometry;
 mod grid;
 mod mesh;
+mod neighbourhood;
 mod saved;
+mod surface;
 
 pub use geometry::ColliderShape;
 pub use mesh::TriangleSurface;
 pub use saved::{ContactCheckpoint, SavedContact};
+pub use surface::SurfacePairs;
 
 use pd_mesh::Point;
 
@@ -518,36 +521,11 @@ impl crate::Simulation {
     /// A negative or non-finite friction (`contact.friction`), or a
     /// position solver that cannot run with contact.
     pub fn set_body_contact(&mut self, settings: BodyContactSettings) -> Result<(), SolverError> {
-        if !(settings.friction.is_finite() && settings.friction >= 0.0) {
-            return Err(SolverError::InvalidModel {
-                reason: "contact.friction: must be finite and >= 0".into(),
-            });
-        }
-        if self.contact.is_none() {
-            self.set_contact(ContactSettings::default())?;
-        }
-        let surfaces = self
-            .model
-            .bodies()
-            .iter()
-            .map(|b| bodies::BodySurface {
-                triangles: (b.mesh.surface_triangles().iter())
-                    .map(|t| t.map(|v| v + b.offset))
-                    .collect(),
-                two_sided: b.mesh.tets().is_empty(),
-            })
-            .collect();
-        let model = &self.model;
-        let state = bodies::BodyContact::new(
-            surfaces,
-            model.rest_positions(),
-            (model.masses(), model.fixed()),
-            settings.friction,
-        );
-        if let Some(contact) = &mut self.contact {
-            contact.bodies = Some(state);
-        }
-        Ok(())
+        let between = SurfacePairs {
+            between_bodies: true,
+            self_contact: false,
+        };
+        self.set_surface_contact(settings, between)
     }
 
     /// `Unsupported` if the position solver cannot run with colliders
