@@ -3,6 +3,8 @@
 //! into a preallocated buffer, and in-place solves with a 3-column
 //! right-hand side.
 
+use std::sync::Arc;
+
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
@@ -273,7 +275,8 @@ fn exact_factor_nnz(pattern: &LowerPattern, inverse: &[usize]) -> usize {
 /// The symbolic factorisation of one pattern, shared by every numeric
 /// factorisation of a matrix with that pattern.
 pub(crate) struct SymbolicFactor {
-    pattern: LowerPattern,
+    /// Shared with the global system that owns the operators (one copy).
+    pattern: Arc<LowerPattern>,
     symbolic: SymbolicCholesky<usize>,
     factor_nnz: usize,
     scratch: MemBuffer,
@@ -305,7 +308,11 @@ impl SymbolicFactor {
     /// `candidates` (elimination orders, old indices in pivot order),
     /// whichever has the lowest [`solve_cost`] (ties keep the earlier, AMD
     /// first): one symbolic analysis per candidate, deterministic.
-    pub fn analyse(pattern: LowerPattern, candidates: &[Vec<usize>]) -> Result<Self, SolverError> {
+    pub fn analyse(
+        pattern: impl Into<Arc<LowerPattern>>,
+        candidates: &[Vec<usize>],
+    ) -> Result<Self, SolverError> {
+        let pattern = pattern.into();
         fn analyse(
             pattern: &LowerPattern,
             ordering: SymmetricOrdering<'_, usize>,
@@ -339,7 +346,7 @@ impl SymbolicFactor {
 
     /// The factor of `pattern` with the symbolic analysis `symbolic` (its
     /// ordering already chosen): structural count, scratch, solve plan.
-    fn with_symbolic(pattern: LowerPattern, symbolic: SymbolicCholesky<usize>) -> Self {
+    fn with_symbolic(pattern: Arc<LowerPattern>, symbolic: SymbolicCholesky<usize>) -> Self {
         let factor_nnz = match symbolic.perm() {
             Some(perm) => exact_factor_nnz(&pattern, perm.arrays().1),
             None => exact_factor_nnz(&pattern, &(0..pattern.n).collect::<Vec<_>>()),
