@@ -173,6 +173,9 @@ fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     let (n_verts, n_tets) = (mesh.num_vertices(), mesh.tets().len());
     let sim = beam.simulation_on(mesh, model, integrator)?;
     let setup = sim.setup_stats();
+    // The peak so far is the setup's (mesh, model, operators, analysis,
+    // first factorisation); `peak_bytes` below adds the steps.
+    let setup_peak_bytes = peak_memory_bytes();
     let mut sim = sim;
     let stats = sim.run(steps).map_err(|e| e.to_string())?;
     let pick = |f: fn(&pd_solver::StepStats) -> f64| -> f64 {
@@ -202,6 +205,7 @@ fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         "min_y": min_y,
         "kinetic_energy": sim.energies().kinetic,
         "peak_bytes": peak_memory_bytes(),
+        "setup_peak_bytes": setup_peak_bytes,
         "state_hash": state_hash(sim.state()),
     }))
 }

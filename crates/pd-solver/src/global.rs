@@ -69,7 +69,6 @@ pub(crate) struct GlobalSystem {
     pub weights: Option<crate::weights::DampingWeights>,
     symbolic: SymbolicFactor,
     cache: Vec<([u64; 4], NumericFactor)>,
-    values: Vec<f64>,
 }
 
 impl GlobalSystem {
@@ -184,7 +183,6 @@ impl GlobalSystem {
             weights: None,
             symbolic,
             cache: Vec::new(),
-            values: vec![0.0; len],
         })
     }
 
@@ -209,13 +207,13 @@ impl GlobalSystem {
         if let Some(i) = self.cache.iter().position(|(k, _)| *k == key) {
             return Ok((i, false));
         }
-        combine_weighted(
-            &mut self.values,
-            coefficients,
-            [&self.mass_part, &self.system_part, &self.damping_part],
-            self.weights.as_ref(),
-        );
-        let factor = self.symbolic.factorise(&self.values)?;
+        // The matrix's values live only while they are factorised.
+        let values = self.values(coefficients);
+        let factor = self.symbolic.factorise(&values)?;
+        drop(values);
+        // Constant coefficients factorise once (a new value is rare): the
+        // factorisation's scratch is not kept through the steps.
+        self.symbolic.release_factor_scratch();
         self.cache.push((key, factor));
         Ok((self.cache.len() - 1, true))
     }
@@ -232,18 +230,14 @@ impl GlobalSystem {
         if factorised {
             return Ok(());
         }
-        combine_weighted(
-            &mut self.values,
-            coefficients,
-            [&self.mass_part, &self.system_part, &self.damping_part],
-            self.weights.as_ref(),
-        );
+        let values = self.values(coefficients);
         let (_, factor) = &mut self.cache[index];
-        self.symbolic.refactorise(&self.values, factor)
+        self.symbolic.refactorise(&values, factor)
     }
 
-    /// The global matrix for `coefficients` (free vertices, full symmetric).
-    pub fn matrix(&self, coefficients: MatrixCoefficients) -> CsrMatrix {
+    /// The global matrix's lower-triangle values for `coefficients`, in
+    /// pattern order.
+    fn values(&self, coefficients: MatrixCoefficients) -> Vec<f64> {
         let mut values = vec![0.0; self.pattern.row_idx.len()];
         combine_weighted(
             &mut values,
@@ -251,7 +245,12 @@ impl GlobalSystem {
             [&self.mass_part, &self.system_part, &self.damping_part],
             self.weights.as_ref(),
         );
-        self.pattern.to_symmetric(&values)
+        values
+    }
+
+    /// The global matrix for `coefficients` (free vertices, full symmetric).
+    pub fn matrix(&self, coefficients: MatrixCoefficients) -> CsrMatrix {
+        self.pattern.to_symmetric(&self.values(coefficients))
     }
 
     /// Solves with cached factor `index`; `rhs` is free-vertices x 3.
