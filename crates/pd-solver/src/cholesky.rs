@@ -2,6 +2,10 @@
 //! analysis (AMD or nested dissection, whichever a cost model of the solve prefers) once per sparsity pattern, numeric factorisation
 //! into a preallocated buffer, and in-place solves with a 3-column
 //! right-hand side.
+//!
+//! The file runs past 600 lines because of its tests (the code ends near
+//! line 490); the supernodal solve and its two-thread split are in
+//! `cholesky/`.
 
 use std::sync::Arc;
 
