@@ -173,6 +173,9 @@ fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     let (n_verts, n_tets) = (mesh.num_vertices(), mesh.tets().len());
     let sim = beam.simulation_on(mesh, model, integrator)?;
     let setup = sim.setup_stats();
+    // The peak so far is the setup's (mesh, model, operators, analysis,
+    // first factorisation); `peak_bytes` below adds the steps.
+    let setup_peak_bytes = peak_memory_bytes();
     let mut sim = sim;
     let stats = sim.run(steps).map_err(|e| e.to_string())?;
     let pick = |f: fn(&pd_solver::StepStats) -> f64| -> f64 {
@@ -202,7 +205,24 @@ fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         "min_y": min_y,
         "kinetic_energy": sim.energies().kinetic,
         "peak_bytes": peak_memory_bytes(),
+        "setup_peak_bytes": setup_peak_bytes,
+        "state_hash": state_hash(sim.state()),
     }))
+}
+
+/// FNV-1a over the bits of every position and velocity, as hex: two runs
+/// with the same hash ended in the same state bit for bit (how a change
+/// that must not move results is checked, e.g. a memory saving).
+fn state_hash(state: &pd_solver::State) -> String {
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    for p in state.positions.iter().chain(&state.velocities) {
+        for c in p.iter() {
+            for byte in c.to_bits().to_le_bytes() {
+                hash = (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
+            }
+        }
+    }
+    format!("{hash:016x}")
 }
 
 /// Every damping model stepped from one common state, the models' steps

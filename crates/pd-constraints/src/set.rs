@@ -22,6 +22,26 @@ pub struct ConstraintSet<C: Constraint> {
 }
 
 impl<C: Constraint> ConstraintSet<C> {
+    /// The entries of `sum_i w_i G_i^T G_i`, constraint by constraint, in
+    /// stencil order; with `lower_only` only those with `row >= column`
+    /// (the same values, in the same order, as filtering the full list).
+    fn laplacian_entries(&self, lower_only: bool, out: &mut Vec<Triplet>) {
+        for c in self.constraints.iter() {
+            let w = c.weight();
+            for (a, &va) in c.vertices().iter().enumerate() {
+                for (b, &vb) in c.vertices().iter().enumerate() {
+                    if lower_only && va < vb {
+                        continue;
+                    }
+                    let value: f64 = (0..C::ROWS)
+                        .map(|r| c.operator(r, a) * c.operator(r, b))
+                        .sum();
+                    out.push(Triplet::new(va, vb, w * value));
+                }
+            }
+        }
+    }
+
     /// Wraps a vector of constraints of one kind.
     pub fn new(constraints: Vec<C>) -> Self {
         Self::shared(Arc::new(constraints))
@@ -98,6 +118,40 @@ pub trait ConstraintBlock: std::fmt::Debug + Send + Sync {
     /// the stacked projections to the right-hand side: entry (vertex, row),
     /// with this block's projection rows starting at `first_row`.
     fn add_projection_operator(&self, first_row: usize, out: &mut Vec<Triplet>);
+    /// Appends the entries of [`ConstraintBlock::add_laplacian`] on or below
+    /// the diagonal (`row >= column`), in the same order: what
+    /// `add_laplacian` followed by a `retain` of those keeps, without the
+    /// entries above the diagonal ever being stored (the assembly's peak
+    /// memory is its triplet list). The default goes through
+    /// `add_laplacian`.
+    fn add_lower_laplacian(&self, out: &mut Vec<Triplet>) {
+        let start = out.len();
+        self.add_laplacian(out);
+        let mut kept = start;
+        for i in start..out.len() {
+            if out[i].row >= out[i].column {
+                out[kept] = out[i];
+                kept += 1;
+            }
+        }
+        out.truncate(kept);
+    }
+    /// Calls `entry(vertex, row, value)` for each entry that
+    /// [`ConstraintBlock::add_projection_operator`] appends, in the same
+    /// order, without a list of them (the projection operator is then built
+    /// in place: `CsrMatrix::from_entry_stream`). The default goes through
+    /// `add_projection_operator`.
+    fn for_each_projection_entry(
+        &self,
+        first_row: usize,
+        entry: &mut dyn FnMut(usize, usize, f64),
+    ) {
+        let mut triplets = Vec::new();
+        self.add_projection_operator(first_row, &mut triplets);
+        for t in triplets {
+            entry(t.row, t.column, t.value);
+        }
+    }
     /// Local step for constraints `first..first + out.len() / ROWS`: projects
     /// each at the positions `q`, writing its rows into `out`.
     fn project_range(&self, q: &[Point], first: usize, out: &mut [Point]);
@@ -153,30 +207,31 @@ impl<C: Constraint> ConstraintBlock for ConstraintSet<C> {
 
     fn add_laplacian(&self, out: &mut Vec<Triplet>) {
         out.reserve(self.constraints.len() * C::STENCIL * C::STENCIL);
-        for c in self.constraints.iter() {
-            let w = c.weight();
-            for (a, &va) in c.vertices().iter().enumerate() {
-                for (b, &vb) in c.vertices().iter().enumerate() {
-                    let value: f64 = (0..C::ROWS)
-                        .map(|r| c.operator(r, a) * c.operator(r, b))
-                        .sum();
-                    out.push(Triplet::new(va, vb, w * value));
-                }
-            }
-        }
+        self.laplacian_entries(false, out);
+    }
+
+    fn add_lower_laplacian(&self, out: &mut Vec<Triplet>) {
+        out.reserve(self.constraints.len() * C::STENCIL * (C::STENCIL + 1) / 2);
+        self.laplacian_entries(true, out);
     }
 
     fn add_projection_operator(&self, first_row: usize, out: &mut Vec<Triplet>) {
         out.reserve(self.constraints.len() * C::STENCIL * C::ROWS);
+        self.for_each_projection_entry(first_row, &mut |row, column, value| {
+            out.push(Triplet::new(row, column, value));
+        });
+    }
+
+    fn for_each_projection_entry(
+        &self,
+        first_row: usize,
+        entry: &mut dyn FnMut(usize, usize, f64),
+    ) {
         for (i, c) in self.constraints.iter().enumerate() {
             let w = c.weight();
             for (a, &va) in c.vertices().iter().enumerate() {
                 for r in 0..C::ROWS {
-                    out.push(Triplet::new(
-                        va,
-                        first_row + i * C::ROWS + r,
-                        w * c.operator(r, a),
-                    ));
+                    entry(va, first_row + i * C::ROWS + r, w * c.operator(r, a));
                 }
             }
         }

@@ -57,9 +57,18 @@ impl CsrMatrix {
             "a CsrMatrix has at most u32::MAX columns"
         );
         triplets.sort_unstable_by_key(|t| (t.row, t.column));
+        // Exactly sized: the Laplacians' lists hold each entry some five
+        // times over, and a list-sized output would add half the list's
+        // memory to the assembly's peak.
+        let unique = triplets
+            .iter()
+            .zip(triplets.iter().skip(1))
+            .filter(|(a, b)| (a.row, a.column) != (b.row, b.column))
+            .count()
+            + usize::from(!triplets.is_empty());
         let mut row_start = vec![0; nrows + 1];
-        let mut columns = Vec::with_capacity(triplets.len());
-        let mut values: Vec<f64> = Vec::with_capacity(triplets.len());
+        let mut columns = Vec::with_capacity(unique);
+        let mut values: Vec<f64> = Vec::with_capacity(unique);
         let mut last: Option<(usize, usize)> = None;
         for t in &triplets {
             assert!(
@@ -76,8 +85,6 @@ impl CsrMatrix {
             }
         }
         drop(triplets);
-        columns.shrink_to_fit();
-        values.shrink_to_fit();
         for r in 0..nrows {
             row_start[r + 1] += row_start[r];
         }
@@ -87,6 +94,74 @@ impl CsrMatrix {
             row_start,
             columns,
             values,
+        }
+    }
+
+    /// Builds a `nrows x ncols` matrix from the entries `(row, column,
+    /// value)` that `visit` hands to its argument, without a list of them:
+    /// `visit` runs twice (counting, then filling) and must produce the same
+    /// entries both times. The storage is sized exactly. Returns `None`
+    /// when within some row the columns do not strictly increase in the
+    /// order they come (a duplicate, or entries out of order): this
+    /// constructor neither sorts nor sums, so such a caller falls back to
+    /// [`CsrMatrix::from_triplet_vec`]. When it succeeds the matrix is the
+    /// one `from_triplet_vec` builds from the same entries, bit for bit
+    /// (with no duplicate there is nothing to sum). Entries outside the
+    /// shape are a bug in the caller and panic.
+    pub fn from_entry_stream(
+        nrows: usize,
+        ncols: usize,
+        mut visit: impl FnMut(&mut dyn FnMut(usize, usize, f64)),
+    ) -> Option<Self> {
+        assert!(
+            u32::try_from(ncols).is_ok(),
+            "a CsrMatrix has at most u32::MAX columns"
+        );
+        let mut row_start = vec![0usize; nrows + 1];
+        visit(&mut |row, column, _| {
+            assert!(row < nrows && column < ncols, "entry outside the matrix");
+            row_start[row + 1] += 1;
+        });
+        for r in 0..nrows {
+            row_start[r + 1] += row_start[r];
+        }
+        let nnz = row_start[nrows];
+        let mut next = row_start[..nrows].to_vec();
+        let (mut columns, mut values) = (vec![0u32; nnz], vec![0.0; nnz]);
+        let mut consistent = true;
+        visit(&mut |row, column, value| {
+            assert!(row < nrows && column < ncols, "entry outside the matrix");
+            let at = next[row];
+            // More entries than counted, or a column not above the row's
+            // previous one: not a stream this constructor takes.
+            if at == row_start[row + 1] || (at > row_start[row] && column as u32 <= columns[at - 1])
+            {
+                consistent = false;
+                return;
+            }
+            columns[at] = column as u32;
+            values[at] = value;
+            next[row] += 1;
+        });
+        let filled = next.iter().zip(&row_start[1..]).all(|(n, end)| n == end);
+        (consistent && filled).then_some(Self {
+            nrows,
+            ncols,
+            row_start,
+            columns,
+            values,
+        })
+    }
+
+    /// The matrix made of the given rows, in the given order (columns
+    /// kept), consuming this one: when `rows` is every row in order (no
+    /// fixed vertex) the storage is kept as it is instead of copied.
+    pub fn into_rows(self, rows: &[usize]) -> CsrMatrix {
+        let identity = rows.len() == self.nrows && rows.iter().enumerate().all(|(i, &r)| i == r);
+        if identity {
+            self
+        } else {
+            self.select_rows(rows)
         }
     }
 
@@ -217,7 +292,7 @@ impl CsrMatrix {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     #[test]
@@ -244,6 +319,81 @@ mod tests {
                 .map(|t| Triplet::new(t.column, t.row, t.value)),
         );
         assert_eq!(built, CsrMatrix::from_triplets(n, n, &mirrored));
+    }
+
+    /// Shape, pattern and value bits of two matrices agree (`==` on the
+    /// values would let `-0.0` pass for `0.0`).
+    pub(crate) fn assert_same_bits(a: &CsrMatrix, b: &CsrMatrix) {
+        assert_eq!(
+            (a.nrows(), a.ncols(), a.nnz()),
+            (b.nrows(), b.ncols(), b.nnz())
+        );
+        for r in 0..a.nrows() {
+            let bits = |m: &CsrMatrix| m.row(r).map(|(c, v)| (c, v.to_bits())).collect::<Vec<_>>();
+            assert_eq!(bits(a), bits(b), "row {r}");
+        }
+    }
+
+    #[test]
+    fn an_entry_stream_builds_the_triplet_matrix_and_refuses_what_needs_summing() {
+        // Rows interleaved in the stream, columns ascending within each row,
+        // a negative zero and an empty row.
+        let entries = [
+            (2, 0, 1.5),
+            (0, 1, -0.0),
+            (2, 3, 2.5),
+            (0, 4, 3.0),
+            (3, 2, 0.1),
+            (2, 4, 1e-300),
+        ];
+        let stream = |list: &[(usize, usize, f64)]| {
+            let list = list.to_vec();
+            move |entry: &mut dyn FnMut(usize, usize, f64)| {
+                for &(r, c, v) in &list {
+                    entry(r, c, v);
+                }
+            }
+        };
+        let triplets: Vec<Triplet> = entries
+            .iter()
+            .map(|&(r, c, v)| Triplet::new(r, c, v))
+            .collect();
+        let built = CsrMatrix::from_entry_stream(5, 6, stream(&entries)).unwrap();
+        assert_same_bits(&built, &CsrMatrix::from_triplets(5, 6, &triplets));
+        assert_eq!(built.row_start, vec![0, 2, 2, 5, 6, 6]);
+
+        // A duplicate would need summing, a column out of order sorting.
+        let mut duplicate = entries.to_vec();
+        duplicate.push((3, 2, 1.0));
+        assert!(CsrMatrix::from_entry_stream(5, 6, stream(&duplicate)).is_none());
+        let mut unsorted = entries.to_vec();
+        unsorted.push((0, 2, 1.0));
+        assert!(CsrMatrix::from_entry_stream(5, 6, stream(&unsorted)).is_none());
+        // A second pass that differs from the first is refused too.
+        let mut pass = 0;
+        let shrinking = |entry: &mut dyn FnMut(usize, usize, f64)| {
+            pass += 1;
+            for &(r, c, v) in &entries[..entries.len() + 1 - pass] {
+                entry(r, c, v);
+            }
+        };
+        assert!(CsrMatrix::from_entry_stream(5, 6, shrinking).is_none());
+    }
+
+    #[test]
+    fn into_rows_keeps_every_row_and_selects_the_others() {
+        let m = CsrMatrix::from_triplets(
+            3,
+            3,
+            &[
+                Triplet::new(0, 0, 1.0),
+                Triplet::new(1, 2, 2.0),
+                Triplet::new(2, 1, 3.0),
+            ],
+        );
+        assert_same_bits(&m.clone().into_rows(&[0, 1, 2]), &m);
+        assert_same_bits(&m.clone().into_rows(&[2, 0]), &m.select_rows(&[2, 0]));
+        assert_same_bits(&m.clone().into_rows(&[0, 1]), &m.select_rows(&[0, 1]));
     }
 
     #[test]

@@ -2,8 +2,14 @@
 //! analysis (AMD or nested dissection, whichever a cost model of the solve prefers) once per sparsity pattern, numeric factorisation
 //! into a preallocated buffer, and in-place solves with a 3-column
 //! right-hand side.
+//!
+//! The file runs past 600 lines because of its tests (the code ends near
+//! line 490); the supernodal solve and its two-thread split are in
+//! `cholesky/`.
 
-use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use std::sync::Arc;
+
+use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
@@ -273,10 +279,18 @@ fn exact_factor_nnz(pattern: &LowerPattern, inverse: &[usize]) -> usize {
 /// The symbolic factorisation of one pattern, shared by every numeric
 /// factorisation of a matrix with that pattern.
 pub(crate) struct SymbolicFactor {
-    pattern: LowerPattern,
+    /// Shared with the global system that owns the operators (one copy).
+    pattern: Arc<LowerPattern>,
     symbolic: SymbolicCholesky<usize>,
     factor_nnz: usize,
-    scratch: MemBuffer,
+    /// Scratch of the numeric factorisation (faer's update matrices), only
+    /// while it is wanted: a model whose matrix is constant factorises once
+    /// and drops it ([`SymbolicFactor::release_factor_scratch`]), one that
+    /// refactorises every step keeps it.
+    factor_scratch: Option<MemBuffer>,
+    /// Scratch of faer's solve (simplicial factors, or more than three
+    /// columns).
+    solve_scratch: MemBuffer,
     /// The 3-column solve for supernodal factors (faer's for simplicial).
     fast_solve: Option<supernodal_solve::SupernodalSolve>,
     /// The right-hand side as points, for `fast_solve`.
@@ -305,7 +319,11 @@ impl SymbolicFactor {
     /// `candidates` (elimination orders, old indices in pivot order),
     /// whichever has the lowest [`solve_cost`] (ties keep the earlier, AMD
     /// first): one symbolic analysis per candidate, deterministic.
-    pub fn analyse(pattern: LowerPattern, candidates: &[Vec<usize>]) -> Result<Self, SolverError> {
+    pub fn analyse(
+        pattern: impl Into<Arc<LowerPattern>>,
+        candidates: &[Vec<usize>],
+    ) -> Result<Self, SolverError> {
+        let pattern = pattern.into();
         fn analyse(
             pattern: &LowerPattern,
             ordering: SymmetricOrdering<'_, usize>,
@@ -339,22 +357,20 @@ impl SymbolicFactor {
 
     /// The factor of `pattern` with the symbolic analysis `symbolic` (its
     /// ordering already chosen): structural count, scratch, solve plan.
-    fn with_symbolic(pattern: LowerPattern, symbolic: SymbolicCholesky<usize>) -> Self {
+    fn with_symbolic(pattern: Arc<LowerPattern>, symbolic: SymbolicCholesky<usize>) -> Self {
         let factor_nnz = match symbolic.perm() {
             Some(perm) => exact_factor_nnz(&pattern, perm.arrays().1),
             None => exact_factor_nnz(&pattern, &(0..pattern.n).collect::<Vec<_>>()),
         };
-        let scratch = MemBuffer::new(StackReq::any_of(&[
-            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(3, Par::Seq),
-        ]));
+        let solve_scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(3, Par::Seq));
         let fast_solve = supernodal_solve::SupernodalSolve::new(&symbolic);
         Self {
             points: vec![pd_mesh::Point::zeros(); pattern.n],
             pattern,
             symbolic,
             factor_nnz,
-            scratch,
+            factor_scratch: None,
+            solve_scratch,
             fast_solve,
         }
     }
@@ -398,14 +414,29 @@ impl SymbolicFactor {
         Ok(factor)
     }
 
+    /// Drops the numeric factorisation's scratch until the next
+    /// factorisation needs it again (it allocates it then): for a matrix
+    /// that is factorised once, so that the scratch does not stay through
+    /// the steps (13 MB of the 95k-vertex beam's).
+    pub fn release_factor_scratch(&mut self) {
+        self.factor_scratch = None;
+    }
+
     /// Recomputes `factor` for new values with the same pattern, without
-    /// allocating.
+    /// allocating once the factorisation scratch exists (the first call
+    /// after [`SymbolicFactor::analyse`] or a release allocates it).
     pub fn refactorise(
         &mut self,
         values: &[f64],
         factor: &mut NumericFactor,
     ) -> Result<(), SolverError> {
         let matrix = SparseColMatRef::new(self.pattern.symbolic(), values);
+        let symbolic = &self.symbolic;
+        let scratch = self.factor_scratch.get_or_insert_with(|| {
+            MemBuffer::new(
+                symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+            )
+        });
         self.symbolic
             .factorize_numeric_llt(
                 &mut factor.values,
@@ -413,7 +444,7 @@ impl SymbolicFactor {
                 Side::Lower,
                 LltRegularization::default(),
                 Par::Seq,
-                MemStack::new(&mut self.scratch),
+                MemStack::new(scratch),
                 Default::default(),
             )
             .map_err(|e| SolverError::Factorisation {
@@ -443,7 +474,7 @@ impl SymbolicFactor {
             for (r, p) in self.points.iter_mut().enumerate() {
                 *p = pd_mesh::Point::new(rhs[(r, 0)], rhs[(r, 1)], rhs[(r, 2)]);
             }
-            fast.solve(&factor.values, &mut self.points);
+            fast.solve(&self.symbolic, &factor.values, &mut self.points);
             for (r, p) in self.points.iter().enumerate() {
                 for k in 0..3 {
                     rhs[(r, k)] = p[k];
@@ -455,7 +486,7 @@ impl SymbolicFactor {
             Conj::No,
             rhs,
             Par::Seq,
-            MemStack::new(&mut self.scratch),
+            MemStack::new(&mut self.solve_scratch),
         );
     }
 }

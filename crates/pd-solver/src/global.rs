@@ -2,6 +2,8 @@
 //! the global matrix `A = alpha M + beta L_sys + delta L_d` (DESIGN.md 3.2),
 //! and its cached factorisations.
 
+use std::sync::Arc;
+
 use crate::cholesky::{LowerPattern, NumericFactor, SymbolicFactor, dissection_candidates};
 use crate::weights::combine_weighted;
 use crate::{SolverError, local::LocalStep};
@@ -41,8 +43,9 @@ pub(crate) struct GlobalSystem {
     pub free: Vec<usize>,
     /// Free index of each vertex, or [`FIXED`].
     pub free_index: Vec<usize>,
-    /// The lower-triangle pattern over the free vertices.
-    pub pattern: LowerPattern,
+    /// The lower-triangle pattern over the free vertices (shared with the
+    /// symbolic factor, not copied).
+    pub pattern: Arc<LowerPattern>,
     /// Rows of `L_d` (the translation-invariant constraints) for the free
     /// vertices (all columns): the damping Laplacian, and with
     /// `anchoring_rows` the system Laplacian `L_sys = L_d + L_anchor`, so
@@ -66,7 +69,6 @@ pub(crate) struct GlobalSystem {
     pub weights: Option<crate::weights::DampingWeights>,
     symbolic: SymbolicFactor,
     cache: Vec<([u64; 4], NumericFactor)>,
-    values: Vec<f64>,
 }
 
 impl GlobalSystem {
@@ -103,16 +105,21 @@ impl GlobalSystem {
         }
         // L_sys = L_d + L_anchor: the two parts are kept apart (the step
         // applies L_d to differences), and L_sys is their sum slot by slot.
-        let damping = assembly::laplacian(local.blocks(), n, LaplacianKind::Damping);
-        let anchoring = assembly::laplacian(local.blocks(), n, LaplacianKind::Anchoring);
-        let projection = assembly::projection_operator(local.blocks(), n);
+        // Each operator is cut to the free vertices' rows as soon as it is
+        // built (kept as it is when every vertex is free), so no full copy
+        // outlives its assembly; the projection operator is built for those
+        // rows directly.
+        let damping_rows =
+            assembly::laplacian(local.blocks(), n, LaplacianKind::Damping).into_rows(&free);
+        let anchoring_rows =
+            assembly::laplacian(local.blocks(), n, LaplacianKind::Anchoring).into_rows(&free);
 
         // Lower triangle over free vertices: diagonal plus every L_sys entry.
         let nf = free.len();
         let mut per_column: Vec<Vec<usize>> = (0..nf).map(|j| vec![j]).collect();
-        for t in damping.triplets().chain(anchoring.triplets()) {
-            let (fr, fc) = (free_index[t.row], free_index[t.column]);
-            if fr != FIXED && fc != FIXED && fr > fc {
+        let entries = |rows| free_entries(rows, &free_index);
+        for (fr, fc, _) in entries(&damping_rows).chain(entries(&anchoring_rows)) {
+            if fc != FIXED && fr > fc {
                 per_column[fc].push(fr);
             }
         }
@@ -143,14 +150,13 @@ impl GlobalSystem {
         for (f, &v) in free.iter().enumerate() {
             mass_part[slot(f, f)] = masses[v];
         }
-        for (matrix, is_damping) in [(&damping, true), (&anchoring, false)] {
-            for t in matrix.triplets() {
-                let (fr, fc) = (free_index[t.row], free_index[t.column]);
-                if fr != FIXED && fc != FIXED && fr >= fc {
+        for (rows, is_damping) in [(&damping_rows, true), (&anchoring_rows, false)] {
+            for (fr, fc, value) in entries(rows) {
+                if fc != FIXED && fr >= fc {
                     let k = slot(fr, fc);
-                    system_part[k] += t.value;
+                    system_part[k] += value;
                     if is_damping {
-                        damping_part[k] += t.value;
+                        damping_part[k] += value;
                     }
                 }
             }
@@ -158,13 +164,16 @@ impl GlobalSystem {
         let free_rest: Vec<pd_mesh::Point> = free.iter().map(|&v| rest[v]).collect();
         let candidates = dissection_candidates(&pattern, &free_rest);
         drop(free_rest);
+        let pattern = Arc::new(pattern);
         let symbolic = SymbolicFactor::analyse(pattern.clone(), &candidates)?;
+        drop(candidates);
         let order = symbolic.order();
+        let projection_rows = assembly::projection_operator_rows(local.blocks(), n, &free);
         Ok(Self {
             pattern,
-            damping_rows: damping.select_rows(&free),
-            anchoring_rows: anchoring.select_rows(&free),
-            projection_rows: projection.select_rows(&free),
+            damping_rows,
+            anchoring_rows,
+            projection_rows,
             free,
             free_index,
             mass_part,
@@ -174,7 +183,6 @@ impl GlobalSystem {
             weights: None,
             symbolic,
             cache: Vec::new(),
-            values: vec![0.0; len],
         })
     }
 
@@ -199,13 +207,13 @@ impl GlobalSystem {
         if let Some(i) = self.cache.iter().position(|(k, _)| *k == key) {
             return Ok((i, false));
         }
-        combine_weighted(
-            &mut self.values,
-            coefficients,
-            [&self.mass_part, &self.system_part, &self.damping_part],
-            self.weights.as_ref(),
-        );
-        let factor = self.symbolic.factorise(&self.values)?;
+        // The matrix's values live only while they are factorised.
+        let values = self.values(coefficients);
+        let factor = self.symbolic.factorise(&values)?;
+        drop(values);
+        // Constant coefficients factorise once (a new value is rare): the
+        // factorisation's scratch is not kept through the steps.
+        self.symbolic.release_factor_scratch();
         self.cache.push((key, factor));
         Ok((self.cache.len() - 1, true))
     }
@@ -222,18 +230,14 @@ impl GlobalSystem {
         if factorised {
             return Ok(());
         }
-        combine_weighted(
-            &mut self.values,
-            coefficients,
-            [&self.mass_part, &self.system_part, &self.damping_part],
-            self.weights.as_ref(),
-        );
+        let values = self.values(coefficients);
         let (_, factor) = &mut self.cache[index];
-        self.symbolic.refactorise(&self.values, factor)
+        self.symbolic.refactorise(&values, factor)
     }
 
-    /// The global matrix for `coefficients` (free vertices, full symmetric).
-    pub fn matrix(&self, coefficients: MatrixCoefficients) -> CsrMatrix {
+    /// The global matrix's lower-triangle values for `coefficients`, in
+    /// pattern order.
+    fn values(&self, coefficients: MatrixCoefficients) -> Vec<f64> {
         let mut values = vec![0.0; self.pattern.row_idx.len()];
         combine_weighted(
             &mut values,
@@ -241,7 +245,12 @@ impl GlobalSystem {
             [&self.mass_part, &self.system_part, &self.damping_part],
             self.weights.as_ref(),
         );
-        self.pattern.to_symmetric(&values)
+        values
+    }
+
+    /// The global matrix for `coefficients` (free vertices, full symmetric).
+    pub fn matrix(&self, coefficients: MatrixCoefficients) -> CsrMatrix {
+        self.pattern.to_symmetric(&self.values(coefficients))
     }
 
     /// Solves with cached factor `index`; `rhs` is free-vertices x 3.
@@ -249,6 +258,17 @@ impl GlobalSystem {
         let (_, factor) = &self.cache[index];
         self.symbolic.solve_in_place(factor, rhs);
     }
+}
+
+/// The entries `(row, column, value)` of `rows` (the rows of an operator
+/// over every vertex for the free vertices, in order), with the column in
+/// free indices ([`FIXED`] for a fixed vertex).
+fn free_entries<'a>(
+    rows: &'a CsrMatrix,
+    free_index: &'a [usize],
+) -> impl Iterator<Item = (usize, usize, f64)> + 'a {
+    (0..rows.nrows())
+        .flat_map(move |f| rows.row(f).map(move |(c, value)| (f, free_index[c], value)))
 }
 
 /// `values = mass * parts[0] + system * parts[1] + damping * parts[2]`.

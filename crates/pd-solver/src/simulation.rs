@@ -214,12 +214,7 @@ impl Simulation {
             ..SetupStats::default()
         };
         let n = model.num_vertices();
-        let scratch = Scratch::new(
-            n,
-            global.free().len(),
-            local.total_rows(),
-            local.num_chunks(),
-        );
+        let scratch_len = (global.free().len(), local.total_rows(), local.num_chunks());
         let state = State {
             positions: model.rest_positions().to_vec(),
             velocities: vec![Point::zeros(); n],
@@ -239,13 +234,18 @@ impl Simulation {
             steps: 0,
             pool,
             setup,
-            scratch,
+            scratch: Scratch::new(0, 0, 0, 0),
             objective_trace: None,
             contact: None,
         };
         if !d.is_lagged() {
             sim.prepare_matrix()?;
         }
+        // The step's buffers come after the first factorisation, whose
+        // scratch is gone by then, so that the two never add up in the peak
+        // memory (docs/performance.md, "Peak memory").
+        let (free, rows, chunks) = scratch_len;
+        sim.scratch = Scratch::new(n, free, rows, chunks);
         sim.reset_energy_reference();
         Ok(sim)
     }

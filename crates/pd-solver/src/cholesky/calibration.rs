@@ -155,7 +155,7 @@ fn solve_cost_calibration() {
                 CholeskySymbolicParams::default(),
             )
             .unwrap();
-            let factor = SymbolicFactor::with_symbolic(pattern.clone(), symbolic);
+            let factor = SymbolicFactor::with_symbolic(pattern.clone().into(), symbolic);
             measure(name, factor);
         }
         let chosen = SymbolicFactor::analyse(pattern.clone(), &candidates).unwrap();

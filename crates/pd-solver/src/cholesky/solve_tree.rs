@@ -40,6 +40,10 @@ pub(crate) struct TreeSplit {
     /// A bin column's index in its bin's compact copy; [`TOP`] for a column
     /// of the top. Empty when the solve is not split.
     pub slot: Vec<u32>,
+    /// A top column's position in `top_columns` (where each bin sums its
+    /// updates of it); unused for bin columns. Empty when the solve is not
+    /// split.
+    pub top_position: Vec<u32>,
 }
 
 impl TreeSplit {
@@ -80,13 +84,18 @@ impl TreeSplit {
             cols
         });
         top.sort_unstable();
-        let top_columns = top.iter().flat_map(|&s| begin[s]..begin[s + 1]).collect();
+        let top_columns: Vec<usize> = top.iter().flat_map(|&s| begin[s]..begin[s + 1]).collect();
+        let mut top_position = vec![0; columns];
+        for (i, &c) in top_columns.iter().enumerate() {
+            top_position[c] = i as u32;
+        }
         Self {
             bins,
             bin_columns,
             top,
             top_columns,
             slot,
+            top_position,
         }
     }
 

@@ -10,7 +10,7 @@
 //! so each row's gather and scatter touches one cache line instead of three.
 //!
 //! The factor's layout is faer's: supernode `s` holds columns
-//! `begin[s]..begin[s + 1]` (`c` of them) and the below-diagonal rows
+//! `begin[s]..end[s]` (`c` of them) and the below-diagonal rows
 //! `row_idx[row_ptr[s]..row_ptr[s + 1]]` (`r` of them), stored column-major
 //! as a dense `(c + r) x c` block at `values[value_ptr[s]..]`, the diagonal
 //! block (lower triangle meaningful) on top. The arithmetic order is fixed,
@@ -28,22 +28,42 @@ use pd_mesh::Point;
 
 use super::solve_tree::{TOP, TreeSplit};
 
-/// The supernodal structure of a factor, copied once from faer's symbolic
-/// analysis: read by both halves of a split solve.
-#[derive(Debug, Clone)]
-struct Structure {
-    begin: Vec<usize>,
+/// The supernodal structure of a factor: a view of faer's symbolic
+/// analysis (not a copy: its row indices alone are a tenth of the factor's
+/// size), read by both halves of a split solve.
+#[derive(Debug, Clone, Copy)]
+struct Structure<'a> {
+    /// Supernode `s` holds columns `begin[s]..end[s]`.
+    begin: &'a [usize],
+    end: &'a [usize],
     /// Where supernode `s`'s below-diagonal rows start in `row_idx`.
-    row_ptr: Vec<usize>,
+    row_ptr: &'a [usize],
     /// How many there are.
-    row_len: Vec<usize>,
-    row_idx: Vec<usize>,
-    value_ptr: Vec<usize>,
+    row_len: &'a [usize],
+    row_idx: &'a [usize],
+    value_ptr: &'a [usize],
+}
+
+impl<'a> Structure<'a> {
+    /// The view of `symbolic`'s supernodes, `None` for a simplicial factor.
+    fn of(symbolic: &'a SymbolicCholesky<usize>) -> Option<Self> {
+        let SymbolicCholeskyRaw::Supernodal(s) = symbolic.raw() else {
+            return None;
+        };
+        Some(Self {
+            begin: s.supernode_begin(),
+            end: s.supernode_end(),
+            row_ptr: s.col_ptr_for_row_idx(),
+            row_len: s.nnz_per_super(),
+            row_idx: s.row_idx(),
+            value_ptr: s.col_ptr_for_val(),
+        })
+    }
 }
 
 /// One bin's scratch: its columns' compact copy, a supernode's
-/// below-diagonal rows, and the sums of its updates to the top's rows
-/// (indexed by row; only the top's rows are used).
+/// below-diagonal rows, and the sums of its updates to the top's rows (in
+/// the order of [`TreeSplit::top_columns`]).
 #[derive(Debug, Clone)]
 struct Lane {
     x: Vec<Point>,
@@ -51,14 +71,12 @@ struct Lane {
     top_updates: Vec<Point>,
 }
 
-/// The supernodal structure and permutation of a factor, the two-thread
-/// split of its elimination tree, and the solve's scratch.
+/// The two-thread split of a factor's elimination tree and the solve's
+/// scratch; the structure and permutation are read from faer's symbolic
+/// factor at each solve.
 #[derive(Debug, Clone)]
 pub(crate) struct SupernodalSolve {
-    structure: Structure,
     split: TreeSplit,
-    /// `forward[new] = old`, `None` for the identity.
-    forward: Option<Vec<usize>>,
     /// The permuted right-hand side and solution.
     x: Vec<Point>,
     /// The top's scratch, and each bin's.
@@ -70,47 +88,43 @@ impl SupernodalSolve {
     /// The plan for `symbolic`, or `None` if faer chose a simplicial
     /// factor (small systems; faer's solve serves those).
     pub fn new(symbolic: &SymbolicCholesky<usize>) -> Option<Self> {
-        let SymbolicCholeskyRaw::Supernodal(s) = symbolic.raw() else {
-            return None;
-        };
-        let n_supernodes = s.n_supernodes();
-        let begin: Vec<usize> = s
-            .supernode_begin()
-            .iter()
-            .chain(s.supernode_end().last())
-            .copied()
-            .collect();
-        let row_len = s.nnz_per_super().to_vec();
-        let value_ptr = s.col_ptr_for_val();
+        let structure = Structure::of(symbolic)?;
+        let n_supernodes = structure.begin.len();
+        let Structure {
+            begin,
+            end,
+            row_len,
+            value_ptr,
+            ..
+        } = structure;
         // The layout this solve assumes; anything else is left to faer.
         let dense_blocks = (0..n_supernodes).all(|k| {
-            let c = begin[k + 1] - begin[k];
+            let c = end[k] - begin[k];
             value_ptr[k + 1] - value_ptr[k] == (c + row_len[k]) * c
         });
-        if !dense_blocks || begin.len() != n_supernodes + 1 {
+        let contiguous = (1..n_supernodes).all(|k| begin[k] == end[k - 1]);
+        if !dense_blocks || !contiguous || end.len() != n_supernodes {
             return None;
         }
-        let structure = Structure {
-            begin,
-            row_ptr: s.col_ptr_for_row_idx().to_vec(),
-            row_len,
-            row_idx: s.row_idx().to_vec(),
-            value_ptr: s.col_ptr_for_val().to_vec(),
-        };
         let split = structure.tree_split();
         let n = symbolic.nrows();
         let width = 3 * structure.row_len.iter().copied().max().unwrap_or(0);
         let lane = |columns: &[usize]| Lane {
             x: vec![Point::zeros(); columns.len()],
             below: vec![0.0; width],
-            top_updates: vec![Point::zeros(); if split.is_split() { n } else { 0 }],
+            top_updates: vec![
+                Point::zeros();
+                if split.is_split() {
+                    split.top_columns.len()
+                } else {
+                    0
+                }
+            ],
         };
         Some(Self {
             below: vec![0.0; width],
             lanes: [lane(&split.bin_columns[0]), lane(&split.bin_columns[1])],
-            structure,
             split,
-            forward: symbolic.perm().map(|p| p.arrays().0.to_vec()),
             x: vec![Point::zeros(); n],
         })
     }
@@ -124,8 +138,11 @@ impl SupernodalSolve {
 
     /// Solves `L L^T x = b` in place, `b` given and returned as one point
     /// per row of the (unpermuted) system.
-    pub fn solve(&mut self, values: &[f64], rhs: &mut [Point]) {
-        match &self.forward {
+    /// `symbolic` is the factor's symbolic analysis this plan was made for.
+    pub fn solve(&mut self, symbolic: &SymbolicCholesky<usize>, values: &[f64], rhs: &mut [Point]) {
+        let structure = Structure::of(symbolic).expect("the plan of a supernodal factor");
+        let forward = symbolic.perm().map(|p| p.arrays().0);
+        match forward {
             Some(forward) => {
                 for (x, &old) in self.x.iter_mut().zip(forward) {
                     *x = rhs[old];
@@ -133,9 +150,9 @@ impl SupernodalSolve {
             }
             None => self.x.copy_from_slice(rhs),
         }
-        self.forward_substitution(values);
-        self.backward_substitution(values);
-        match &self.forward {
+        self.forward_substitution(&structure, values);
+        self.backward_substitution(&structure, values);
+        match forward {
             Some(forward) => {
                 for (x, &old) in self.x.iter().zip(forward) {
                     rhs[old] = *x;
@@ -148,9 +165,8 @@ impl SupernodalSolve {
     /// `x <- L^-1 x`: the bins' subtrees (at once when there are two
     /// threads), their updates of the top's rows subtracted bin 0 first,
     /// then the top's supernodes in order.
-    fn forward_substitution(&mut self, values: &[f64]) {
+    fn forward_substitution(&mut self, structure: &Structure<'_>, values: &[f64]) {
         let Self {
-            structure,
             split,
             x,
             below,
@@ -168,8 +184,8 @@ impl SupernodalSolve {
                 for (&column, p) in columns.iter().zip(&lane.x) {
                     x[column] = *p;
                 }
-                for &row in &split.top_columns {
-                    x[row] -= lane.top_updates[row];
+                for (&row, update) in split.top_columns.iter().zip(&lane.top_updates) {
+                    x[row] -= *update;
                 }
             }
         }
@@ -185,9 +201,8 @@ impl SupernodalSolve {
     /// `x <- L^-T x`: the top's supernodes in reverse order, then the bins'
     /// subtrees (at once when there are two threads), which read the top's
     /// rows from `x`.
-    fn backward_substitution(&mut self, values: &[f64]) {
+    fn backward_substitution(&mut self, structure: &Structure<'_>, values: &[f64]) {
         let Self {
-            structure,
             split,
             x,
             below,
@@ -218,13 +233,13 @@ impl SupernodalSolve {
     }
 }
 
-impl Structure {
+impl Structure<'_> {
     /// The two-thread split of this factor's elimination tree.
     fn tree_split(&self) -> TreeSplit {
         let n = self.row_len.len();
-        let mut supernode_of = vec![0; self.begin.last().copied().unwrap_or(0)];
+        let mut supernode_of = vec![0; self.end.last().copied().unwrap_or(0)];
         for s in 0..n {
-            supernode_of[self.begin[s]..self.begin[s + 1]].fill(s);
+            supernode_of[self.begin[s]..self.end[s]].fill(s);
         }
         let parent: Vec<Option<usize>> = (0..n)
             .map(|s| {
@@ -235,7 +250,8 @@ impl Structure {
         let cost: Vec<usize> = (0..n)
             .map(|s| self.value_ptr[s + 1] - self.value_ptr[s])
             .collect();
-        TreeSplit::new(&self.begin, &parent, &cost)
+        let begin: Vec<usize> = self.begin.iter().chain(self.end.last()).copied().collect();
+        TreeSplit::new(&begin, &parent, &cost)
     }
 
     /// Forward substitution over bin `bin`'s supernodes, on a compact copy
@@ -254,9 +270,7 @@ impl Structure {
             below,
             top_updates,
         } = lane;
-        for &row in &split.top_columns {
-            top_updates[row] = Point::zeros();
-        }
+        top_updates.fill(Point::zeros());
         for (p, &column) in local.iter_mut().zip(&split.bin_columns[bin]) {
             *p = x[column];
         }
@@ -266,7 +280,7 @@ impl Structure {
             for &s in &split.bins[bin] {
                 let first = split.slot[self.begin[s]] as usize;
                 self.forward_supernode(values, s, local, first, locate, &mut below, |row, u| {
-                    top_updates[row] += u;
+                    top_updates[split.top_position[row] as usize] += u;
                 });
             }
         });
@@ -314,7 +328,7 @@ impl Structure {
         below: &mut Below,
         mut outside: impl FnMut(usize, Point),
     ) {
-        let c = self.begin[s + 1] - self.begin[s];
+        let c = self.end[s] - self.begin[s];
         let rows = &self.row_idx[self.row_ptr[s]..self.row_ptr[s] + self.row_len[s]];
         let ld = c + rows.len();
         let block = &values[self.value_ptr[s]..self.value_ptr[s] + ld * c];
@@ -352,7 +366,7 @@ impl Structure {
         below: &mut Below,
         outside: impl Fn(usize) -> Point,
     ) {
-        let c = self.begin[s + 1] - self.begin[s];
+        let c = self.end[s] - self.begin[s];
         let rows = &self.row_idx[self.row_ptr[s]..self.row_ptr[s] + self.row_len[s]];
         let ld = c + rows.len();
         let block = &values[self.value_ptr[s]..self.value_ptr[s] + ld * c];
