@@ -1,0 +1,135 @@
+//! Block Lanczos, the modal analysis of large models (`modes/lanczos.rs`),
+//! against the dense eigensolver (values and shapes), its fallback to
+//! subspace iteration on a model with mechanisms, its determinism across
+//! thread counts, and the number of columns it solves.
+
+mod beam_modes;
+
+use std::f64::consts::PI;
+
+use pd_mesh::generators;
+use pd_solver::Model;
+use pd_solver::modes::{self, Method, Mode};
+
+/// A free tet body: six rigid motions, deflated by Lanczos, found as zero
+/// modes by the dense solver.
+fn free_box() -> Model {
+    let mesh = generators::box_tets([0.3, 0.2, 0.1], [3, 2, 1]).unwrap();
+    let mut model = Model::new();
+    let masses = mesh.lumped_masses(1000.0).unwrap();
+    let body = model.add_body(mesh, masses).unwrap();
+    model.add_tet_strain(body, 1.0e5, None).unwrap();
+    model
+}
+
+/// `|a^T M b|` for mass-normalised shapes.
+fn mass_cosine(model: &Model, a: &Mode, b: &Mode) -> f64 {
+    a.shape
+        .iter()
+        .zip(&b.shape)
+        .zip(model.masses())
+        .map(|((p, q), m)| m * p.dot(q))
+        .sum::<f64>()
+        .abs()
+}
+
+/// Frequencies agree to the convergence tolerance (residual <= 1e-9
+/// lambda, so omega within 5e-10 relative; the Rayleigh quotient Lanczos
+/// reports is closer still) plus the dense solver's round-off. Shapes agree
+/// by Davis-Kahan: the angle between a Ritz vector and the eigenvector
+/// satisfies `sin <= |r|_{M^-1} / gap`, `gap` the distance from `lambda` to
+/// the rest of the spectrum, and the dense eigenvector errs by about `n u
+/// lambda_max / gap` (`n` dofs, `u` the unit round-off): `1 - |cos| <=
+/// sin^2 / 2 + ...`, bounded here by `sin` itself.
+#[test]
+fn dense_and_lanczos_agree() {
+    let clamped = beam_modes::beam([1.0, 0.1, 0.1], [20, 2, 2]);
+    for (name, model, rigid) in [("clamped", clamped, 0), ("free", free_box(), 6)] {
+        let all = modes::elastic_modes_by(&model, usize::MAX, Method::Dense).unwrap();
+        let lanczos = modes::elastic_modes_by(&model, 8, Method::Lanczos).unwrap();
+        assert_eq!(lanczos.method, "shift-invert block Lanczos", "{name}");
+        assert_eq!(lanczos.rigid_modes, rigid, "{name}");
+        assert_eq!(all.mechanisms + lanczos.mechanisms, 0, "{name}");
+        assert_eq!(lanczos.modes.len(), 8, "{name}");
+        let lambda_max = all.modes.last().unwrap().omega.powi(2);
+        let round_off = all.dofs as f64 * f64::EPSILON * lambda_max;
+        for (j, (a, b)) in all.modes.iter().zip(&lanczos.modes).enumerate() {
+            assert!(
+                (a.omega - b.omega).abs() <= 1e-9 * a.omega,
+                "{name} mode {j}: {} vs {}",
+                a.omega,
+                b.omega
+            );
+            let lambda = a.omega * a.omega;
+            let gap = all
+                .modes
+                .iter()
+                .enumerate()
+                .filter(|&(k, _)| k != j)
+                .map(|(_, m)| (m.omega * m.omega - lambda).abs())
+                .fold(f64::INFINITY, f64::min);
+            let sine = (1e-9 * lambda + round_off) / gap;
+            let cosine = mass_cosine(&model, a, b);
+            assert!(
+                1.0 - cosine <= sine,
+                "{name} mode {j}: |cos| = {cosine}, sin bound {sine:e}"
+            );
+        }
+    }
+}
+
+/// Free vertices of the long chain: 330 dofs, above the dense limit.
+const N: usize = 110;
+
+/// A straight fixed-fixed chain's sideways motions are mechanisms (no
+/// stiffness at rest): Lanczos sees one as a Ritz value at zero and hands
+/// the model to subspace iteration, which counts all `2 N`.
+#[test]
+fn a_model_with_mechanisms_falls_back_to_subspace_iteration() {
+    let (k, m) = (100.0, 0.01);
+    let mesh = generators::chain(N + 2, 0.1 * (N + 1) as f64).unwrap();
+    let mut model = Model::new();
+    let body = model.add_body(mesh, vec![m; N + 2]).unwrap();
+    model.add_springs(body, k).unwrap();
+    model.fix_vertices(body, &[0, N + 1]).unwrap();
+    let analysis = modes::elastic_modes(&model, 4).unwrap();
+    assert_eq!(analysis.dofs, 3 * N);
+    assert_eq!(analysis.method, "shift-invert subspace iteration");
+    assert_eq!(analysis.mechanisms, 2 * N);
+    for (j, mode) in analysis.modes.iter().enumerate() {
+        let j = j + 1;
+        let exact = 2.0 * (k / m).sqrt() * (j as f64 * PI / (2.0 * (N + 1) as f64)).sin();
+        // The convergence tolerance: omega within 5e-10 relative.
+        assert!(
+            (mode.omega - exact).abs() <= 1e-9 * exact,
+            "mode {j}: {} vs {exact}",
+            mode.omega
+        );
+    }
+}
+
+/// The supernodal solve splits its tree between two threads in a fixed
+/// way, and everything else is sequential: the modes are the same bits on
+/// one thread and on two.
+#[test]
+fn lanczos_is_the_same_on_one_and_two_threads() {
+    let model = beam_modes::beam([1.0, 0.1, 0.1], [40, 4, 4]);
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| modes::elastic_modes(&model, 6).unwrap())
+    };
+    let (one, two) = (run(1), run(2));
+    assert_eq!(one.method, "shift-invert block Lanczos");
+    assert_eq!(one.solved_columns, two.solved_columns);
+    for (a, b) in one.modes.iter().zip(&two.modes) {
+        assert_eq!(a.omega.to_bits(), b.omega.to_bits());
+        for (p, q) in a.shape.iter().zip(&b.shape) {
+            for axis in 0..3 {
+                assert_eq!(p[axis].to_bits(), q[axis].to_bits());
+            }
+        }
+    }
+}
