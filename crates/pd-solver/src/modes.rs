@@ -25,6 +25,7 @@
 mod lanczos;
 mod refine;
 mod response;
+mod scatter;
 mod subspace;
 
 pub use response::{DiscreteMode, discrete_mode};
@@ -242,18 +243,19 @@ pub fn elastic_modes_by(
     let start = Instant::now();
     let mut phases = Phases::default();
     let blocks = model.constraint_blocks();
-    let stiffness = assemble(model, &blocks)?;
+    let free_dofs = 3 * model.fixed().iter().filter(|&&fixed| !fixed).count();
+    let dense_wanted = match method {
+        Method::Auto => free_dofs <= DENSE_LIMIT,
+        Method::Dense => true,
+        Method::Subspace | Method::Lanczos => false,
+    };
+    let stiffness = assemble(model, &blocks, !dense_wanted)?;
     phases.assembly = start.elapsed().as_secs_f64();
     let clock = Instant::now();
     let rigid = rigid_basis(model, &blocks, &stiffness);
     phases.rigid_basis = clock.elapsed().as_secs_f64();
     let rigid_modes = rigid.len();
     let dofs = stiffness.pattern.n;
-    let dense_wanted = match method {
-        Method::Auto => dofs <= DENSE_LIMIT,
-        Method::Dense => true,
-        Method::Subspace | Method::Lanczos => false,
-    };
     let solved = if dense_wanted {
         let clock = Instant::now();
         let (pairs, zeros) = dense(&stiffness, count);
@@ -365,10 +367,13 @@ fn shapes(
         .collect()
 }
 
-/// Assembles `K` at the rest positions over the free degrees of freedom.
+/// Assembles `K` at the rest positions over the free degrees of freedom:
+/// `scattered` into a pattern from the stencils (`modes/scatter.rs`, for
+/// the sparse eigensolvers), else from sorted triplets (the dense path).
 fn assemble(
     model: &Model,
     blocks: &[Box<dyn pd_constraints::ConstraintBlock>],
+    scattered: bool,
 ) -> Result<Stiffness, SolverError> {
     let n = model.num_vertices();
     let mut free_index = vec![usize::MAX; n];
@@ -392,6 +397,11 @@ fn assemble(
         return Err(SolverError::InvalidModel {
             reason: "every vertex is fixed: the model has no modes".into(),
         });
+    }
+    if scattered {
+        let mass = free.iter().flat_map(|&v| [model.masses()[v]; 3]).collect();
+        let rest = model.rest_positions();
+        return Ok(scatter::assemble(rest, blocks, &free_index, free, mass));
     }
     let nd = 3 * free.len();
     // (column, row, value), lower triangle, diagonal of every dof included.
