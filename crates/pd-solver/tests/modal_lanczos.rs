@@ -181,3 +181,25 @@ fn lanczos_blocks_stay_below_the_kaniel_paige_saad_bound() {
     assert!(lanczos.iterations <= bound);
     assert_eq!(lanczos.solved_columns, p * lanczos.iterations);
 }
+
+/// A model smaller than Lanczos's basis: the blocks end when they span
+/// every elastic motion (18 of a free 8-vertex cube), and then every mode
+/// is exact to round-off; asked for all of them, Lanczos returns all 18 as
+/// the dense solver does (to the convergence tolerance).
+#[test]
+fn lanczos_spans_a_small_model_entirely() {
+    let mesh = generators::box_tets([0.1, 0.1, 0.1], [1, 1, 1]).unwrap();
+    let mut model = Model::new();
+    let masses = mesh.lumped_masses(1000.0).unwrap();
+    let body = model.add_body(mesh, masses).unwrap();
+    model.add_tet_strain(body, 1.0e5, None).unwrap();
+    let dense = modes::elastic_modes_by(&model, usize::MAX, Method::Dense).unwrap();
+    let lanczos = modes::elastic_modes_by(&model, usize::MAX, Method::Lanczos).unwrap();
+    assert_eq!(lanczos.method, "shift-invert block Lanczos");
+    assert_eq!(lanczos.rigid_modes, 6);
+    assert_eq!(dense.modes.len(), 18);
+    assert_eq!(lanczos.modes.len(), 18);
+    for (a, b) in dense.modes.iter().zip(&lanczos.modes) {
+        assert!((a.omega - b.omega).abs() <= 1e-9 * a.omega);
+    }
+}
