@@ -110,6 +110,7 @@ pub(crate) fn modes(options: &SceneOptions, count: usize) -> Result<(), Failure>
         "mechanisms": analysis.mechanisms,
         "method": analysis.method,
         "iterations": analysis.iterations,
+        "solved_columns": analysis.solved_columns,
         "analysis_ms": analysis.seconds * 1e3,
         "analysis_factor_ms": analysis.factor_seconds * 1e3,
         "solver_factor_ms": sim.setup_stats().factor_seconds * 1e3,

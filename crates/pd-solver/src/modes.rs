@@ -15,12 +15,17 @@
 //!
 //! Small systems (at most [`DENSE_LIMIT`] degrees of freedom) are solved
 //! densely (`M^-1/2 K M^-1/2`, a symmetric eigensolver: exact to round-off);
-//! larger ones by shift-invert subspace iteration with Rayleigh-Ritz
-//! (`modes/subspace.rs`): one sparse Cholesky factorisation of
-//! `K + s M` (`s` a small positive shift that makes it definite even with
-//! rigid modes present), then block solves. See `docs/damping.md`.
+//! larger ones by shift-invert block Lanczos (`modes/lanczos.rs`): one
+//! sparse Cholesky factorisation of `K + s M` (`s` a small positive shift
+//! that makes it definite even with rigid modes present), then three-column
+//! solves. Models with mechanisms fall back to shift-invert subspace
+//! iteration with Rayleigh-Ritz (`modes/subspace.rs`) on the same factor.
+//! See `docs/damping.md`.
 
+mod lanczos;
+mod refine;
 mod response;
+mod scatter;
 mod subspace;
 
 pub use response::{DiscreteMode, discrete_mode};
@@ -32,7 +37,9 @@ use pd_constraints::assembly::{self, LaplacianKind};
 use pd_damping::rigid::RigidFreedom;
 use pd_mesh::Point;
 
-use crate::cholesky::LowerPattern;
+use faer::MatMut;
+
+use crate::cholesky::{LowerPattern, NumericFactor, SymbolicFactor};
 use crate::components::Topology;
 use crate::{Model, SolverError};
 
@@ -49,6 +56,12 @@ const ZERO: f64 = 1e-10;
 
 /// Constraints per Hessian evaluation batch.
 const CHUNK: usize = 256;
+
+/// The shift `s` relative to `max K_ii / m_i`: large enough that `K + s M`
+/// is definite to round-off with rigid modes present (condition number about
+/// `1 / SHIFT`), small against the lowest elastic `omega^2` of any mesh
+/// this solver factors, so that convergence is not slowed.
+const SHIFT: f64 = 1e-8;
 
 /// One elastic mode.
 #[derive(Debug, Clone, PartialEq)]
@@ -82,14 +95,81 @@ pub struct ModalAnalysis {
     pub mechanisms: usize,
     /// Free degrees of freedom (3 per free vertex).
     pub dofs: usize,
-    /// `"dense"` or `"shift-invert subspace iteration"`.
+    /// `"dense"`, `"shift-invert block Lanczos"` or `"shift-invert subspace
+    /// iteration"`.
     pub method: &'static str,
-    /// Subspace iterations (0 for the dense method).
+    /// Blocks expanded (Lanczos) or subspace iterations (0 for the dense
+    /// method).
     pub iterations: usize,
+    /// Right-hand-side columns solved with the sparse factor (0 for dense).
+    pub solved_columns: usize,
+    /// Thick restarts of block Lanczos (0 for the other methods).
+    pub restarts: usize,
     /// Seconds spent in the sparse Cholesky factorisation (0 for dense).
     pub factor_seconds: f64,
     /// Seconds of the whole analysis, assembly included.
     pub seconds: f64,
+    /// Where those seconds went.
+    pub phases: Phases,
+}
+
+/// Wall-clock seconds of each phase of one analysis (0 for a phase the
+/// method does not have).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Phases {
+    /// Assembling `K` and `M` at rest over the free degrees of freedom.
+    pub assembly: f64,
+    /// The rigid motions (connected components and their freedoms).
+    pub rigid_basis: f64,
+    /// Symbolic and numeric factorisation of `K + s M`.
+    pub factorisation: f64,
+    /// Solves with the factor.
+    pub solves: f64,
+    /// M-orthonormalisation (rigid deflation included).
+    pub orthonormalisation: f64,
+    /// Rayleigh-Ritz: the projected problem, the Ritz vectors, the residual
+    /// checks (and Lanczos's restarts).
+    pub rayleigh_ritz: f64,
+    /// The dense eigensolver (small models).
+    pub dense: f64,
+    /// The mode shapes and their damping Laplacian quotients.
+    pub quotients: f64,
+}
+
+/// The Cholesky factor of `K + s M`, `s = SHIFT max_i K_ii / m_i`.
+pub(crate) struct ShiftedFactor {
+    symbolic: SymbolicFactor,
+    numeric: NumericFactor,
+    /// `s`, 1/s^2.
+    pub shift: f64,
+}
+
+impl ShiftedFactor {
+    fn new(stiffness: &Stiffness) -> Result<Self, SolverError> {
+        let shift = SHIFT * stiffness.scale();
+        let mut shifted = stiffness.values.clone();
+        for c in 0..stiffness.pattern.n {
+            shifted[stiffness.pattern.col_ptr[c]] += shift * stiffness.mass[c];
+        }
+        let mut symbolic = SymbolicFactor::analyse(stiffness.pattern.clone(), &[])?;
+        let numeric = symbolic.factorise(&shifted)?;
+        Ok(Self {
+            symbolic,
+            numeric,
+            shift,
+        })
+    }
+
+    /// Solves in place for up to three columns (the supernodal solve for
+    /// exactly three).
+    pub fn solve(&mut self, rhs: MatMut<'_, f64>) {
+        self.symbolic.solve_in_place(&self.numeric, rhs);
+    }
+
+    /// Solves in place for any number of columns (faer's solve).
+    pub fn solve_wide(&self, rhs: MatMut<'_, f64>) {
+        self.symbolic.solve_in_place_wide(&self.numeric, rhs);
+    }
 }
 
 /// The elastic stiffness at rest over the free degrees of freedom
@@ -140,12 +220,15 @@ pub fn elastic_modes(model: &Model, count: usize) -> Result<ModalAnalysis, Solve
 /// Which eigensolver [`elastic_modes_by`] uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Method {
-    /// Dense up to [`DENSE_LIMIT`] free dofs, subspace iteration above.
+    /// Dense up to [`DENSE_LIMIT`] free dofs, block Lanczos above.
     Auto,
     /// The dense symmetric eigensolver (every mode; cubic in the dofs).
     Dense,
     /// Shift-invert subspace iteration on one sparse Cholesky.
     Subspace,
+    /// Shift-invert block Lanczos on one sparse Cholesky; subspace
+    /// iteration if the model has mechanisms.
+    Lanczos,
 }
 
 /// [`elastic_modes`] with the eigensolver chosen (to cross-check the two).
@@ -158,32 +241,114 @@ pub fn elastic_modes_by(
     method: Method,
 ) -> Result<ModalAnalysis, SolverError> {
     let start = Instant::now();
+    let mut phases = Phases::default();
     let blocks = model.constraint_blocks();
-    let stiffness = assemble(model, &blocks)?;
+    let free_dofs = 3 * model.fixed().iter().filter(|&&fixed| !fixed).count();
+    let dense_wanted = match method {
+        Method::Auto => free_dofs <= DENSE_LIMIT,
+        Method::Dense => true,
+        Method::Subspace | Method::Lanczos => false,
+    };
+    let stiffness = assemble(model, &blocks, !dense_wanted)?;
+    phases.assembly = start.elapsed().as_secs_f64();
+    let clock = Instant::now();
     let rigid = rigid_basis(model, &blocks, &stiffness);
+    phases.rigid_basis = clock.elapsed().as_secs_f64();
     let rigid_modes = rigid.len();
     let dofs = stiffness.pattern.n;
-    let dense_wanted = match method {
-        Method::Auto => dofs <= DENSE_LIMIT,
-        Method::Dense => true,
-        Method::Subspace => false,
-    };
-    let (pairs, mechanisms, iterations, factor_seconds, method) = if dense_wanted {
+    let solved = if dense_wanted {
+        let clock = Instant::now();
         let (pairs, zeros) = dense(&stiffness, count);
-        (pairs, zeros.saturating_sub(rigid_modes), 0, 0.0, "dense")
+        phases.dense = clock.elapsed().as_secs_f64();
+        Solved {
+            pairs,
+            mechanisms: zeros.saturating_sub(rigid_modes),
+            iterations: 0,
+            columns: 0,
+            restarts: 0,
+            method: "dense",
+        }
     } else {
-        let result = subspace::solve(&stiffness, &rigid, count)?;
-        (
-            result.pairs,
-            result.mechanisms,
-            result.iterations,
-            result.factor_seconds,
-            "shift-invert subspace iteration",
-        )
+        sparse(&stiffness, &rigid, count, method, &mut phases)?
     };
-    let damping = assembly::laplacian(&blocks, model.num_vertices(), LaplacianKind::Damping);
+    let clock = Instant::now();
+    let modes = shapes(model, &blocks, &stiffness, solved.pairs);
+    phases.quotients = clock.elapsed().as_secs_f64();
+    Ok(ModalAnalysis {
+        modes,
+        rigid_modes,
+        mechanisms: solved.mechanisms,
+        dofs,
+        method: solved.method,
+        iterations: solved.iterations,
+        solved_columns: solved.columns,
+        restarts: solved.restarts,
+        factor_seconds: phases.factorisation,
+        seconds: start.elapsed().as_secs_f64(),
+        phases,
+    })
+}
+
+/// What an eigensolver found: `(omega^2, mass-normalised phi)` over the
+/// free dofs, lowest first.
+struct Solved {
+    pairs: Vec<(f64, Vec<f64>)>,
+    mechanisms: usize,
+    iterations: usize,
+    columns: usize,
+    restarts: usize,
+    method: &'static str,
+}
+
+/// The sparse path: one factorisation of `K + s M`, then block Lanczos
+/// (unless `method` asks for subspace iteration, or Lanczos sees a
+/// mechanism).
+fn sparse(
+    stiffness: &Stiffness,
+    rigid: &[Vec<f64>],
+    count: usize,
+    method: Method,
+    phases: &mut Phases,
+) -> Result<Solved, SolverError> {
+    let clock = Instant::now();
+    let mut factor = ShiftedFactor::new(stiffness)?;
+    phases.factorisation = clock.elapsed().as_secs_f64();
+    if method != Method::Subspace {
+        if let lanczos::Outcome::Converged(found) =
+            lanczos::solve(stiffness, rigid, count, &mut factor, phases)
+        {
+            return Ok(Solved {
+                pairs: found.pairs,
+                mechanisms: 0,
+                iterations: found.blocks,
+                columns: found.columns,
+                restarts: found.restarts,
+                method: "shift-invert block Lanczos",
+            });
+        }
+    }
+    let result = subspace::solve(stiffness, rigid, count, &factor, phases)?;
+    Ok(Solved {
+        pairs: result.pairs,
+        mechanisms: result.mechanisms,
+        iterations: result.iterations,
+        columns: result.columns,
+        restarts: 0,
+        method: "shift-invert subspace iteration",
+    })
+}
+
+/// The modes of `pairs` as shapes per vertex, with their damping
+/// Laplacian quotients.
+fn shapes(
+    model: &Model,
+    blocks: &[Box<dyn pd_constraints::ConstraintBlock>],
+    stiffness: &Stiffness,
+    pairs: Vec<(f64, Vec<f64>)>,
+) -> Vec<Mode> {
+    let damping = assembly::laplacian(blocks, model.num_vertices(), LaplacianKind::Damping);
     let n = model.num_vertices();
-    let modes = pairs
+    pairs
         .into_iter()
         .map(|(lambda, phi)| {
             let mut shape = vec![Point::zeros(); n];
@@ -199,23 +364,16 @@ pub fn elastic_modes_by(
                 laplacian_quotient,
             }
         })
-        .collect();
-    Ok(ModalAnalysis {
-        modes,
-        rigid_modes,
-        mechanisms,
-        dofs,
-        method,
-        iterations,
-        factor_seconds,
-        seconds: start.elapsed().as_secs_f64(),
-    })
+        .collect()
 }
 
-/// Assembles `K` at the rest positions over the free degrees of freedom.
+/// Assembles `K` at the rest positions over the free degrees of freedom:
+/// `scattered` into a pattern from the stencils (`modes/scatter.rs`, for
+/// the sparse eigensolvers), else from sorted triplets (the dense path).
 fn assemble(
     model: &Model,
     blocks: &[Box<dyn pd_constraints::ConstraintBlock>],
+    scattered: bool,
 ) -> Result<Stiffness, SolverError> {
     let n = model.num_vertices();
     let mut free_index = vec![usize::MAX; n];
@@ -239,6 +397,11 @@ fn assemble(
         return Err(SolverError::InvalidModel {
             reason: "every vertex is fixed: the model has no modes".into(),
         });
+    }
+    if scattered {
+        let mass = free.iter().flat_map(|&v| [model.masses()[v]; 3]).collect();
+        let rest = model.rest_positions();
+        return Ok(scatter::assemble(rest, blocks, &free_index, free, mass));
     }
     let nd = 3 * free.len();
     // (column, row, value), lower triangle, diagonal of every dof included.

@@ -3,28 +3,24 @@
 //! `Y` made M-orthonormal, then the small problem `Y^T K Y` solved densely
 //! and `X` set to its Ritz vectors. Each iteration multiplies the error in
 //! mode `j` by `(lambda_j + s) / (lambda_{p+1} + s)`, `p` the block size.
-//! One factorisation serves every iteration.
+//! One factorisation serves every iteration. The default large-model solver
+//! is block Lanczos (`lanczos.rs`), which needs far fewer solves; this one
+//! serves models with mechanisms (zero-stiffness motions other than the
+//! rigid ones), whose eigenspace a Lanczos block cannot count.
 
 use std::time::Instant;
 
 use faer::Mat;
 use nalgebra::{DMatrix, SymmetricEigen};
 
-use super::{Stiffness, ZERO, mass_dot};
+use super::{Phases, ShiftedFactor, Stiffness, ZERO, mass_dot};
 use crate::SolverError;
-use crate::cholesky::SymbolicFactor;
 
 /// A Ritz pair counts as converged when `|K x - lambda M x|_{M^-1} <=
 /// TOLERANCE lambda` for mass-normalised `x`: then an exact eigenvalue lies
 /// within that distance of `lambda` (the residual bound of the symmetric
 /// definite pencil), a relative frequency error below `TOLERANCE / 2`.
-const TOLERANCE: f64 = 1e-9;
-
-/// The shift `s` relative to `max K_ii / m_i`: large enough that `K + s M`
-/// is definite to round-off with rigid modes present (condition number about
-/// `1 / SHIFT`), small against the lowest elastic `omega^2` of any mesh
-/// this solver factors, so that convergence is not slowed.
-const SHIFT: f64 = 1e-8;
+pub(super) const TOLERANCE: f64 = 1e-9;
 
 /// Iterations before giving up on convergence.
 const MAX_ITERATIONS: usize = 400;
@@ -34,28 +30,23 @@ pub(super) struct Subspace {
     pub pairs: Vec<(f64, Vec<f64>)>,
     pub mechanisms: usize,
     pub iterations: usize,
-    pub factor_seconds: f64,
+    /// Right-hand-side columns solved with the factor.
+    pub columns: usize,
 }
 
 /// The lowest `count` non-zero eigenpairs `(omega^2, mass-normalised phi)`
-/// of `stiffness`, the M-orthonormal `rigid` motions deflated.
+/// of `stiffness`, the M-orthonormal `rigid` motions deflated, with the
+/// factor of `K + s M`.
 pub(super) fn solve(
     stiffness: &Stiffness,
     rigid: &[Vec<f64>],
     count: usize,
+    factor: &ShiftedFactor,
+    phases: &mut Phases,
 ) -> Result<Subspace, SolverError> {
     let nd = stiffness.pattern.n;
     let scale = stiffness.scale();
-    let shift = SHIFT * scale;
-    let mut shifted = stiffness.values.clone();
-    for c in 0..nd {
-        shifted[stiffness.pattern.col_ptr[c]] += shift * stiffness.mass[c];
-    }
-    let clock = Instant::now();
-    let mut symbolic = SymbolicFactor::analyse(stiffness.pattern.clone(), &[])?;
-    let factor = symbolic.factorise(&shifted)?;
-    let factor_seconds = clock.elapsed().as_secs_f64();
-
+    let mut columns = 0;
     let available = nd - rigid.len();
     let mut width = (2 * count + 8).min(available);
     let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
@@ -64,14 +55,20 @@ pub(super) fn solve(
     for iteration in 1..=MAX_ITERATIONS {
         // Y = (K + s M)^-1 M X, every column in one solve (the factor is
         // read once per block, not once per column).
+        let clock = Instant::now();
         let mut rhs = Mat::<f64>::from_fn(nd, block.len(), |i, j| stiffness.mass[i] * block[j][i]);
-        symbolic.solve_in_place_wide(&factor, rhs.as_mut());
+        factor.solve_wide(rhs.as_mut());
+        columns += block.len();
         for (j, x) in block.iter_mut().enumerate() {
             x.iter_mut()
                 .enumerate()
                 .for_each(|(i, xi)| *xi = rhs[(i, j)]);
         }
+        phases.solves += clock.elapsed().as_secs_f64();
+        let clock = Instant::now();
         orthonormalise(&stiffness.mass, rigid, &mut block, &mut seed);
+        phases.orthonormalisation += clock.elapsed().as_secs_f64();
+        let clock = Instant::now();
         // Rayleigh-Ritz on span(Y).
         let products: Vec<Vec<f64>> = block
             .iter()
@@ -127,6 +124,7 @@ pub(super) fn solve(
         });
         let found = wanted.len();
         let enough = found == count || width == available;
+        phases.rayleigh_ritz += clock.elapsed().as_secs_f64();
         if converged && enough {
             return Ok(Subspace {
                 pairs: wanted
@@ -135,7 +133,7 @@ pub(super) fn solve(
                     .collect(),
                 mechanisms,
                 iterations: iteration,
-                factor_seconds,
+                columns,
             });
         }
         drop(wanted);
@@ -185,7 +183,7 @@ fn orthonormalise(mass: &[f64], rigid: &[Vec<f64>], block: &mut [Vec<f64>], seed
 }
 
 /// A deterministic pseudo-random vector with entries in `[-1, 1)`.
-fn random(n: usize, seed: &mut u64) -> Vec<f64> {
+pub(super) fn random(n: usize, seed: &mut u64) -> Vec<f64> {
     (0..n)
         .map(|_| {
             *seed = seed
