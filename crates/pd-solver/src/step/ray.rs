@@ -1,31 +1,29 @@
 //! The accelerated methods' end of a step with implicit midpoint: the end
 //! iterate must not lie past the minimum of the step objective along the
-//! ray from the step's start (docs/solver.md, "Accelerated methods and
-//! implicit midpoint").
+//! step's ray from `x_n` (docs/solver.md, "Accelerated methods and implicit
+//! midpoint").
 //!
 //! Why: implicit midpoint evaluates the forces at `x_n + dx/2` and sets
 //! `v_{n+1} = 2 dx/h - v_n`, so an unconverged end point `x` changes the
 //! total energy (kinetic + elastic + gravitational) by
 //! `2 grad g(x) . (x - x_n)` more than the converged one (exact for linear
-//! forces; measured to three digits on the clamped beam of
-//! `tests/method_divergence.rs`). Split at the step's start `x_s`,
-//! `grad g(x) . (x - x_n) = grad g(x) . (x - x_s) + grad g(x) . (x_s - x_n)`.
-//! In the quadratic model the first term is `sum_i h_i e_i^2 a_i (a_i - 1)`
-//! over the modes, `a_i` the fraction of the way from `x_s` to the
-//! minimiser the iterate has gone in mode `i`: plain PD's iterates
-//! (`0 <= a_i <= 1`) never make it positive, extrapolating methods that
-//! overshoot a slow mode (`a_i > 1`, which still lowers `g` up to `a_i = 2`)
-//! do, and the energy grows step after step (the stability map's three
-//! cases: Anderson and L-BFGS with 10 iterations a step).
+//! forces and gravity; measured to three digits on the clamped beam of
+//! `tests/method_divergence.rs`). Plain PD's iterates approach the
+//! minimiser monotonically in every mode of the quadratic model;
+//! extrapolating methods can overshoot slow modes (which still lowers `g`,
+//! so the safeguard accepts it), and the gain then recurs step after step
+//! (the stability map's three method-axis divergences: Anderson and L-BFGS
+//! with 10 iterations a step).
 //!
-//! The check: with `phi(beta) = g(x_s + beta (x - x_s))`, `phi(0)` known
-//! (the step's first merit), `phi(1)` and `phi'(1) = grad g(x) . (x - x_s)`
-//! from one local step at `x` (`grad g = A dx - rhs(p)`, one product with
-//! the prefactored matrix `A`), if `phi'(1) > 0` the quadratic through them
-//! gives the line minimum `beta* < 1`, where `phi' = 0`; the end iterate
-//! moves there if the objective is lower there (one more local step), else
-//! stays. Backward Euler and BDF-2 (`c2 = 1`) are not checked: an overshoot
-//! there shrinks (`|1 - a_i| < 1`) instead of being doubled.
+//! The check: with `phi(beta) = g(x_n + beta dx)`, `phi(1)` and
+//! `phi'(1) = grad g(x) . dx` come from one local step at `x`
+//! (`grad g = A dx - rhs(p)`, one product with the prefactored matrix `A`).
+//! If `phi'(1) > 0`, `phi(0)` (one more local step) and the quadratic
+//! through the three give the line minimum `beta* < 1`, where `phi' = 0`;
+//! the end iterate moves there if the objective is lower there (one more
+//! local step), else stays. Backward Euler and BDF-2 (`c2 = 1`) are not
+//! checked: an overshoot there shrinks (`|1 - a| < 1` of it remains) instead
+//! of being doubled.
 
 use pd_constraints::EnergyBound;
 use pd_mesh::Point;
@@ -34,7 +32,7 @@ use super::iteration::StepProblem;
 use crate::system::SystemCoefficients;
 use crate::weights::combine_weighted;
 
-/// The step's start, `A`'s values and a product buffer.
+/// `A`'s values, a product buffer and the end iterate under check.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct RayCheck {
     /// `A`'s values over the scalar lower pattern.
@@ -73,11 +71,12 @@ impl RayCheck {
         // phi(beta) = phi(0) + b beta + c beta^2 through phi(0), phi(1) and
         // phi'(1): c = phi'(1) - (phi(1) - phi(0)), b = phi'(1) - 2 c.
         let curvature = slope - rise;
-        let beta = if curvature > 0.0 {
-            ((2.0 * curvature - slope) / (2.0 * curvature)).clamp(0.0, 1.0)
-        } else {
-            1.0
-        };
+        if !(curvature > 0.0) {
+            // No minimum before beta = 1 in the model: keep the end iterate.
+            step.buffers.displacement.copy_from_slice(&self.end);
+            return false;
+        }
+        let beta = ((2.0 * curvature - slope) / (2.0 * curvature)).clamp(0.0, 1.0);
         for (x, e) in step.buffers.displacement.iter_mut().zip(&self.end) {
             *x = e * beta;
         }
@@ -91,7 +90,7 @@ impl RayCheck {
         }
     }
 
-    /// `phi'(1) = grad g(x) . (x - x_s)` in J at the current displacement,
+    /// `phi'(1) = grad g(x) . dx` in J at the current displacement,
     /// whose projections are the step's current ones:
     /// `grad g = A dx - rhs(p)` on the free rows.
     fn slope(&mut self, step: &mut StepProblem<'_>) -> f64 {
