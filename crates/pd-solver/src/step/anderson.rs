@@ -19,6 +19,10 @@
 //! so the method never raises it. The last iteration of the budget ends on
 //! a plain iterate `G(x_k)`.
 //!
+//! With implicit midpoint, a step that took an accelerated iterate ends with
+//! the end-of-step check of `step/ray.rs` (its end point must not lie past
+//! the objective's minimum along the step's ray, or the energy grows).
+//!
 //! Cost per iteration: one local-global iteration. The objective of a trial
 //! point is summed from the local step's projections there (the energy is
 //! `sum w/2 |G q - P(G q)|^2`), and an accepted point's projections serve

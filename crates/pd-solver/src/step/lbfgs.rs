@@ -18,6 +18,9 @@
 //! picks the step. Pairs with `s . y <= 0` are not stored. The last
 //! iteration of the budget ends on the plain iterate `G(x_k)`.
 //!
+//! With implicit midpoint, a step that took an L-BFGS step ends with the
+//! end-of-step check of `step/ray.rs`, as Anderson's does.
+//!
 //! Cost per iteration: one local-global iteration and one product with
 //! `A`. Line-search trials are judged from their local step's projections
 //! (summing the energy from them), and the accepted trial's projections
