@@ -35,13 +35,22 @@ pub struct MethodsPlan {
     pub newton_budgets: Vec<usize>,
     /// Newton's relative residual for the reference.
     pub reference_tolerance: f64,
+    /// The methods measured (plain local-global with a budget of 20 must be
+    /// among them for `local_fraction`).
+    pub methods: Vec<SolverMethod>,
+    /// The `[solver]` parameters (window, rho, start) of every method.
+    pub parameters: SolverSpec,
 }
 
-fn spec(method: SolverMethod) -> SolverSpec {
-    SolverSpec {
-        method,
-        ..SolverSpec::default()
-    }
+impl MethodsPlan {
+    /// Every method of the `[solver]` table, with its default parameters.
+    pub const ALL_METHODS: [SolverMethod; 5] = [
+        SolverMethod::LocalGlobal,
+        SolverMethod::Anderson,
+        SolverMethod::Chebyshev,
+        SolverMethod::Lbfgs,
+        SolverMethod::Newton,
+    ];
 }
 
 fn simulation(
@@ -58,7 +67,11 @@ fn simulation(
         settings,
     )
     .map_err(|e| e.to_string())?;
-    sim.set_position_solver(spec(method).create().map_err(|e| e.to_string())?);
+    let spec = SolverSpec {
+        method,
+        ..plan.parameters
+    };
+    sim.set_position_solver(spec.create().map_err(|e| e.to_string())?);
     Ok(sim)
 }
 
@@ -92,14 +105,7 @@ pub fn measure(beam: &Beam, mesh: &Mesh, plan: &MethodsPlan) -> Result<Value, St
     let reference_iterations = per_step(&stats, |s| s.iterations as f64);
     let mut rows = Vec::new();
     let mut local_fraction = f64::NAN;
-    let methods = [
-        SolverMethod::LocalGlobal,
-        SolverMethod::Anderson,
-        SolverMethod::Chebyshev,
-        SolverMethod::Lbfgs,
-        SolverMethod::Newton,
-    ];
-    for method in methods {
+    for &method in &plan.methods {
         let budgets = if method == SolverMethod::Newton {
             &plan.newton_budgets
         } else {

@@ -67,7 +67,7 @@ pub fn main(root: &Path, args: &[String]) -> ExitCode {
         .windows(2)
         .any(|w| w[0] == "--only" && w[1] == "methods")
     {
-        return crate::report(methods::run(root));
+        return crate::report(methods::run(root, args));
     }
     // The contact axis alone, in this build (docs/stability-contact.md).
     if args

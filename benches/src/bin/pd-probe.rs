@@ -10,6 +10,7 @@
 //! pd-probe accuracy [beam options] [--integrator be|im] [--time T] [--iters-list 1,2,...]
 //! pd-probe bandwidth [--mib M] [--reps R]
 //! pd-probe methods  [beam options] [--mesh BASE] [--integrator be|im|bdf2] [--model M] [--steps N] [--budgets 1,2,...]
+//!                   [--methods local-global,anderson,...] [--window W] [--start S] [--cheb-rho R|auto]
 //! beam options: --cells NX,NY,NZ --iters K --threads T --dt H --stiffness PA --soft-clamp
 //! ```
 
@@ -410,6 +411,8 @@ fn accuracy(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
 /// Error against cost per step for every iteration method
 /// (`pd_benches::methods`).
 fn methods(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
+    use pd_solver::{SolverMethod, SolverSpec, SpectralRadius};
+    let defaults = SolverSpec::default();
     let mesh = match options.value("--mesh") {
         Some(base) => pd_io::tetgen::read_tetgen_base(std::path::Path::new(base))
             .map_err(|e| e.to_string())?,
@@ -422,6 +425,28 @@ fn methods(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         budgets: options.list("--budgets", &[1, 2, 3, 5, 10, 20, 50])?,
         newton_budgets: options.list("--newton-budgets", &[1, 2, 3, 5])?,
         reference_tolerance: options.parse("--reference-tolerance", 1e-10)?,
+        methods: match options.value("--methods") {
+            None => pd_benches::methods::MethodsPlan::ALL_METHODS.to_vec(),
+            Some(text) => text
+                .split(',')
+                .map(|name| {
+                    SolverMethod::parse(name.trim())
+                        .ok_or_else(|| format!("--methods: unknown method {name:?}"))
+                })
+                .collect::<Result<_, _>>()?,
+        },
+        parameters: SolverSpec {
+            window: options.parse("--window", defaults.window)?,
+            start: options.parse("--start", defaults.start)?,
+            rho: match options.value("--cheb-rho") {
+                None | Some("auto") => SpectralRadius::Auto,
+                Some(text) => SpectralRadius::Fixed(
+                    text.parse()
+                        .map_err(|_| format!("--cheb-rho: cannot parse {text:?}"))?,
+                ),
+            },
+            ..defaults
+        },
     };
     pd_benches::methods::measure(beam, &mesh, &plan)
 }

@@ -19,6 +19,10 @@
 //! so the method never raises it. The last iteration of the budget ends on
 //! a plain iterate `G(x_k)`.
 //!
+//! With implicit midpoint, a step that took an accelerated iterate ends with
+//! the end-of-step check of `step/ray.rs` (its end point must not lie past
+//! the objective's minimum along the step's ray, or the energy grows).
+//!
 //! Cost per iteration: one local-global iteration. The objective of a trial
 //! point is summed from the local step's projections there (the energy is
 //! `sum w/2 |G q - P(G q)|^2`), and an accepted point's projections serve
@@ -29,6 +33,7 @@ use pd_mesh::Point;
 
 use super::iteration::{PositionSolver, StepProblem};
 use super::ops::{difference, mass_dot};
+use super::ray::RayCheck;
 use crate::SolverError;
 
 /// In the budget's last `ENDGAME - 1` accelerated iterations, a trial must
@@ -59,6 +64,8 @@ pub struct Anderson {
     theta: Vec<f64>,
     /// Per-chunk scratch of the objective's energy sum.
     partials: Vec<EnergyBound>,
+    /// The end-of-step check of implicit midpoint (step/ray.rs).
+    ray: RayCheck,
 }
 
 impl Anderson {
@@ -75,6 +82,7 @@ impl Anderson {
             gram: vec![0.0; window * window],
             theta: vec![0.0; window],
             partials: Vec::new(),
+            ray: RayCheck::default(),
         }
     }
 
@@ -185,6 +193,10 @@ impl PositionSolver for Anderson {
         // The local step at x_k gives its objective too: a trial point's
         // projections serve the next global step when it is accepted.
         let mut merit = step.project_with_objective(&mut self.partials);
+        let check = RayCheck::applies(step);
+        // Whether an accelerated iterate was taken (else the step is plain
+        // PD's and needs no end-of-step check).
+        let mut accelerated = false;
         // Differences stored so far (at most `window`), and the ring slot
         // of the next one.
         let (mut stored, mut next) = (0usize, 0usize);
@@ -202,6 +214,9 @@ impl PositionSolver for Anderson {
             let size = mass_dot(masses, &self.map[0], &self.map[0]);
             let converged = step.record_residual(change, size);
             if converged || k + 1 == iterations {
+                if check && accelerated && !converged {
+                    self.ray.finish(step, &mut self.partials);
+                }
                 step.record_objective();
                 break;
             }
@@ -234,6 +249,7 @@ impl PositionSolver for Anderson {
                 // Not `<=`: a NaN trial is rejected.
                 if trial < bar {
                     merit = trial;
+                    accelerated = true;
                     true
                 } else {
                     false

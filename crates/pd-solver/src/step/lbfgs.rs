@@ -18,6 +18,9 @@
 //! picks the step. Pairs with `s . y <= 0` are not stored. The last
 //! iteration of the budget ends on the plain iterate `G(x_k)`.
 //!
+//! With implicit midpoint, a step that took an L-BFGS step ends with the
+//! end-of-step check of `step/ray.rs`, as Anderson's does.
+//!
 //! Cost per iteration: one local-global iteration and one product with
 //! `A`. Line-search trials are judged from their local step's projections
 //! (summing the energy from them), and the accepted trial's projections
@@ -33,6 +36,7 @@ use pd_mesh::Point;
 use super::iteration::{PositionSolver, StepProblem};
 use super::materials::MaterialGradient;
 use super::ops::{difference, mass_dot};
+use super::ray::RayCheck;
 use crate::SolverError;
 use crate::system::SystemCoefficients;
 use crate::weights::combine_weighted;
@@ -72,6 +76,8 @@ pub struct Lbfgs {
     partials: Vec<EnergyBound>,
     /// The hyperelastic materials' gradient correction (step/materials.rs).
     materials: MaterialGradient,
+    /// The end-of-step check of implicit midpoint (step/ray.rs).
+    ray: RayCheck,
 }
 
 impl Lbfgs {
@@ -94,6 +100,7 @@ impl Lbfgs {
             product: Vec::new(),
             partials: Vec::new(),
             materials: MaterialGradient::default(),
+            ray: RayCheck::default(),
         }
     }
 
@@ -212,6 +219,10 @@ impl PositionSolver for Lbfgs {
         // iterate `x + w'` is not safeguarded: the last iteration runs its
         // line search too.
         let materials = MaterialGradient::present(step);
+        // Whether a step other than the plain iterate was taken (else the
+        // step is plain PD's and needs no end-of-step check).
+        let check = RayCheck::applies(step);
+        let mut accelerated = false;
         for k in 0..iterations {
             self.iterate.swap(0, 1);
             self.update.swap(0, 1);
@@ -230,7 +241,11 @@ impl PositionSolver for Lbfgs {
             let masses = step.masses();
             let change = mass_dot(masses, &self.update[0], &self.update[0]);
             let size = mass_dot(masses, step.displacement(), step.displacement());
-            if step.record_residual(change, size) || (k + 1 == iterations && !materials) {
+            let converged = step.record_residual(change, size);
+            if converged || (k + 1 == iterations && !materials) {
+                if check && accelerated && !converged {
+                    self.ray.finish(step, &mut self.partials);
+                }
                 step.record_objective();
                 break;
             }
@@ -269,6 +284,7 @@ impl PositionSolver for Lbfgs {
                     if trial <= merit + ARMIJO * alpha * slope {
                         merit = trial;
                         accepted = true;
+                        accelerated |= stored > 0 || alpha != 1.0;
                         break;
                     }
                     alpha *= 0.5;

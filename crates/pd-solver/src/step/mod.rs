@@ -22,6 +22,7 @@ pub(crate) mod method;
 pub(crate) mod newton;
 pub(crate) mod objective;
 pub(crate) mod ops;
+pub(crate) mod ray;
 
 use std::time::Instant;
 
