@@ -30,7 +30,8 @@
 use pd_mesh::Point;
 
 use super::SurfacePairs;
-use super::grid::Grid;
+use super::candidates::{Candidates, Surface};
+use super::grid::{Grid, cell_index, cell_size, query_end};
 use super::neighbourhood::RestNeighbourhood;
 
 /// Barycentric slack of the inside test (a vertex on a shared edge or
@@ -90,6 +91,12 @@ pub(crate) struct BodyContact {
     pub(super) count: Vec<u32>,
     grid: Grid,
     boxes: Vec<(Point, Point)>,
+    /// The vertices on a surface, in increasing order.
+    on_surface: Vec<usize>,
+    /// The per-step broad phase (`candidates.rs`).
+    candidates: Candidates,
+    /// Each triangle's vertices (for the candidate lists).
+    triangles: Vec<[usize; 3]>,
 }
 
 /// A body's surface for [`BodyContact::new`]: its triangles in global
@@ -134,9 +141,16 @@ impl BodyContact {
             let triangles: Vec<_> = faces.iter().map(|f| (f.vertices, f.body)).collect();
             RestNeighbourhood::new(&triangles, &body_of, rest, 4.0 * reach + thickness)
         });
+        let on_surface = (0..rest.len())
+            .filter(|&v| body_of[v] != usize::MAX)
+            .collect();
+        let triangles = faces.iter().map(|f| f.vertices).collect();
         Self {
             faces,
             body_of,
+            on_surface,
+            candidates: Candidates::default(),
+            triangles,
             masses: masses.to_vec(),
             fixed: fixed.to_vec(),
             friction,
@@ -160,6 +174,7 @@ impl BodyContact {
     /// side and the force.
     pub fn load(&mut self, saved: &[super::saved::SavedContact]) {
         self.pairs.iter_mut().for_each(|p| *p = None);
+        self.candidates.valid = false;
         for c in saved {
             self.pairs[c.vertex] = Some(Pair {
                 face: c.other,
@@ -177,6 +192,7 @@ impl BodyContact {
     /// becomes the contact point; a vertex that left its triangle loses the
     /// pair and is detected anew), forces warm-started.
     pub fn begin_step(&mut self, x_n: &[Point]) {
+        self.candidates.valid = false;
         for (v, pair) in self.pairs.iter_mut().enumerate() {
             let Some(p) = pair.filter(Pair::active) else {
                 *pair = None;
@@ -225,12 +241,22 @@ impl BodyContact {
             let m = Point::repeat(margin);
             self.boxes.push((lo - m, hi + m));
         }
-        self.grid.build(&self.boxes);
-        for v in 0..x_n.len() {
-            if self.pairs[v].is_some() || self.body_of[v] == usize::MAX || self.fixed[v] {
-                continue;
+        if self.candidates.covers(x_n, dx, &self.on_surface)
+            || self.build_candidates(x_n, dx, thickness)
+        {
+            let cell = cell_size(&self.boxes);
+            for v in 0..x_n.len() {
+                if self.searching(v) {
+                    self.pairs[v] = self.first_listed_hit(v, x_n, dx, (thickness, cell));
+                }
             }
-            self.pairs[v] = self.first_hit(v, x_n, dx, thickness);
+        } else {
+            self.grid.build(&self.boxes);
+            for v in 0..x_n.len() {
+                if self.searching(v) {
+                    self.pairs[v] = self.first_hit(v, x_n, dx, thickness);
+                }
+            }
         }
         self.count.iter_mut().for_each(|c| *c = 0);
         for (v, pair) in self.pairs.iter().enumerate() {
@@ -275,6 +301,84 @@ impl BodyContact {
                 best = Some((hit.0, Pair { face: f, ..hit.1 }));
             }
         });
+        best.map(|(_, p)| p)
+    }
+
+    /// Whether vertex `v` looks for a new pair: on a surface, free, without
+    /// one.
+    fn searching(&self, v: usize) -> bool {
+        self.pairs[v].is_none() && self.body_of[v] != usize::MAX && !self.fixed[v]
+    }
+
+    /// Builds the step's candidate lists around `x_n` with an inflation
+    /// of twice the largest displacement of a surface vertex (this
+    /// iterate's or the last build's), m; whether they cover `x_n + dx`.
+    fn build_candidates(&mut self, x_n: &[Point], dx: &[Point], thickness: f64) -> bool {
+        let motion = (self.on_surface.iter())
+            .map(|&i| dx[i].amax())
+            .fold(0.0_f64, f64::max);
+        let delta = 2.0 * motion.max(self.candidates.last_motion);
+        self.candidates.last_motion = motion;
+        let mut candidates = std::mem::take(&mut self.candidates);
+        let surface = Surface {
+            faces: &self.triangles,
+            searching: &|v| self.searching(v),
+            admits: &|v, f| self.admits(v, f),
+        };
+        let margin = thickness + self.reach;
+        let covered = candidates.build(
+            &surface,
+            (x_n, dx, &self.on_surface),
+            (delta, margin, thickness),
+        );
+        self.candidates = candidates;
+        covered
+    }
+
+    /// [`BodyContact::first_hit`] over vertex `v`'s candidates, with the
+    /// same result bit for bit: a candidate counts if the grid of this
+    /// iteration's boxes (cells of size `cell`, m) would visit it, and
+    /// among the earliest hits the first the grid would visit wins (cells
+    /// in order, then triangles in order).
+    fn first_listed_hit(
+        &self,
+        v: usize,
+        x_n: &[Point],
+        dx: &[Point],
+        (thickness, cell): (f64, f64),
+    ) -> Option<Pair> {
+        let (a, b) = (x_n[v], x_n[v] + dx[v]);
+        let m = Point::repeat(thickness);
+        let (lo, hi) = (a.inf(&b) - m, a.sup(&b) + m);
+        let q_lo = cell_index(&lo, cell);
+        let q_hi = query_end(&q_lo, &cell_index(&hi, cell));
+        let mut hits: Vec<([i64; 3], usize, f64, Pair)> = Vec::new();
+        for &f in self.candidates.of(v) {
+            let f = f as usize;
+            let (f_lo, f_hi) = &self.boxes[f];
+            if (0..3).any(|k| hi[k] < f_lo[k] || lo[k] > f_hi[k]) {
+                continue;
+            }
+            let (c_lo, c_hi) = (cell_index(f_lo, cell), cell_index(f_hi, cell));
+            let first = [0, 1, 2].map(|k| q_lo[k].max(c_lo[k]));
+            if (0..3).any(|k| first[k] > q_hi[k].min(c_hi[k])) {
+                continue;
+            }
+            let face = self.faces[f];
+            let start = face.vertices.map(|i| x_n[i]);
+            let end = face.vertices.map(|i| x_n[i] + dx[i]);
+            if let Some((s, pair)) = self.crossing(&face, (&start, &end), (&a, &b), thickness) {
+                hits.push((first, f, s, Pair { face: f, ..pair }));
+            }
+        }
+        // In the grid's visiting order, the first strictly earliest wins.
+        hits.sort_unstable_by_key(|h| (h.0, h.1));
+        let mut best: Option<(f64, Pair)> = None;
+        for (_, _, s, pair) in hits {
+            if best.is_none_or(|(t, _)| s < t) {
+                best = Some((s, pair));
+            }
+        }
         best.map(|(_, p)| p)
     }
 

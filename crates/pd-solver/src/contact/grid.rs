@@ -37,16 +37,7 @@ impl Grid {
     /// Rebuilds the grid over `boxes` (`(min, max)` per item, m).
     pub fn build(&mut self, boxes: &[(Point, Point)]) {
         self.keys.clear();
-        let extent = boxes
-            .iter()
-            .map(|(lo, hi)| (hi - lo).max())
-            .fold(0.0_f64, f64::max);
-        // A positive, finite cell even for degenerate boxes.
-        self.cell = if extent.is_finite() && extent > 0.0 {
-            extent
-        } else {
-            1.0
-        };
+        self.cell = cell_size(boxes);
         self.dense = self.build_dense(boxes);
         if self.dense {
             return;
@@ -62,6 +53,11 @@ impl Grid {
             }
         }
         self.keys.sort_unstable();
+    }
+
+    /// The cell size of the last build, m.
+    pub fn cell(&self) -> f64 {
+        self.cell
     }
 
     /// The dense table, if its range is small enough; `false` otherwise.
@@ -153,9 +149,7 @@ impl Grid {
     }
 
     fn index(&self, p: &Point) -> [i64; 3] {
-        // Saturating float-to-int casts: a far or non-finite point lands in
-        // an extreme cell, never out of range.
-        [0, 1, 2].map(|a| (p[a] / self.cell).floor() as i64)
+        cell_index(p, self.cell)
     }
 
     /// Calls `visit` with every item whose box may overlap `(lo, hi)`
@@ -164,7 +158,7 @@ impl Grid {
     /// the caller keeps query boxes of the size of a step's motion.
     pub fn query(&self, lo: &Point, hi: &Point, mut visit: impl FnMut(usize)) {
         let (a, b) = (self.index(lo), self.index(hi));
-        let b = [0, 1, 2].map(|d| b[d].min(a[d].saturating_add(3)));
+        let b = query_end(&a, &b);
         for i in a[0]..=b[0] {
             for j in a[1]..=b[1] {
                 for k in a[2]..=b[2] {
@@ -186,6 +180,34 @@ impl Grid {
             }
         }
     }
+}
+
+/// The cell size [`Grid::build`] takes for `boxes`, m: the largest box
+/// extent (1 for degenerate or non-finite boxes).
+pub(super) fn cell_size(boxes: &[(Point, Point)]) -> f64 {
+    let extent = boxes
+        .iter()
+        .map(|(lo, hi)| (hi - lo).max())
+        .fold(0.0_f64, f64::max);
+    // A positive, finite cell even for degenerate boxes.
+    if extent.is_finite() && extent > 0.0 {
+        extent
+    } else {
+        1.0
+    }
+}
+
+/// The grid cell of `p` for cells of size `cell` (m).
+pub(super) fn cell_index(p: &Point, cell: f64) -> [i64; 3] {
+    // Saturating float-to-int casts: a far or non-finite point lands in
+    // an extreme cell, never out of range.
+    [0, 1, 2].map(|a| (p[a] / cell).floor() as i64)
+}
+
+/// The cells [`Grid::query`] visits for a query box from cell `a` to cell
+/// `b`: the last is clamped to 4 cells per side.
+pub(super) fn query_end(a: &[i64; 3], b: &[i64; 3]) -> [i64; 3] {
+    [0, 1, 2].map(|d| b[d].min(a[d].saturating_add(3)))
 }
 
 #[cfg(test)]

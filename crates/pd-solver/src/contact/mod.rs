@@ -20,6 +20,7 @@
 //! normal velocity of every contact is clamped to `[0, bounce]`.
 
 mod bodies;
+mod candidates;
 mod geometry;
 mod grid;
 mod mesh;

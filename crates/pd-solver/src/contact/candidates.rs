@@ -1,0 +1,143 @@
+//! Per-step candidate triangles of body contact (docs/contact.md, "Cost
+//! of contact between bodies"): the broad phase built once per step
+//! instead of in every iteration, with results bit for bit those of the
+//! per-iteration grid.
+//!
+//! Built at the step's start positions `x_n` with an inflation `delta`
+//! (m): vertex `i` is given the box `[x_n[i] - delta, x_n[i] + delta]`
+//! (float operations, as stored in `bounds`), a triangle the hull of its
+//! vertices' boxes widened by the detection margin, a vertex's query box
+//! its own box widened by the thickness; a vertex's candidates are the
+//! admitted triangles whose box is not apart from its query box.
+//!
+//! Why it is exact. An iteration's boxes are the same expressions with
+//! `x_n[i] + dx[i]` in place of the inflation. While every surface vertex's
+//! iterate `x_n[i] + dx[i]` lies inside its stored box ([`Candidates::covers`],
+//! compared exactly), each of an iteration's box bounds is a min (max) of
+//! values no lower (higher) than the stored ones, shifted by the same
+//! float subtraction (addition), which is monotone: every iteration box
+//! lies inside its stored box, so an iteration's pair of boxes that is not
+//! apart was not apart at the build, and every triangle the per-iteration
+//! grid would test is a candidate. When an iterate leaves its box, the
+//! lists are built again around it (`delta` twice its displacement).
+
+use pd_mesh::Point;
+
+use super::grid::{Grid, cell_index};
+
+/// The candidate lists of one step.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Candidates {
+    /// Built for the current step.
+    pub valid: bool,
+    /// Per vertex, `(x_n - delta, x_n + delta)` at the build.
+    bounds: Vec<(Point, Point)>,
+    /// `faces[start[v]..start[v + 1]]`: vertex `v`'s candidates, in
+    /// increasing order.
+    start: Vec<u32>,
+    faces: Vec<u32>,
+    /// Largest displacement `|dx|_inf` of a surface vertex seen in the
+    /// previous step, m: sets the next build's inflation.
+    pub last_motion: f64,
+    grid: Grid,
+    boxes: Vec<(Point, Point)>,
+}
+
+/// What a build needs of the body-contact state.
+pub(super) struct Surface<'a> {
+    /// Each triangle's vertices.
+    pub faces: &'a [[usize; 3]],
+    /// Whether a vertex looks for new pairs (on a surface, free, no pair).
+    pub searching: &'a dyn Fn(usize) -> bool,
+    /// Whether vertex `v` may pair with triangle `f`.
+    pub admits: &'a dyn Fn(usize, usize) -> bool,
+}
+
+impl Candidates {
+    /// Vertex `v`'s candidate triangles.
+    pub fn of(&self, v: usize) -> &[u32] {
+        &self.faces[self.start[v] as usize..self.start[v + 1] as usize]
+    }
+
+    /// Whether every vertex of `surface` (`on_surface`) has its start
+    /// point and iterate inside its stored box (false for non-finite
+    /// values).
+    pub fn covers(&self, x_n: &[Point], dx: &[Point], on_surface: &[usize]) -> bool {
+        self.valid
+            && on_surface.iter().all(|&i| {
+                let (lo, hi) = &self.bounds[i];
+                let (a, b) = (x_n[i], x_n[i] + dx[i]);
+                (0..3).all(|k| lo[k] <= a[k] && a[k] <= hi[k] && lo[k] <= b[k] && b[k] <= hi[k])
+            })
+    }
+
+    /// Builds the lists at `x_n` with inflation `delta` (m), widening the
+    /// triangles by `margin` and the query boxes by `thickness` (m).
+    /// Returns whether the lists cover `x_n + dx` ([`Candidates::covers`]);
+    /// `false` leaves them invalid (the caller falls back to the grid).
+    pub fn build(
+        &mut self,
+        surface: &Surface<'_>,
+        (x_n, dx, on_surface): (&[Point], &[Point], &[usize]),
+        (delta, margin, thickness): (f64, f64, f64),
+    ) -> bool {
+        self.valid = false;
+        if !delta.is_finite() {
+            return false;
+        }
+        let d = Point::repeat(delta);
+        self.bounds.clear();
+        self.bounds.extend(x_n.iter().map(|x| (x - d, x + d)));
+        let m = Point::repeat(margin);
+        self.boxes.clear();
+        for t in surface.faces {
+            let (mut lo, mut hi) = self.bounds[t[0]];
+            for &i in t {
+                lo = lo.inf(&self.bounds[i].0);
+                hi = hi.sup(&self.bounds[i].1);
+            }
+            self.boxes.push((lo - m, hi + m));
+        }
+        self.grid.build(&self.boxes);
+        let cell = self.grid.cell();
+        let t = Point::repeat(thickness);
+        self.start.clear();
+        self.faces.clear();
+        for v in 0..x_n.len() {
+            self.start.push(self.faces.len() as u32);
+            if !(surface.searching)(v) {
+                continue;
+            }
+            let (lo, hi) = (self.bounds[v].0 - t, self.bounds[v].1 + t);
+            let (a, b) = (cell_index(&lo, cell), cell_index(&hi, cell));
+            // The grid's query visits at most 4 cells per side.
+            if (0..3).any(|k| b[k] > a[k].saturating_add(3)) {
+                return false;
+            }
+            let from = self.faces.len();
+            let (boxes, faces) = (&self.boxes, &mut self.faces);
+            self.grid.query(&lo, &hi, |f| {
+                let (f_lo, f_hi) = &boxes[f];
+                let apart = (0..3).any(|k| hi[k] < f_lo[k] || lo[k] > f_hi[k]);
+                if !apart && (surface.admits)(v, f) {
+                    faces.push(f as u32);
+                }
+            });
+            self.faces[from..].sort_unstable();
+            let mut kept = from;
+            for k in from..self.faces.len() {
+                if k == from || self.faces[k] != self.faces[kept - 1] {
+                    self.faces[kept] = self.faces[k];
+                    kept += 1;
+                }
+            }
+            self.faces.truncate(kept);
+            if self.faces.len() > u32::MAX as usize {
+                return false;
+            }
+        }
+        self.start.push(self.faces.len() as u32);
+        self.valid = true;
+        self.covers(x_n, dx, on_surface)
+    }
+}
