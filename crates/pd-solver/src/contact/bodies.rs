@@ -228,19 +228,7 @@ impl BodyContact {
         thickness: f64,
         collider: impl Fn(usize) -> bool,
     ) {
-        let margin = thickness + self.reach;
-        self.boxes.clear();
-        for face in &self.faces {
-            let (mut lo, mut hi) = (x_n[face.vertices[0]], x_n[face.vertices[0]]);
-            for &i in &face.vertices {
-                for p in [x_n[i], x_n[i] + dx[i]] {
-                    lo = lo.inf(&p);
-                    hi = hi.sup(&p);
-                }
-            }
-            let m = Point::repeat(margin);
-            self.boxes.push((lo - m, hi + m));
-        }
+        self.sweep_boxes(x_n, dx, thickness);
         if self.candidates.covers(x_n, dx, &self.on_surface)
             || self.build_candidates(x_n, dx, thickness)
         {
@@ -302,6 +290,24 @@ impl BodyContact {
             }
         });
         best.map(|(_, p)| p)
+    }
+
+    /// Every triangle's box for this iterate: the hull of its vertices'
+    /// segments `x_n -> x_n + dx`, widened by the thickness and the reach.
+    fn sweep_boxes(&mut self, x_n: &[Point], dx: &[Point], thickness: f64) {
+        let margin = thickness + self.reach;
+        self.boxes.clear();
+        for face in &self.faces {
+            let (mut lo, mut hi) = (x_n[face.vertices[0]], x_n[face.vertices[0]]);
+            for &i in &face.vertices {
+                for p in [x_n[i], x_n[i] + dx[i]] {
+                    lo = lo.inf(&p);
+                    hi = hi.sup(&p);
+                }
+            }
+            let m = Point::repeat(margin);
+            self.boxes.push((lo - m, hi + m));
+        }
     }
 
     /// Whether vertex `v` looks for a new pair: on a surface, free, without
@@ -616,6 +622,10 @@ fn project_onto(t: &[Point; 3], p: &Point) -> Option<([f64; 3], Point, f64)> {
     let w2 = e1.cross(&q).dot(&cross) / area2;
     Some(([1.0 - w1 - w2, w1, w2], normal, distance))
 }
+
+#[cfg(test)]
+#[path = "bodies_tests.rs"]
+mod tests;
 
 fn inside(w: &[f64; 3]) -> bool {
     w.iter().all(|&x| x >= -INSIDE_SLACK)
