@@ -239,13 +239,19 @@ impl GlobalSystem {
     /// pattern order.
     fn values(&self, coefficients: MatrixCoefficients) -> Vec<f64> {
         let mut values = vec![0.0; self.pattern.row_idx.len()];
+        self.values_into(coefficients, &mut values);
+        values
+    }
+
+    /// [`Self::values`] written over `values` (one per pattern entry),
+    /// without allocating.
+    pub(crate) fn values_into(&self, coefficients: MatrixCoefficients, values: &mut [f64]) {
         combine_weighted(
-            &mut values,
+            values,
             coefficients,
             [&self.mass_part, &self.system_part, &self.damping_part],
             self.weights.as_ref(),
         );
-        values
     }
 
     /// The global matrix for `coefficients` (free vertices, full symmetric).

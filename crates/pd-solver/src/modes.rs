@@ -367,6 +367,47 @@ fn shapes(
         .collect()
 }
 
+/// Visits each element Hessian entry at the rest positions that lies in
+/// the lower triangle over the free dofs (`3 f + a` for free vertex `f`,
+/// axis `a`), as `(row, column, value)`, element by element in block
+/// order; entries of fixed vertices and exact zeros are skipped. Both
+/// assemblies of `K` (the triplets below, the scatter of `scatter.rs`) add
+/// in this order.
+fn for_each_lower_hessian_entry(
+    rest: &[Point],
+    blocks: &[Box<dyn pd_constraints::ConstraintBlock>],
+    free_index: &[usize],
+    mut visit: impl FnMut(usize, usize, f64),
+) {
+    for block in blocks {
+        if block.is_empty() {
+            continue;
+        }
+        let (len, size) = (block.hessian_len(), 3 * block.stencil(0).len());
+        let mut out = vec![0.0; CHUNK * len];
+        for first in (0..block.len()).step_by(CHUNK) {
+            let count = CHUNK.min(block.len() - first);
+            let out = &mut out[..count * len];
+            block.hessian_range(rest, first, false, out);
+            for (c, h) in out.chunks_exact(len).enumerate() {
+                let stencil = block.stencil(first + c);
+                for (i, row) in h.chunks_exact(size).enumerate() {
+                    for (j, &value) in row.iter().enumerate() {
+                        let (fi, fj) = (free_index[stencil[i / 3]], free_index[stencil[j / 3]]);
+                        if fi == usize::MAX || fj == usize::MAX || value == 0.0 {
+                            continue;
+                        }
+                        let (r, col) = (3 * fi + i % 3, 3 * fj + j % 3);
+                        if r >= col {
+                            visit(r, col, value);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// Assembles `K` at the rest positions over the free degrees of freedom:
 /// `scattered` into a pattern from the stencils (`modes/scatter.rs`, for
 /// the sparse eigensolvers), else from sorted triplets (the dense path).
@@ -407,33 +448,9 @@ fn assemble(
     // (column, row, value), lower triangle, diagonal of every dof included.
     let mut triplets: Vec<(usize, usize, f64)> = (0..nd).map(|d| (d, d, 0.0)).collect();
     let rest = model.rest_positions();
-    for block in blocks {
-        if block.is_empty() {
-            continue;
-        }
-        let (len, size) = (block.hessian_len(), 3 * block.stencil(0).len());
-        let mut out = vec![0.0; CHUNK * len];
-        for first in (0..block.len()).step_by(CHUNK) {
-            let count = CHUNK.min(block.len() - first);
-            let out = &mut out[..count * len];
-            block.hessian_range(rest, first, false, out);
-            for (c, h) in out.chunks_exact(len).enumerate() {
-                let stencil = block.stencil(first + c);
-                for (i, row) in h.chunks_exact(size).enumerate() {
-                    for (j, &value) in row.iter().enumerate() {
-                        let (fi, fj) = (free_index[stencil[i / 3]], free_index[stencil[j / 3]]);
-                        if fi == usize::MAX || fj == usize::MAX || value == 0.0 {
-                            continue;
-                        }
-                        let (r, col) = (3 * fi + i % 3, 3 * fj + j % 3);
-                        if r >= col {
-                            triplets.push((col, r, value));
-                        }
-                    }
-                }
-            }
-        }
-    }
+    for_each_lower_hessian_entry(rest, blocks, &free_index, |r, col, value| {
+        triplets.push((col, r, value));
+    });
     triplets.sort_unstable_by_key(|&(c, r, _)| (c, r));
     let mut col_ptr = vec![0; nd + 1];
     let mut row_idx = Vec::new();

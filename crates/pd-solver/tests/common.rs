@@ -4,7 +4,7 @@
 use pd_constraints::assembly::{self, LaplacianKind};
 use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
 use pd_mesh::{Mesh, Point, VertexSelection};
-use pd_solver::{BodyId, Model};
+use pd_solver::{BodyId, Model, Simulation};
 
 /// Unit round-off of f64.
 pub const U: f64 = f64::EPSILON / 2.0;
@@ -100,4 +100,12 @@ impl Scheme {
             Self::Bdf2 => Box::new(Bdf2::new()),
         }
     }
+}
+
+/// The total linear momentum `sum m_i v_i` of a simulation's state, kg m/s.
+pub fn momentum(sim: &Simulation) -> Point {
+    let s = sim.state();
+    (s.velocities.iter().zip(sim.model().masses()))
+        .map(|(v, m)| v * *m)
+        .sum()
 }

@@ -2,6 +2,9 @@
 //! stacking to rest, momentum exchanged and not created, no tunnelling at
 //! the stated speeds, thread determinism.
 
+mod common;
+
+use common::momentum;
 use pd_damping::{Damping, LaplacianDamping, NoDamping};
 use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
 use pd_mesh::{Point, generators};
@@ -51,13 +54,6 @@ fn simulation(
     sim.set_body_contact(BodyContactSettings { friction: 0.5 })
         .unwrap();
     sim
-}
-
-fn momentum(sim: &Simulation) -> Point {
-    let s = sim.state();
-    (s.velocities.iter().zip(sim.model().masses()))
-        .map(|(v, m)| v * *m)
-        .sum()
 }
 
 /// A 0.1 m cube (1e5 Pa) dropped from 0.05 m above a 0.2 m cube (3 cells,

@@ -3,6 +3,9 @@
 //! U-shaped soft body whose arms close on each other, momentum kept by the
 //! self-contact forces, bodies at rest untouched, thread determinism.
 
+mod common;
+
+use common::momentum;
 use pd_damping::NoDamping;
 use pd_integrators::BackwardEuler;
 use pd_mesh::{Mesh, Point, generators};
@@ -183,13 +186,6 @@ fn closing_u(self_contact: bool, (left, right): (f64, f64), threads: usize) -> S
     })
     .unwrap();
     sim
-}
-
-fn momentum(sim: &Simulation) -> Point {
-    let s = sim.state();
-    (s.velocities.iter().zip(sim.model().masses()))
-        .map(|(v, m)| v * *m)
-        .sum()
 }
 
 #[test]

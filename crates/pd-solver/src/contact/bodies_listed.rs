@@ -52,7 +52,10 @@ impl BodyContact {
         let (lo, hi) = (a.inf(&b) - m, a.sup(&b) + m);
         let q_lo = cell_index(&lo, cell);
         let q_hi = query_end(&q_lo, &cell_index(&hi, cell));
-        let mut hits: Vec<([i64; 3], usize, f64, Pair)> = Vec::new();
+        // The earliest hit; among equally early ones, the first the grid
+        // would visit (cells in order, then triangles in order). Kept as a
+        // running best: no allocation inside the iterations.
+        let mut best: Option<(f64, ([i64; 3], usize), Pair)> = None;
         for &f in self.candidates.of(v) {
             let f = f as usize;
             let (f_lo, f_hi) = &self.boxes[f];
@@ -68,17 +71,12 @@ impl BodyContact {
             let start = face.vertices.map(|i| x_n[i]);
             let end = face.vertices.map(|i| x_n[i] + dx[i]);
             if let Some((s, pair)) = self.crossing(&face, (&start, &end), (&a, &b), thickness) {
-                hits.push((first, f, s, Pair { face: f, ..pair }));
+                let key = (first, f);
+                if best.is_none_or(|(t, k, _)| s < t || (s == t && key < k)) {
+                    best = Some((s, key, Pair { face: f, ..pair }));
+                }
             }
         }
-        // In the grid's visiting order, the first strictly earliest wins.
-        hits.sort_unstable_by_key(|h| (h.0, h.1));
-        let mut best: Option<(f64, Pair)> = None;
-        for (_, _, s, pair) in hits {
-            if best.is_none_or(|(t, _)| s < t) {
-                best = Some((s, pair));
-            }
-        }
-        best.map(|(_, p)| p)
+        best.map(|(_, _, p)| p)
     }
 }

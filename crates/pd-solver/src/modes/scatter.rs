@@ -10,7 +10,7 @@
 
 use pd_constraints::ConstraintBlock;
 
-use super::{CHUNK, Stiffness};
+use super::Stiffness;
 use crate::cholesky::LowerPattern;
 
 /// `K` over the free dofs (`3 f + a` for free vertex `f`, axis `a`), lower
@@ -78,34 +78,9 @@ pub(super) fn assemble(
             start + (3 - b) + 3 * (k - 1) + a
         }
     };
-    for block in blocks {
-        if block.is_empty() {
-            continue;
-        }
-        let (len, size) = (block.hessian_len(), 3 * block.stencil(0).len());
-        let mut out = vec![0.0; CHUNK * len];
-        for first in (0..block.len()).step_by(CHUNK) {
-            let count = CHUNK.min(block.len() - first);
-            let out = &mut out[..count * len];
-            block.hessian_range(rest, first, false, out);
-            for (c, h) in out.chunks_exact(len).enumerate() {
-                let stencil = block.stencil(first + c);
-                for (i, row) in h.chunks_exact(size).enumerate() {
-                    let fi = free_index[stencil[i / 3]];
-                    for (j, &value) in row.iter().enumerate() {
-                        let fj = free_index[stencil[j / 3]];
-                        if fi == usize::MAX || fj == usize::MAX || value == 0.0 {
-                            continue;
-                        }
-                        let (a, b) = (i % 3, j % 3);
-                        if 3 * fi + a >= 3 * fj + b {
-                            values[slot(fi, a, fj, b)] += value;
-                        }
-                    }
-                }
-            }
-        }
-    }
+    super::for_each_lower_hessian_entry(rest, blocks, free_index, |r, col, value| {
+        values[slot(r / 3, r % 3, col / 3, col % 3)] += value;
+    });
     compact(nd, col_ptr, row_idx, values, mass, free)
 }
 

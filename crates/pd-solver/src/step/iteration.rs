@@ -182,13 +182,8 @@ impl StepProblem<'_> {
         self.local.project(&b.q, &mut b.projections);
         let t1 = Instant::now();
 
-        let energy_factor = self.coefficients.c1 * self.coefficients.c2;
-        self.global.rhs_with_projections(
-            &b.constant_rhs,
-            &b.projections,
-            energy_factor,
-            &mut b.rhs,
-        );
+        self.rhs_from_projections();
+        let b = &mut *self.buffers;
         if let Some(contact) = self.contact.as_deref_mut() {
             contact.apply(x_n, self.masses, &b.displacement, &mut b.rhs);
         }

@@ -39,7 +39,6 @@ use super::ops::{difference, mass_dot};
 use super::ray::RayCheck;
 use crate::SolverError;
 use crate::system::SystemCoefficients;
-use crate::weights::combine_weighted;
 
 /// Armijo's sufficient-decrease fraction of the line search.
 const ARMIJO: f64 = 1e-4;
@@ -133,12 +132,7 @@ impl Lbfgs {
             self.product = vec![Point::zeros(); system.free.len()];
         }
         let coefficients = SystemCoefficients::of(step.coefficients, step.damping, step.h).matrix;
-        combine_weighted(
-            &mut self.values,
-            coefficients,
-            [&system.mass_part, &system.system_part, &system.damping_part],
-            system.weights.as_ref(),
-        );
+        system.values_into(coefficients, &mut self.values);
         Ok(())
     }
 

@@ -89,13 +89,10 @@ impl StepProblem<'_> {
         value
     }
 
-    /// The global half: the right-hand side from the current projections,
-    /// the prefactored solve, the solution as the new displacement. Returns
-    /// the change, as [`StepProblem::local_global_iteration`] does, and
-    /// counts one iteration (and un-counts the projection pass it uses as
-    /// its local step).
-    pub(crate) fn global_half(&mut self) -> IterationChange {
-        let t0 = Instant::now();
+    /// The global step's right-hand side from the step's current
+    /// projections, into the step's `rhs` buffer (contact forces not
+    /// included: [`StepProblem::local_global_iteration`] adds them).
+    pub(crate) fn rhs_from_projections(&mut self) {
         let energy_factor = self.coefficients.c1 * self.coefficients.c2;
         let b = &mut *self.buffers;
         self.global.rhs_with_projections(
@@ -104,6 +101,17 @@ impl StepProblem<'_> {
             energy_factor,
             &mut b.rhs,
         );
+    }
+
+    /// The global half: the right-hand side from the current projections,
+    /// the prefactored solve, the solution as the new displacement. Returns
+    /// the change, as [`StepProblem::local_global_iteration`] does, and
+    /// counts one iteration (and un-counts the projection pass it uses as
+    /// its local step).
+    pub(crate) fn global_half(&mut self) -> IterationChange {
+        let t0 = Instant::now();
+        self.rhs_from_projections();
+        let b = &mut *self.buffers;
         self.global.solve(&b.rhs);
         let mut change = IterationChange::default();
         for (f, &v) in self.global.free().iter().enumerate() {

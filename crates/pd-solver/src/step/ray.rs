@@ -29,14 +29,16 @@ use pd_constraints::EnergyBound;
 use pd_mesh::Point;
 
 use super::iteration::StepProblem;
+use crate::global::MatrixCoefficients;
 use crate::system::SystemCoefficients;
-use crate::weights::combine_weighted;
 
 /// `A`'s values, a product buffer and the end iterate under check.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct RayCheck {
     /// `A`'s values over the scalar lower pattern.
     values: Vec<f64>,
+    /// The coefficients `values` were combined for.
+    coefficients: Option<MatrixCoefficients>,
     /// `A dx` per free vertex.
     product: Vec<Point>,
     /// The end iterate before the check.
@@ -95,29 +97,23 @@ impl RayCheck {
     /// `grad g = A dx - rhs(p)` on the free rows.
     fn slope(&mut self, step: &mut StepProblem<'_>) -> f64 {
         let system = step.global.system();
-        if self.values.len() != system.pattern.row_idx.len() {
-            self.values = vec![0.0; system.pattern.row_idx.len()];
-        }
         if self.product.len() != system.free.len() {
             self.product = vec![Point::zeros(); system.free.len()];
         }
+        // `A` is constant while its coefficients are: combine its values
+        // only when they (or the pattern) change.
         let coefficients = SystemCoefficients::of(step.coefficients, step.damping, step.h).matrix;
-        combine_weighted(
-            &mut self.values,
-            coefficients,
-            [&system.mass_part, &system.system_part, &system.damping_part],
-            system.weights.as_ref(),
-        );
+        if self.values.len() != system.pattern.row_idx.len()
+            || self.coefficients != Some(coefficients)
+        {
+            self.values.resize(system.pattern.row_idx.len(), 0.0);
+            system.values_into(coefficients, &mut self.values);
+            self.coefficients = Some(coefficients);
+        }
         let dx = &step.buffers.displacement;
         super::newton::symmetric_product(system, &self.values, dx, &mut self.product);
-        let energy_factor = step.coefficients.c1 * step.coefficients.c2;
-        let b = &mut *step.buffers;
-        step.global.rhs_with_projections(
-            &b.constant_rhs,
-            &b.projections,
-            energy_factor,
-            &mut b.rhs,
-        );
+        step.rhs_from_projections();
+        let b = &*step.buffers;
         let system = step.global.system();
         let mut slope = 0.0;
         for (f, &v) in system.free.iter().enumerate() {
