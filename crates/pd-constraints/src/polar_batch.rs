@@ -60,6 +60,25 @@ pub fn closest_rotations(f: &[Matrix3<f64>; LANES]) -> [Matrix3<f64>; LANES] {
 #[cfg(target_arch = "x86_64")]
 pub(crate) type Simd = pulp::x86::V3;
 
+/// One 3 x 3 matrix per lane; entry `(r, c)` at index `3 c + r`
+/// (column-major, as nalgebra stores it).
+#[cfg(target_arch = "x86_64")]
+pub(crate) type Batch = [pulp::f64x4; 9];
+
+/// The values of the four lanes of `v`.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) fn lanes_of(v: pulp::f64x4) -> [f64; LANES] {
+    [v.0, v.1, v.2, v.3]
+}
+
+/// Lane `l` of `batch` as a matrix.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) fn lane_matrix(batch: &Batch, l: usize) -> Matrix3<f64> {
+    Matrix3::from_fn(|r, c| lanes_of(batch[3 * c + r])[l])
+}
+
 /// [`closest_rotations`] without the dispatch, for callers that dispatch
 /// once around a loop of batches (`simd.vectorize`). Everything here is
 /// `inline(always)` so that it is compiled inside the dispatcher's
@@ -70,31 +89,37 @@ pub(crate) fn closest_rotations_inline(
     simd: Simd,
     f: &[Matrix3<f64>; LANES],
 ) -> [Matrix3<f64>; LANES] {
-    let (x, converged) = lanes::newton_polar(simd, f);
-    let lane = |v: pulp::f64x4, l: usize| [v.0, v.1, v.2, v.3][l];
+    let batch: Batch = std::array::from_fn(|i| pulp::f64x4(f[0][i], f[1][i], f[2][i], f[3][i]));
+    let (x, converged) = newton_polar_lanes(simd, &batch);
     std::array::from_fn(|l| {
         if converged[l] {
-            Matrix3::from_fn(|r, c| lane(x[3 * c + r], l))
+            lane_matrix(&x, l)
         } else {
             closest_rotation(&f[l])
         }
     })
 }
 
+/// The scaled Newton polar iteration of `polar::newton_polar` on every lane
+/// of `f`: the final iterates and whether each lane converged. A converged
+/// lane's iterate is bit-identical to [`closest_rotation`] of its matrix; a
+/// lane that did not converge (Newton declined it) must be recomputed by
+/// [`closest_rotation`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) fn newton_polar_lanes(simd: Simd, f: &Batch) -> (Batch, [bool; LANES]) {
+    lanes::newton_polar(simd, f)
+}
+
 #[cfg(target_arch = "x86_64")]
 mod lanes {
-    use nalgebra::Matrix3;
     use pulp::{f64x4, m64, m64x4};
 
-    use super::{LANES, Simd};
+    use super::{Batch, LANES, Simd, lanes_of};
     use crate::polar::{
         CONVERGED_CHANGE_SQUARED, MAX_ITERATIONS, MIN_SHAPE, SCALE_WHILE_CHANGE_SQUARED,
     };
     use crate::signed_svd::rescaling;
-
-    /// One 3 x 3 matrix per lane; entry `(r, c)` at index `3 c + r`
-    /// (column-major, as nalgebra stores it).
-    type Batch = [f64x4; 9];
 
     /// `|X|_F^2` as nalgebra sums it: per column `(a a + b b) + c c`,
     /// columns added in order onto 0.
@@ -114,16 +139,28 @@ mod lanes {
 
     /// The cofactor matrix `det(X) X^-T`, each entry computed as
     /// `polar::cofactor` does (products commute exactly in IEEE arithmetic).
+    /// Written out entry by entry: `array::from_fn` with a closure was
+    /// compiled out of line, outside the AVX2 function.
     #[inline(always)]
     fn cofactor(s: Simd, x: &Batch) -> Batch {
         let at = |r: usize, c: usize| x[3 * (c % 3) + r % 3];
-        std::array::from_fn(|index| {
-            let (r, c) = (index % 3, index / 3);
+        let entry = |r: usize, c: usize| {
             s.sub_f64x4(
                 s.mul_f64x4(at(r + 1, c + 1), at(r + 2, c + 2)),
                 s.mul_f64x4(at(r + 1, c + 2), at(r + 2, c + 1)),
             )
-        })
+        };
+        [
+            entry(0, 0),
+            entry(1, 0),
+            entry(2, 0),
+            entry(0, 1),
+            entry(1, 1),
+            entry(2, 1),
+            entry(0, 2),
+            entry(1, 2),
+            entry(2, 2),
+        ]
     }
 
     /// Laplace expansion along the first column.
@@ -143,6 +180,7 @@ mod lanes {
         s.sqrt_f64x4(s.div_f64x4(cof_norm, s.mul_f64x4(det, x_norm)))
     }
 
+    #[inline(always)]
     fn mask_bits(mask: m64x4) -> [bool; LANES] {
         [
             mask.0.is_set(),
@@ -156,20 +194,24 @@ mod lanes {
     /// lane: the final iterates and whether each lane converged (the scalar
     /// iteration answered `Some`, with bit-identical values).
     #[inline(always)]
-    pub(super) fn newton_polar(s: Simd, f: &[Matrix3<f64>; LANES]) -> (Batch, [bool; LANES]) {
+    pub(super) fn newton_polar(s: Simd, f: &Batch) -> (Batch, [bool; LANES]) {
+        let mut x = *f;
         // `rescaling(f.amax())` per lane. The largest |entry| is the same in
         // any order; NaN entries may give another value than nalgebra's
         // fold, but such a lane's determinant is NaN, Newton declines it and
-        // the scalar path recomputes it.
-        let scaled = f.map(|f| {
-            let mut largest = 0.0f64;
-            for i in 0..9 {
-                largest = largest.max(f[i].abs());
+        // the scalar path recomputes it. Scaling by 1 is exact, so the
+        // common case (every lane within range) skips the product.
+        let mut largest = s.splat_f64x4(0.0);
+        for v in f {
+            largest = pulp::Simd::max_f64s(s, largest, s.abs_f64x4(*v));
+        }
+        let scales = lanes_of(largest).map(rescaling);
+        if scales != [1.0; LANES] {
+            let scale = f64x4(scales[0], scales[1], scales[2], scales[3]);
+            for v in &mut x {
+                *v = s.mul_f64x4(*v, scale);
             }
-            f * rescaling(largest)
-        });
-        let mut x: Batch =
-            std::array::from_fn(|i| f64x4(scaled[0][i], scaled[1][i], scaled[2][i], scaled[3][i]));
+        }
         let norm = s.sqrt_f64x4(norm_squared(s, &x));
         let mut cof = cofactor(s, &x);
         let mut det = determinant(s, &x, &cof);

@@ -8,9 +8,12 @@ use pd_mesh::Point;
 use crate::constraint::apply_operator;
 use crate::polar::closest_rotation;
 #[cfg(target_arch = "x86_64")]
-use crate::polar_batch::{LANES, Simd, closest_rotations_inline};
+use crate::polar_batch::Simd;
 use crate::signed_svd::signed_svd;
 use crate::{Constraint, ConstraintError};
+
+#[cfg(target_arch = "x86_64")]
+mod batch;
 
 /// A tetrahedral strain constraint.
 ///
@@ -74,30 +77,6 @@ impl TetStrain {
         })
     }
 
-    /// The deformation gradient `F` at `q`: its columns are the rows of
-    /// `G q`, summed in the order of `apply_operator` (bit-identical to it).
-    #[inline(always)]
-    fn gradient(&self, q: &[Point]) -> Matrix3<f64> {
-        let x = [
-            q[self.vertices[0]],
-            q[self.vertices[1]],
-            q[self.vertices[2]],
-            q[self.vertices[3]],
-        ];
-        let column = |g: &[f64; 4]| {
-            let mut acc = Point::zeros();
-            for k in 0..4 {
-                acc += x[k] * g[k];
-            }
-            acc
-        };
-        Matrix3::from_columns(&[
-            column(&self.operator[0]),
-            column(&self.operator[1]),
-            column(&self.operator[2]),
-        ])
-    }
-
     /// The stretch limits, if any.
     pub fn limits(&self) -> Option<(f64, f64)> {
         self.limits
@@ -149,7 +128,7 @@ impl Constraint for TetStrain {
         crate::tet_hessian::strain_hessian(self, gx, project_psd, out);
     }
 
-    /// Batches of [`LANES`] elements without strain limits go through the
+    /// Batches of [`LANES`](crate::polar_batch::LANES) elements without strain limits go through the
     /// SIMD polar iteration of [`crate::polar_batch`] (bit-identical to
     /// [`Self::project`]); the rest, one at a time.
     fn project_many(constraints: &[Self], q: &[Point], out: &mut [Point]) {
@@ -157,7 +136,7 @@ impl Constraint for TetStrain {
         if let Some(simd) = Simd::try_new() {
             pulp::Simd::vectorize(
                 simd,
-                ProjectBatched {
+                batch::ProjectBatched {
                     simd,
                     constraints,
                     q,
@@ -167,49 +146,6 @@ impl Constraint for TetStrain {
             return;
         }
         project_one_by_one(constraints, q, out);
-    }
-}
-
-/// [`TetStrain::project_many`]'s loop as a `pulp` operation: `with_simd` is
-/// inlined, with everything it calls in the hot path, into the
-/// dispatcher's `#[target_feature]` function.
-#[cfg(target_arch = "x86_64")]
-struct ProjectBatched<'a> {
-    simd: Simd,
-    constraints: &'a [TetStrain],
-    q: &'a [Point],
-    out: &'a mut [Point],
-}
-
-#[cfg(target_arch = "x86_64")]
-impl pulp::WithSimd for ProjectBatched<'_> {
-    type Output = ();
-
-    #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _: S) {
-        let Self {
-            simd,
-            constraints,
-            q,
-            out,
-        } = self;
-        let batches = constraints.chunks_exact(LANES);
-        let rest = batches.remainder();
-        let mut out_batches = out.chunks_exact_mut(LANES * 3);
-        for (batch, rows) in batches.zip(&mut out_batches) {
-            if batch.iter().any(|c| c.limits.is_some()) {
-                project_one_by_one(batch, q, rows);
-                continue;
-            }
-            let f: [Matrix3<f64>; LANES] = std::array::from_fn(|l| batch[l].gradient(q));
-            let targets = closest_rotations_inline(simd, &f);
-            for (target, rows) in targets.iter().zip(rows.chunks_exact_mut(3)) {
-                for (row, p) in rows.iter_mut().enumerate() {
-                    *p = target.column(row).into_owned();
-                }
-            }
-        }
-        project_one_by_one(rest, q, out_batches.into_remainder());
     }
 }
 

@@ -1,0 +1,248 @@
+//! [`TetStrain::project_many`]'s batched loop: four elements at a time, from
+//! the positions straight into the SIMD lanes and back.
+//!
+//! Per batch of [`LANES`] elements: gather the deformation gradients into
+//! structure-of-arrays lanes (`F = G q` with 4-wide products and sums, in the
+//! order of `apply_operator`, so each lane's `F` is bit-identical to the
+//! scalar one), run the lane polar iteration of [`crate::polar_batch`], and
+//! write each converged lane's rotation into its three output rows; a lane
+//! that Newton declined is projected by the scalar [`closest_rotation`].
+//! Everything is `inline(always)` below a `pulp::WithSimd::with_simd`, so it
+//! is compiled inside pulp's AVX2 `#[target_feature]` function: no closure
+//! the compiler could keep out of line (std's `array::from_fn` did) sits on
+//! the hot path.
+
+use pd_mesh::Point;
+use pulp::f64x4;
+
+use super::{TetStrain, project_one_by_one};
+use crate::polar::closest_rotation;
+use crate::polar_batch::{Batch, LANES, Simd, lane_matrix, lanes_of, newton_polar_lanes};
+
+/// [`TetStrain::project_many`]'s loop as a `pulp` operation.
+pub(super) struct ProjectBatched<'a> {
+    pub simd: Simd,
+    pub constraints: &'a [TetStrain],
+    pub q: &'a [Point],
+    pub out: &'a mut [Point],
+}
+
+impl pulp::WithSimd for ProjectBatched<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        let Self {
+            simd,
+            constraints,
+            q,
+            out,
+        } = self;
+        let batches = constraints.chunks_exact(LANES);
+        let rest = batches.remainder();
+        let mut out_batches = out.chunks_exact_mut(LANES * 3);
+        for (batch, rows) in batches.zip(&mut out_batches) {
+            let [e0, e1, e2, e3] = batch else {
+                // `chunks_exact` yields exactly LANES elements.
+                continue;
+            };
+            if batch.iter().any(|c| c.limits.is_some()) {
+                project_one_by_one(batch, q, rows);
+                continue;
+            }
+            let f = gradients(simd, [e0, e1, e2, e3], q);
+            let (x, converged) = newton_polar_lanes(simd, &f);
+            scatter(&x, converged, &f, rows);
+        }
+        project_one_by_one(rest, q, out_batches.into_remainder());
+    }
+}
+
+/// The deformation gradients of four elements, one per lane: entry `(r, c)`
+/// of lane `l` is `sum_k q[v_k][r] G[c][k]` of element `l`, summed from 0 in
+/// the order `k = 0..4` exactly as `apply_operator` does (no fused
+/// multiply-add), so every lane is bit-identical to the scalar `F`.
+#[inline(always)]
+fn gradients(s: Simd, elements: [&TetStrain; LANES], q: &[Point]) -> Batch {
+    let zero = s.splat_f64x4(0.0);
+    // positions[k][r]: coordinate r of stencil vertex k, over the lanes.
+    let mut positions = [[zero; 3]; 4];
+    for (k, position) in positions.iter_mut().enumerate() {
+        // Written out: `array::map` with a closure may stay out of line.
+        let [a, b, c, d] = [
+            q[elements[0].vertices[k]],
+            q[elements[1].vertices[k]],
+            q[elements[2].vertices[k]],
+            q[elements[3].vertices[k]],
+        ];
+        for (r, p) in position.iter_mut().enumerate() {
+            *p = f64x4(a[r], b[r], c[r], d[r]);
+        }
+    }
+    let mut f = [zero; 9];
+    for column in 0..3 {
+        let mut acc = [zero; 3];
+        for (k, position) in positions.iter().enumerate() {
+            let g = f64x4(
+                elements[0].operator[column][k],
+                elements[1].operator[column][k],
+                elements[2].operator[column][k],
+                elements[3].operator[column][k],
+            );
+            for (acc, p) in acc.iter_mut().zip(position) {
+                *acc = s.add_f64x4(*acc, s.mul_f64x4(*p, g));
+            }
+        }
+        f[3 * column..3 * column + 3].copy_from_slice(&acc);
+    }
+    f
+}
+
+/// Writes lane `l`'s projection into rows `3 l..3 l + 3` of `rows`: the
+/// columns of the converged iterate `x`, or of the scalar
+/// [`closest_rotation`] of the lane's `F` where Newton declined it.
+#[inline(always)]
+fn scatter(x: &Batch, converged: [bool; LANES], f: &Batch, rows: &mut [Point]) {
+    let mut values = [[0.0; LANES]; 9];
+    for (v, x) in values.iter_mut().zip(x) {
+        *v = lanes_of(*x);
+    }
+    for (l, rows) in rows.chunks_exact_mut(3).enumerate().take(LANES) {
+        if converged[l] {
+            for (c, row) in rows.iter_mut().enumerate() {
+                *row = Point::new(values[3 * c][l], values[3 * c + 1][l], values[3 * c + 2][l]);
+            }
+        } else {
+            let target = closest_rotation(&lane_matrix(f, l));
+            for (c, row) in rows.iter_mut().enumerate() {
+                *row = target.column(c).into_owned();
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Matrix3;
+    use proptest::prelude::*;
+
+    use super::*;
+    use crate::Constraint;
+    use crate::constraint::apply_operator;
+
+    /// Every element's rows from `project_many` equal `project` of its
+    /// `G q` to the bit.
+    fn assert_bit_identical(constraints: &[TetStrain], q: &[Point]) {
+        let mut batched = vec![Point::zeros(); 3 * constraints.len()];
+        TetStrain::project_many(constraints, q, &mut batched);
+        let mut gx = [Point::zeros(); 3];
+        for (i, (c, rows)) in constraints.iter().zip(batched.chunks_exact(3)).enumerate() {
+            apply_operator(c, q, &mut gx);
+            let mut one = [Point::zeros(); 3];
+            c.project(&gx, &mut one);
+            let same = rows
+                .iter()
+                .flat_map(|p| p.iter())
+                .zip(one.iter().flat_map(|p| p.iter()))
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same, "element {i}: batched {rows:?} vs one {one:?}");
+        }
+    }
+
+    /// Elements over a random cloud of 8 points: each takes 4 distinct
+    /// points, the rest shape (the cloud's rest positions) decides which
+    /// combinations are valid; positions are the rest ones mapped by a
+    /// per-vertex perturbation of `a`, so elements range from near-rotations
+    /// to inverted and flat ones, at any scale.
+    fn elements_and_positions(
+        rest: &[[f64; 3]; 8],
+        a: [f64; 9],
+        noise: &[[f64; 3]; 8],
+        log_scale: f64,
+        limited: usize,
+    ) -> (Vec<TetStrain>, Vec<Point>) {
+        let rest: Vec<Point> = rest.iter().map(|p| Point::from(*p)).collect();
+        let mut constraints = Vec::new();
+        for (i, tet) in [
+            [0, 1, 2, 3],
+            [4, 5, 6, 7],
+            [0, 2, 4, 6],
+            [1, 3, 5, 7],
+            [0, 1, 4, 5],
+            [2, 3, 6, 7],
+            [0, 3, 5, 6],
+            [1, 2, 4, 7],
+            [0, 1, 6, 7],
+            [2, 3, 4, 5],
+            [0, 4, 1, 5],
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            // Either orientation of the rest shape is valid.
+            let [a0, a1, a2, a3] = tet;
+            let limits = (i == limited).then_some((0.9, 1.1));
+            let c = TetStrain::new(&rest, tet, 1e5, limits)
+                .or_else(|_| TetStrain::new(&rest, [a0, a2, a1, a3], 1e5, limits));
+            if let Ok(c) = c {
+                constraints.push(c);
+            }
+        }
+        let map = Matrix3::from_iterator(a);
+        let scale = 10f64.powf(log_scale);
+        let q = rest
+            .iter()
+            .zip(noise)
+            .map(|(x, n)| (map * x + Point::from(*n)) * scale)
+            .collect();
+        (constraints, q)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 300, max_shrink_iters: 300, ..ProptestConfig::default() })]
+
+        /// Random elements, from near-rotations (small `a - I`, small noise)
+        /// to inverted and flat ones, at scales 1e-250 to 1e250, with one
+        /// strain-limited element at a random place and a remainder of
+        /// fewer than four.
+        #[test]
+        fn gathered_batches_are_bit_identical(
+            rest in prop::array::uniform8(prop::array::uniform3(-1.0..1.0f64)),
+            strain in prop::array::uniform9(-1.0..1.0f64),
+            strain_size in prop::sample::select(vec![0.0, 1e-3, 0.1, 1.0, 3.0]),
+            noise in prop::array::uniform8(prop::array::uniform3(-0.05..0.05f64)),
+            noise_size in prop::sample::select(vec![0.0, 1e-4, 1.0, 10.0]),
+            log_scale in prop::sample::select(vec![-250.0, -3.0, 0.0, 2.5, 250.0]),
+            limited in 0usize..16,
+        ) {
+            let a = std::array::from_fn(|i| {
+                f64::from(u8::from(i % 4 == 0)) + strain[i] * strain_size
+            });
+            let noise = noise.map(|n| n.map(|v| v * noise_size));
+            let (constraints, q) = elements_and_positions(&rest, a, &noise, log_scale, limited);
+            assert_bit_identical(&constraints, &q);
+        }
+    }
+
+    #[test]
+    fn non_finite_positions_match_too() {
+        let rest = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [1.0, 1.0, 0.0],
+            [1.0, 0.0, 1.0],
+            [0.0, 1.0, 1.0],
+            [1.0, 1.0, 1.0],
+        ];
+        let identity = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let (constraints, mut q) =
+                elements_and_positions(&rest, identity, &[[0.0; 3]; 8], 0.0, 99);
+            assert!(constraints.len() >= 8, "{} elements", constraints.len());
+            q[5].y = bad;
+            assert_bit_identical(&constraints, &q);
+        }
+    }
+}
