@@ -119,7 +119,7 @@ mod lanes {
     use crate::polar::{
         CONVERGED_CHANGE_SQUARED, MAX_ITERATIONS, MIN_SHAPE, SCALE_WHILE_CHANGE_SQUARED,
     };
-    use crate::signed_svd::rescaling;
+    use crate::signed_svd::{HUGE, TINY, rescaling};
 
     /// `|X|_F^2` as nalgebra sums it: per column `(a a + b b) + c c`,
     /// columns added in order onto 0.
@@ -205,9 +205,13 @@ mod lanes {
         for v in f {
             largest = pulp::Simd::max_f64s(s, largest, s.abs_f64x4(*v));
         }
-        let scales = lanes_of(largest).map(rescaling);
-        if scales != [1.0; LANES] {
-            let scale = f64x4(scales[0], scales[1], scales[2], scales[3]);
+        let in_range = s.and_m64x4(
+            s.cmp_ge_f64x4(largest, s.splat_f64x4(TINY)),
+            s.cmp_le_f64x4(largest, s.splat_f64x4(HUGE)),
+        );
+        if mask_bits(in_range).contains(&false) {
+            let [a, b, c, d] = lanes_of(largest);
+            let scale = f64x4(rescaling(a), rescaling(b), rescaling(c), rescaling(d));
             for v in &mut x {
                 *v = s.mul_f64x4(*v, scale);
             }
@@ -249,7 +253,14 @@ mod lanes {
             det = determinant(s, &x, &cof);
             running = s.and_m64x4(running, s.cmp_gt_f64x4(det, s.splat_f64x4(0.0)));
             let far = s.cmp_gt_f64x4(change, s.splat_f64x4(SCALE_WHILE_CHANGE_SQUARED));
-            scale = s.select_f64x4(far, frobenius_scale(s, &x, &cof, det), one);
+            // Near convergence (the last two or three iterations of a
+            // well-shaped element) no lane rescales: skip the three square
+            // roots and the division rather than select them away.
+            scale = if mask_bits(far).contains(&true) {
+                s.select_f64x4(far, frobenius_scale(s, &x, &cof, det), one)
+            } else {
+                one
+            };
         }
         (x, mask_bits(converged))
     }

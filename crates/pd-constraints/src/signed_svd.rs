@@ -55,8 +55,9 @@ const TOL: f64 = f64::EPSILON;
 /// power of two first, so that products of two squared column norms (at
 /// most 9e240) cannot overflow, and a squared norm underflows only for a
 /// column below 1e-94 of the largest entry, far below round-off.
-const TINY: f64 = 1e-60;
-const HUGE: f64 = 1e60;
+pub(crate) const TINY: f64 = 1e-60;
+/// The upper end of the range [`rescaling`] brings a matrix's largest entry into.
+pub(crate) const HUGE: f64 = 1e60;
 
 /// The power of two (exact to apply and to undo) that brings a matrix whose
 /// largest entry is `largest` into `[TINY, HUGE]`, or 1 if it is there (or

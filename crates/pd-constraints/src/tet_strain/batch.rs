@@ -103,19 +103,24 @@ fn gradients(s: Simd, elements: [&TetStrain; LANES], q: &[Point]) -> Batch {
 /// [`closest_rotation`] of the lane's `F` where Newton declined it.
 #[inline(always)]
 fn scatter(x: &Batch, converged: [bool; LANES], f: &Batch, rows: &mut [Point]) {
+    let Ok(rows) = <&mut [Point; 3 * LANES]>::try_from(rows) else {
+        // `chunks_exact_mut(3 * LANES)` yields exactly this many rows.
+        return;
+    };
     let mut values = [[0.0; LANES]; 9];
     for (v, x) in values.iter_mut().zip(x) {
         *v = lanes_of(*x);
     }
-    for (l, rows) in rows.chunks_exact_mut(3).enumerate().take(LANES) {
-        if converged[l] {
-            for (c, row) in rows.iter_mut().enumerate() {
-                *row = Point::new(values[3 * c][l], values[3 * c + 1][l], values[3 * c + 2][l]);
+    for (l, &converged) in converged.iter().enumerate() {
+        if converged {
+            for c in 0..3 {
+                rows[3 * l + c] =
+                    Point::new(values[3 * c][l], values[3 * c + 1][l], values[3 * c + 2][l]);
             }
         } else {
             let target = closest_rotation(&lane_matrix(f, l));
-            for (c, row) in rows.iter_mut().enumerate() {
-                *row = target.column(c).into_owned();
+            for c in 0..3 {
+                rows[3 * l + c] = target.column(c).into_owned();
             }
         }
     }
