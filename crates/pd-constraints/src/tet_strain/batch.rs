@@ -1,5 +1,6 @@
-//! [`TetStrain::project_many`]'s batched loop: four elements at a time, from
-//! the positions straight into the SIMD lanes and back.
+//! [`TetStrain`]'s [`project_many`](crate::Constraint::project_many) as a
+//! batched loop: four elements at a time, from the positions straight into
+//! the SIMD lanes and back.
 //!
 //! Per batch of [`LANES`] elements: gather the deformation gradients into
 //! structure-of-arrays lanes (`F = G q` with 4-wide products and sums, in the
@@ -19,7 +20,8 @@ use super::{TetStrain, project_one_by_one};
 use crate::polar::closest_rotation;
 use crate::polar_batch::{Batch, LANES, Simd, lane_matrix, lanes_of, newton_polar_lanes};
 
-/// [`TetStrain::project_many`]'s loop as a `pulp` operation.
+/// [`TetStrain`]'s [`project_many`](crate::Constraint::project_many) loop as
+/// a `pulp` operation.
 pub(super) struct ProjectBatched<'a> {
     pub simd: Simd,
     pub constraints: &'a [TetStrain],
