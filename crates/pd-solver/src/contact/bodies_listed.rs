@@ -9,6 +9,20 @@ use super::super::candidates::Surface;
 use super::super::grid::{cell_index, query_end};
 use super::{BodyContact, Pair};
 
+/// Whether two boxes `(min, max)` are apart (a strict gap on some axis):
+/// all six comparisons, combined without short-circuit, so that the test
+/// is one branch, not up to six that depend on the data (the most
+/// mispredicted of the candidate loop).
+pub(super) fn apart(a: &(Point, Point), b: &(Point, Point)) -> bool {
+    let ((a_lo, a_hi), (b_lo, b_hi)) = (a, b);
+    (a_hi[0] < b_lo[0])
+        | (a_lo[0] > b_hi[0])
+        | (a_hi[1] < b_lo[1])
+        | (a_lo[1] > b_hi[1])
+        | (a_hi[2] < b_lo[2])
+        | (a_lo[2] > b_hi[2])
+}
+
 impl BodyContact {
     /// Every triangle's box for this iterate: the hull of its vertices'
     /// segments `x_n -> x_n + dx`, widened by the thickness and the reach.
@@ -99,6 +113,7 @@ impl BodyContact {
         let (lo, hi) = (a.inf(&b) - m, a.sup(&b) + m);
         let q_lo = cell_index(&lo, cell);
         let q_hi = query_end(&q_lo, &cell_index(&hi, cell));
+        let query = (lo, hi);
         // The earliest hit; among equally early ones, the first the grid
         // would visit (cells in order, then triangles in order). Kept as a
         // running best: no allocation inside the iterations.
@@ -106,7 +121,7 @@ impl BodyContact {
         for &f in self.candidates.of(v) {
             let f = f as usize;
             let (f_lo, f_hi) = &self.boxes[f];
-            if (0..3).any(|k| hi[k] < f_lo[k] || lo[k] > f_hi[k]) {
+            if apart(&query, &self.boxes[f]) {
                 continue;
             }
             let (c_lo, c_hi) = (cell_index(f_lo, cell), cell_index(f_hi, cell));
@@ -117,7 +132,11 @@ impl BodyContact {
                 q_lo[1].max(c_lo[1]),
                 q_lo[2].max(c_lo[2]),
             ];
-            if (0..3).any(|k| first[k] > q_hi[k].min(c_hi[k])) {
+            // `|`, not `||`: one branch instead of up to three.
+            let outside = (first[0] > q_hi[0].min(c_hi[0]))
+                | (first[1] > q_hi[1].min(c_hi[1]))
+                | (first[2] > q_hi[2].min(c_hi[2]));
+            if outside {
                 continue;
             }
             let face = self.faces[f];

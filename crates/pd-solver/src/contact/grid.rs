@@ -234,7 +234,7 @@ mod tests {
     #[test]
     fn floor_to_i64_is_the_cast_floor() {
         let mut values = vec![0.0, -0.0, f64::NAN, f64::INFINITY, f64::NEG_INFINITY];
-        for x in [0.5, 1.0, 2.0, 3.5, 1e15, 4.5e15, 9.2e18, 9.3e18, 1e300] {
+        for x in [0.5_f64, 1.0, 2.0, 3.5, 1e15, 4.5e15, 9.2e18, 9.3e18, 1e300] {
             for y in [x, -x] {
                 // Both float neighbours of `y` (its bits plus and minus 1).
                 let bits = y.to_bits();
