@@ -12,8 +12,9 @@ use serde_json::{Value, json};
 
 /// The scene: one cube of `cells` per side resting on the floor, or two
 /// stacked (`stack`); `contact` adds the floor and, for the stack,
-/// contact between the bodies.
-fn scene(cells: usize, stack: bool, contact: bool) -> String {
+/// contact between the bodies. A scene TOML text (public for
+/// `examples/contact_case.rs`).
+pub fn scene(cells: usize, stack: bool, contact: bool) -> String {
     let cube = |size: f64, y: f64| {
         format!(
             "[[body]]\nmesh = {{ generator = \"box\", size = [{size:?}, {size:?}, {size:?}], \

@@ -91,6 +91,9 @@ pub(crate) struct BodyContact {
     pub(super) count: Vec<u32>,
     grid: Grid,
     boxes: Vec<(Point, Point)>,
+    /// Per vertex, the box of its segment `x_n -> x_n + dx` this iteration
+    /// (surface vertices only).
+    segments: Vec<(Point, Point)>,
     /// The vertices on a surface, in increasing order.
     on_surface: Vec<usize>,
     /// The per-step broad phase (`candidates.rs`).
@@ -161,6 +164,7 @@ impl BodyContact {
             count: vec![0; rest.len()],
             grid: Grid::default(),
             boxes: Vec::new(),
+            segments: vec![(Point::zeros(), Point::zeros()); rest.len()],
         }
     }
 
@@ -190,9 +194,11 @@ impl BodyContact {
     /// Start of a step: keeps the pairs that ended the last one active,
     /// re-anchored at `x_n` (the vertex's projection onto its triangle
     /// becomes the contact point; a vertex that left its triangle loses the
-    /// pair and is detected anew), forces warm-started.
+    /// pair and is detected anew), forces warm-started. The candidate lists
+    /// are kept: they hold every free surface vertex, with or without a
+    /// pair, and stay exact while they cover the iterates
+    /// (`candidates.rs`).
     pub fn begin_step(&mut self, x_n: &[Point]) {
-        self.candidates.valid = false;
         for (v, pair) in self.pairs.iter_mut().enumerate() {
             let Some(p) = pair.filter(Pair::active) else {
                 *pair = None;
@@ -292,24 +298,6 @@ impl BodyContact {
         best.map(|(_, p)| p)
     }
 
-    /// Every triangle's box for this iterate: the hull of its vertices'
-    /// segments `x_n -> x_n + dx`, widened by the thickness and the reach.
-    fn sweep_boxes(&mut self, x_n: &[Point], dx: &[Point], thickness: f64) {
-        let margin = thickness + self.reach;
-        self.boxes.clear();
-        for face in &self.faces {
-            let (mut lo, mut hi) = (x_n[face.vertices[0]], x_n[face.vertices[0]]);
-            for &i in &face.vertices {
-                for p in [x_n[i], x_n[i] + dx[i]] {
-                    lo = lo.inf(&p);
-                    hi = hi.sup(&p);
-                }
-            }
-            let m = Point::repeat(margin);
-            self.boxes.push((lo - m, hi + m));
-        }
-    }
-
     /// Whether vertex `v` looks for a new pair: on a surface, free, without
     /// one.
     fn searching(&self, v: usize) -> bool {
@@ -337,17 +325,22 @@ impl BodyContact {
         (a, b): (&Point, &Point),
         thickness: f64,
     ) -> Option<(f64, Pair)> {
-        let (_, n0, d0) = project_onto(start, a)?;
-        let (_, n1, _) = project_onto(end, b)?;
+        // Each rejection as soon as its values are known (the same
+        // values, so the same result as testing them all at the end).
+        let (n0, d0) = plane_of(start, a)?;
         let side = if face.two_sided && d0 < 0.0 {
             -1.0
         } else {
             1.0
         };
         let (d0, n0) = (side * d0, side * n0);
+        if d0 < -(thickness + self.reach) {
+            return None;
+        }
+        let (n1, _) = plane_of(end, b)?;
         let n1 = if n1.dot(&n0) >= 0.0 { n1 } else { -n1 };
         let d1 = n1.dot(&(b - end[0]));
-        if d0 < -(thickness + self.reach) || d1 >= thickness {
+        if d1 >= thickness {
             return None;
         }
         let s = if d0 > d1 {
@@ -531,6 +524,19 @@ impl BodyContact {
         }
         (active, deepest)
     }
+}
+
+/// The unit normal of triangle `t` and the signed distance of `p` from
+/// its plane: the same operations as [`project_onto`] without the
+/// barycentric weights, so the same values bit for bit.
+fn plane_of(t: &[Point; 3], p: &Point) -> Option<(Point, f64)> {
+    let cross = (t[1] - t[0]).cross(&(t[2] - t[0]));
+    let area2 = cross.norm_squared();
+    if !(area2 > 0.0) {
+        return None;
+    }
+    let normal = cross / area2.sqrt();
+    Some((normal, normal.dot(&(p - t[0]))))
 }
 
 /// Projection of `p` onto the plane of triangle `t`: barycentric weights,

@@ -9,10 +9,68 @@ use super::super::candidates::Surface;
 use super::super::grid::{cell_index, query_end};
 use super::{BodyContact, Pair};
 
+/// Whether two boxes `(min, max)` are apart (a strict gap on some axis):
+/// all six comparisons, combined without short-circuit, so that the test
+/// is one branch, not up to six that depend on the data (the most
+/// mispredicted of the candidate loop).
+pub(super) fn apart(a: &(Point, Point), b: &(Point, Point)) -> bool {
+    let ((a_lo, a_hi), (b_lo, b_hi)) = (a, b);
+    (a_hi[0] < b_lo[0])
+        | (a_lo[0] > b_hi[0])
+        | (a_hi[1] < b_lo[1])
+        | (a_lo[1] > b_hi[1])
+        | (a_hi[2] < b_lo[2])
+        | (a_lo[2] > b_hi[2])
+}
+
 impl BodyContact {
-    /// Builds the step's candidate lists around `x_n` with an inflation
-    /// of twice the largest displacement of a surface vertex (this
-    /// iterate's or the last build's), m; whether they cover `x_n + dx`.
+    /// Every triangle's box for this iterate: the hull of its vertices'
+    /// segments `x_n -> x_n + dx`, widened by the thickness and the reach.
+    /// Each surface vertex's segment box is taken once and a triangle's box
+    /// is the hull of its three: min and max are exact, so the bounds are
+    /// those of the hull of the six points taken one by one, up to the
+    /// sign of a zero bound, which adding the margin removes (and which
+    /// compares equal anyway). A non-finite iterate takes the points one by
+    /// one, in the order that decides where a NaN lands.
+    pub(super) fn sweep_boxes(&mut self, x_n: &[Point], dx: &[Point], thickness: f64) {
+        let m = Point::repeat(thickness + self.reach);
+        self.boxes.clear();
+        let mut finite = true;
+        for &i in &self.on_surface {
+            let (a, b) = (x_n[i], x_n[i] + dx[i]);
+            finite &= a.iter().chain(b.iter()).all(|c| c.is_finite());
+            self.segments[i] = (a.inf(&b), a.sup(&b));
+        }
+        if !finite {
+            self.sweep_boxes_one_by_one(x_n, dx, &m);
+            return;
+        }
+        for face in &self.faces {
+            let [p, q, r] = face.vertices.map(|i| self.segments[i]);
+            let (lo, hi) = (p.0.inf(&q.0).inf(&r.0), p.1.sup(&q.1).sup(&r.1));
+            self.boxes.push((lo - m, hi + m));
+        }
+    }
+
+    /// [`BodyContact::sweep_boxes`] point by point (for non-finite
+    /// iterates).
+    fn sweep_boxes_one_by_one(&mut self, x_n: &[Point], dx: &[Point], m: &Point) {
+        for face in &self.faces {
+            let (mut lo, mut hi) = (x_n[face.vertices[0]], x_n[face.vertices[0]]);
+            for &i in &face.vertices {
+                for p in [x_n[i], x_n[i] + dx[i]] {
+                    lo = lo.inf(&p);
+                    hi = hi.sup(&p);
+                }
+            }
+            self.boxes.push((lo - m, hi + m));
+        }
+    }
+
+    /// Builds the candidate lists around `x_n` with an inflation of twice
+    /// the largest displacement of a surface vertex (this iterate's or the
+    /// last build's), m; whether they cover `x_n + dx`. They serve the
+    /// following iterations and steps until an iterate leaves them.
     pub(super) fn build_candidates(&mut self, x_n: &[Point], dx: &[Point], thickness: f64) -> bool {
         let motion = (self.on_surface.iter())
             .map(|&i| dx[i].amax())
@@ -22,7 +80,10 @@ impl BodyContact {
         let mut candidates = std::mem::take(&mut self.candidates);
         let surface = Surface {
             faces: &self.triangles,
-            searching: &|v| self.searching(v),
+            // Every vertex that may search while the lists last, pair or
+            // not: a pair is dropped at a step's start, and the lists
+            // outlive the step.
+            listed: &|v| self.body_of[v] != usize::MAX && !self.fixed[v],
             admits: &|v, f| self.admits(v, f),
         };
         let margin = thickness + self.reach;
@@ -52,6 +113,7 @@ impl BodyContact {
         let (lo, hi) = (a.inf(&b) - m, a.sup(&b) + m);
         let q_lo = cell_index(&lo, cell);
         let q_hi = query_end(&q_lo, &cell_index(&hi, cell));
+        let query = (lo, hi);
         // The earliest hit; among equally early ones, the first the grid
         // would visit (cells in order, then triangles in order). Kept as a
         // running best: no allocation inside the iterations.
@@ -59,17 +121,28 @@ impl BodyContact {
         for &f in self.candidates.of(v) {
             let f = f as usize;
             let (f_lo, f_hi) = &self.boxes[f];
-            if (0..3).any(|k| hi[k] < f_lo[k] || lo[k] > f_hi[k]) {
+            if apart(&query, &self.boxes[f]) {
                 continue;
             }
             let (c_lo, c_hi) = (cell_index(f_lo, cell), cell_index(f_hi, cell));
-            let first = [0, 1, 2].map(|k| q_lo[k].max(c_lo[k]));
-            if (0..3).any(|k| first[k] > q_hi[k].min(c_hi[k])) {
+            // Written out, not `[0, 1, 2].map`: this loop is the hot spot
+            // of detection, and the closures of `map` are not all inlined.
+            let first = [
+                q_lo[0].max(c_lo[0]),
+                q_lo[1].max(c_lo[1]),
+                q_lo[2].max(c_lo[2]),
+            ];
+            // `|`, not `||`: one branch instead of up to three.
+            let outside = (first[0] > q_hi[0].min(c_hi[0]))
+                | (first[1] > q_hi[1].min(c_hi[1]))
+                | (first[2] > q_hi[2].min(c_hi[2]));
+            if outside {
                 continue;
             }
             let face = self.faces[f];
-            let start = face.vertices.map(|i| x_n[i]);
-            let end = face.vertices.map(|i| x_n[i] + dx[i]);
+            let [i, j, k] = face.vertices;
+            let start = [x_n[i], x_n[j], x_n[k]];
+            let end = [x_n[i] + dx[i], x_n[j] + dx[j], x_n[k] + dx[k]];
             if let Some((s, pair)) = self.crossing(&face, (&start, &end), (&a, &b), thickness) {
                 let key = (first, f);
                 if best.is_none_or(|(t, k, _)| s < t || (s == t && key < k)) {

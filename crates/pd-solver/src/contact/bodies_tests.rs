@@ -114,3 +114,89 @@ fn listed_detection_is_the_grid_detection_bit_for_bit() {
     assert!(hits > 100, "{hits} hits");
     assert!(rebuilds > 24, "{rebuilds} rebuilds");
 }
+
+/// The lists outlive the step that built them: over a sequence of steps
+/// (the upper sheet sinking onto the lower one, pairs found, some kept
+/// with a force over the step boundary, the others dropped and searching
+/// again), every searching vertex's listed pair is the grid's, bit for
+/// bit, whether the step reuses the lists or rebuilds them.
+#[test]
+fn lists_kept_across_steps_give_the_grid_detection_bit_for_bit() {
+    let (n, thickness) = (6, 0.01);
+    let mut rng = Lcg(11);
+    let (mut rest, lower) = sheet(n, 0.0, 0.0, 0);
+    let (upper_points, upper) = sheet(n, 0.03, 0.037, n * n);
+    rest.extend(upper_points);
+    let surfaces = [lower, upper].map(|triangles| BodySurface {
+        triangles,
+        two_sided: true,
+    });
+    let masses = vec![1.0; rest.len()];
+    let fixed = vec![false; rest.len()];
+    let which = SurfacePairs {
+        between_bodies: true,
+        self_contact: true,
+    };
+    let mut bodies = BodyContact::new(
+        surfaces.into(),
+        &rest,
+        (&masses, &fixed),
+        (0.3, thickness),
+        which,
+    );
+    let mut x_n = rest.clone();
+    let (mut hits, mut reused, mut rebuilt) = (0, 0, 0);
+    for step in 0..40 {
+        bodies.begin_step(&x_n);
+        // The upper sheet sinks 1 mm per step, with jitter; a few steps
+        // jump farther and leave the lists.
+        let jump = if step % 9 == 8 { 20.0 } else { 1.0 };
+        let motion: Vec<Point> = (0..rest.len())
+            .map(|v| {
+                let down = if v >= n * n { -1.0 } else { 0.0 };
+                Point::new(0.2 * rng.next(), down + 0.2 * rng.next(), 0.2 * rng.next())
+                    * (0.001 * jump)
+            })
+            .collect();
+        // The last iterate leaves a build's lists (twice the first
+        // one's motion): lists built then, while vertices hold pairs,
+        // must serve them once their pairs are dropped.
+        for (iteration, scale) in [1.0, 0.5, 3.0].into_iter().enumerate() {
+            let dx: Vec<Point> = motion.iter().map(|d| d * scale).collect();
+            bodies.sweep_boxes(&x_n, &dx, thickness);
+            if bodies.candidates.covers(&x_n, &dx, &bodies.on_surface) {
+                reused += usize::from(iteration == 0);
+            } else {
+                rebuilt += 1;
+                assert!(bodies.build_candidates(&x_n, &dx, thickness));
+            }
+            bodies.grid.build(&bodies.boxes);
+            let cell = cell_size(&bodies.boxes);
+            for v in 0..x_n.len() {
+                if !bodies.searching(v) {
+                    continue;
+                }
+                let grid = bodies.first_hit(v, &x_n, &dx, thickness);
+                let listed = bodies.first_listed_hit(v, &x_n, &dx, (thickness, cell));
+                assert_eq!(
+                    format!("{grid:?}"),
+                    format!("{listed:?}"),
+                    "step {step}, iteration {iteration}, vertex {v}"
+                );
+                hits += usize::from(grid.is_some());
+                // Every other pair gets a force and is kept into the next
+                // step (if its vertex stays over the triangle).
+                bodies.pairs[v] = listed.map(|p| Pair {
+                    force: p.normal * f64::from(u8::from(v % 2 == 0)),
+                    ..p
+                });
+            }
+        }
+        x_n = x_n.iter().zip(&motion).map(|(x, d)| x + d).collect();
+    }
+    // Not vacuous: pairs found, lists reused by later steps and rebuilt.
+    println!("{hits} hits, {reused} steps reusing the lists, {rebuilt} builds");
+    assert!(hits > 20, "{hits} hits");
+    assert!(reused > 10, "{reused} steps reused the lists");
+    assert!(rebuilt > 3, "{rebuilt} builds");
+}

@@ -1,14 +1,16 @@
-//! Per-step candidate triangles of body contact (docs/contact.md, "Cost
-//! of contact between bodies"): the broad phase built once per step
-//! instead of in every iteration, with results bit for bit those of the
-//! per-iteration grid.
+//! Candidate triangles of body contact (docs/contact.md, "Per-step
+//! candidate lists"): the broad phase built once and kept over iterations
+//! and steps instead of rebuilt in every iteration, with results bit for
+//! bit those of the per-iteration grid.
 //!
-//! Built at the step's start positions `x_n` with an inflation `delta`
+//! Built at a step's start positions `x_n` with an inflation `delta`
 //! (m): vertex `i` is given the box `[x_n[i] - delta, x_n[i] + delta]`
 //! (float operations, as stored in `bounds`), a triangle the hull of its
 //! vertices' boxes widened by the detection margin, a vertex's query box
-//! its own box widened by the thickness; a vertex's candidates are the
-//! admitted triangles whose box is not apart from its query box.
+//! its own box widened by the thickness; a listed vertex's candidates
+//! (every free surface vertex is listed, with or without a pair, so that
+//! the lists outlive the step in which they were built) are the admitted
+//! triangles whose box is not apart from its query box.
 //!
 //! Why it is exact. An iteration's boxes are the same expressions with
 //! `x_n[i] + dx[i]` in place of the inflation. While every surface vertex's
@@ -25,19 +27,23 @@ use pd_mesh::Point;
 
 use super::grid::{Grid, cell_index};
 
-/// The candidate lists of one step.
+/// The candidate lists, kept from step to step while they cover the
+/// iterates.
 #[derive(Debug, Clone, Default)]
 pub(super) struct Candidates {
-    /// Built for the current step.
+    /// Built (false before the first build, after a restore and after a
+    /// build that failed).
     pub valid: bool,
-    /// Per vertex, `(x_n - delta, x_n + delta)` at the build.
+    /// Per vertex, `(x_n - delta, x_n + delta)` at the build (`x_n` of
+    /// the step that built them).
     bounds: Vec<(Point, Point)>,
     /// `faces[start[v]..start[v + 1]]`: vertex `v`'s candidates, in
     /// increasing order.
     start: Vec<u32>,
     faces: Vec<u32>,
-    /// Largest displacement `|dx|_inf` of a surface vertex seen in the
-    /// previous step, m: sets the next build's inflation.
+    /// Largest displacement `|dx|_inf` of a surface vertex seen at the
+    /// previous build, m: with the current one, sets the next build's
+    /// inflation.
     pub last_motion: f64,
     grid: Grid,
     boxes: Vec<(Point, Point)>,
@@ -47,8 +53,9 @@ pub(super) struct Candidates {
 pub(super) struct Surface<'a> {
     /// Each triangle's vertices.
     pub faces: &'a [[usize; 3]],
-    /// Whether a vertex looks for new pairs (on a surface, free, no pair).
-    pub searching: &'a dyn Fn(usize) -> bool,
+    /// Whether a vertex gets a list: every vertex that may look for new
+    /// pairs while the lists last (on a surface, free).
+    pub listed: &'a dyn Fn(usize) -> bool,
     /// Whether vertex `v` may pair with triangle `f`.
     pub admits: &'a dyn Fn(usize, usize) -> bool,
 }
@@ -105,7 +112,7 @@ impl Candidates {
         self.faces.clear();
         for v in 0..x_n.len() {
             self.start.push(self.faces.len() as u32);
-            if !(surface.searching)(v) {
+            if !(surface.listed)(v) {
                 continue;
             }
             let (lo, hi) = (self.bounds[v].0 - t, self.bounds[v].1 + t);
