@@ -22,6 +22,7 @@ pub(crate) mod method;
 pub(crate) mod newton;
 pub(crate) mod objective;
 pub(crate) mod ops;
+pub(crate) mod predictor;
 pub(crate) mod ray;
 
 use std::time::Instant;
@@ -44,6 +45,7 @@ pub use iteration::{IterationChange, LocalGlobal, PositionSolver, StepProblem};
 pub use lbfgs::Lbfgs;
 pub use method::{SolverMethod, SolverSpec, SpectralRadius};
 pub use newton::Newton;
+pub use predictor::{Predictor, PredictorState};
 
 /// Scratch buffers sized once, so that a step allocates nothing.
 #[derive(Debug)]
@@ -107,6 +109,7 @@ impl Simulation {
         let start = Instant::now();
         let factor_seconds = self.prepare_matrix()?;
         self.prepare_targets();
+        let kind = self.apply_predictor();
         let mut stats = StepStats {
             relative_change: f64::NAN,
             factor_seconds,
@@ -114,6 +117,7 @@ impl Simulation {
         };
         self.find_positions(&mut stats)?;
         self.finish_step(&mut stats)?;
+        self.record_correction(kind);
         stats.total_seconds = start.elapsed().as_secs_f64();
         Ok(stats)
     }
