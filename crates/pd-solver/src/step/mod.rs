@@ -63,6 +63,8 @@ pub(crate) struct Scratch {
     pub forces: Vec<Point>,
     /// Per-chunk energy bounds of the divergence check.
     pub energy_partials: Vec<EnergyBound>,
+    /// Whether the step starts from a predicted point (step/predictor.rs).
+    pub predicted: bool,
 }
 
 impl Scratch {
@@ -75,6 +77,7 @@ impl Scratch {
             velocities: vec![Point::zeros(); vertices],
             laplacian_anchor: vec![Point::zeros(); vertices],
             forces: vec![Point::zeros(); vertices],
+            predicted: false,
         }
     }
 }
@@ -232,6 +235,7 @@ impl Simulation {
             stats,
             trace: self.objective_trace.as_mut(),
             contact: self.contact.as_mut(),
+            predicted: self.scratch.predicted,
         };
         self.position_solver.find_positions(&mut problem)
     }

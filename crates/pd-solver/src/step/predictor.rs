@@ -111,6 +111,7 @@ impl Simulation {
     pub(crate) fn apply_predictor(&mut self) -> [f64; 4] {
         let h = self.settings.dt;
         let key = step_key(h, self.integrator.coefficients(h));
+        self.scratch.predicted = false;
         let state = &self.predictor_state;
         if self.predictor == Predictor::Inertial
             || self.contact.is_some()
@@ -122,6 +123,7 @@ impl Simulation {
         let fixed = self.model.fixed();
         let dx = &mut self.scratch.iteration.displacement;
         let linear = self.predictor == Predictor::Linear && !state.previous.is_empty();
+        self.scratch.predicted = true;
         for (v, ((dx, c), &fixed)) in dx.iter_mut().zip(&state.correction).zip(fixed).enumerate() {
             if fixed {
                 continue;
