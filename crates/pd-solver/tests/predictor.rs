@@ -153,3 +153,30 @@ fn restore_refuses_a_mismatched_correction() {
     assert!(err.contains("predictor correction"), "{err}");
     assert_eq!(sim.checkpoint(), before);
 }
+
+/// The safeguard: a predicted start whose step objective is higher than
+/// at `y` (here a stored correction of 0.5 m on every vertex, far from the
+/// millimetre corrections of the beam) is dropped, and the step starts at
+/// `y` exactly as with the inertial predictor (same first objective, same
+/// end, bit for bit); without the safeguard the first objective would be
+/// the bad start's.
+#[test]
+fn a_worse_predicted_start_falls_back_to_the_inertial_target() {
+    let mut sim = beam(Scheme::BackwardEuler, 5, 0.0);
+    sim.set_predictor(Predictor::Extrapolated);
+    sim.run(3).unwrap();
+    let mut saved = sim.checkpoint();
+    for c in &mut saved.predictor.correction {
+        *c = Point::new(0.5, 0.5, 0.5);
+    }
+    let first = |predictor: Predictor| {
+        let mut sim = beam(Scheme::BackwardEuler, 5, 0.0);
+        sim.set_predictor(predictor);
+        sim.restore(&saved).unwrap();
+        sim.record_objective(true);
+        sim.step().unwrap();
+        let start = sim.objective_trace().unwrap()[0].to_bits();
+        (start, bits(&sim.state().positions))
+    };
+    assert_eq!(first(Predictor::Extrapolated), first(Predictor::Inertial));
+}

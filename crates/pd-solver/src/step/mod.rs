@@ -65,6 +65,8 @@ pub(crate) struct Scratch {
     pub energy_partials: Vec<EnergyBound>,
     /// Whether the step starts from a predicted point (step/predictor.rs).
     pub predicted: bool,
+    /// The predicted start while the inertial one is evaluated.
+    pub predicted_start: Vec<Point>,
 }
 
 impl Scratch {
@@ -78,6 +80,7 @@ impl Scratch {
             laplacian_anchor: vec![Point::zeros(); vertices],
             forces: vec![Point::zeros(); vertices],
             predicted: false,
+            predicted_start: Vec::new(),
         }
     }
 }
@@ -237,6 +240,9 @@ impl Simulation {
             contact: self.contact.as_mut(),
             predicted: self.scratch.predicted,
         };
+        if problem.predicted {
+            predictor::keep_the_better_start(&mut problem, &mut self.scratch.predicted_start);
+        }
         self.position_solver.find_positions(&mut problem)
     }
 
