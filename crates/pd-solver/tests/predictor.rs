@@ -3,7 +3,6 @@
 //! not used across a change of the step's kind (BDF-2's start-up), and a
 //! run resumed from a checkpoint continues bit for bit with it.
 
-#[allow(dead_code)]
 mod common;
 
 use common::{Scheme, clamped_beam};
