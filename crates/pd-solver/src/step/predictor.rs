@@ -22,10 +22,8 @@
 //!
 //! The safeguard ([`keep_the_better_start`]): a predicted start is kept
 //! only if the step objective is lower there than at `y` (two objective
-//! evaluations a predicted step). Without it, steps far from smooth
-//! (`dt = 0.1 s` on a stiff cloth) fed the extrapolation's error back into
-//! the next step's start, and the stability map's method axis had 15
-//! backward-Euler runs that diverged where plain PD from `y` did not.
+//! evaluations a predicted step). It does not make the predictor as stable
+//! as the inertial start at large steps: docs/solver.md, "A better start".
 
 use pd_mesh::Point;
 
