@@ -15,7 +15,7 @@
 
 use pd_io::recorder::median;
 use pd_mesh::Mesh;
-use pd_solver::{Settings, Simulation, SolverMethod, SolverSpec, StepStats};
+use pd_solver::{Predictor, Settings, Simulation, SolverMethod, SolverSpec, StepStats};
 use serde_json::{Value, json};
 
 use crate::Beam;
@@ -40,6 +40,10 @@ pub struct MethodsPlan {
     pub methods: Vec<SolverMethod>,
     /// The `[solver]` parameters (window, rho, start) of every method.
     pub parameters: SolverSpec,
+    /// Methods measured again with a `[solver] predictor` other than the
+    /// inertial one (rows named `anderson+extrapolated`); the reference and
+    /// `methods` start at the inertial target.
+    pub predicted: Vec<(SolverMethod, Predictor)>,
 }
 
 impl MethodsPlan {
@@ -57,7 +61,7 @@ fn simulation(
     beam: &Beam,
     mesh: &Mesh,
     plan: &MethodsPlan,
-    method: SolverMethod,
+    (method, predictor): (SolverMethod, Predictor),
     settings: Settings,
 ) -> Result<Simulation, String> {
     let mut sim = Simulation::new(
@@ -72,6 +76,7 @@ fn simulation(
         ..plan.parameters
     };
     sim.set_position_solver(spec.create().map_err(|e| e.to_string())?);
+    sim.set_predictor(predictor);
     Ok(sim)
 }
 
@@ -99,13 +104,20 @@ pub fn measure(beam: &Beam, mesh: &Mesh, plan: &MethodsPlan) -> Result<Value, St
         tolerance: plan.reference_tolerance,
         ..beam.settings()
     };
-    let mut reference = simulation(beam, mesh, plan, SolverMethod::Newton, reference_settings)?;
+    let inertial = (SolverMethod::Newton, Predictor::Inertial);
+    let mut reference = simulation(beam, mesh, plan, inertial, reference_settings)?;
     let stats = reference.run(plan.steps).map_err(|e| e.to_string())?;
     let unconverged = stats.iter().filter(|s| !s.converged).count();
     let reference_iterations = per_step(&stats, |s| s.iterations as f64);
     let mut rows = Vec::new();
     let mut local_fraction = f64::NAN;
-    for &method in &plan.methods {
+    let variants = (plan.methods.iter().map(|&m| (m, Predictor::Inertial)))
+        .chain(plan.predicted.iter().copied());
+    for (method, predictor) in variants {
+        let name = match predictor {
+            Predictor::Inertial => method.name().to_string(),
+            other => format!("{}+{}", method.name(), other.name()),
+        };
         let budgets = if method == SolverMethod::Newton {
             &plan.newton_budgets
         } else {
@@ -116,7 +128,7 @@ pub fn measure(beam: &Beam, mesh: &Mesh, plan: &MethodsPlan) -> Result<Value, St
                 iterations,
                 ..beam.settings()
             };
-            let mut sim = simulation(beam, mesh, plan, method, settings)?;
+            let mut sim = simulation(beam, mesh, plan, (method, predictor), settings)?;
             let row = match sim.run(plan.steps) {
                 Ok(stats) => {
                     let error = sim
@@ -126,13 +138,15 @@ pub fn measure(beam: &Beam, mesh: &Mesh, plan: &MethodsPlan) -> Result<Value, St
                         .zip(&reference.state().positions)
                         .map(|(a, b)| (a - b).norm())
                         .fold(0.0, f64::max);
-                    if method == SolverMethod::LocalGlobal && iterations == 20 {
+                    if (method, predictor) == (SolverMethod::LocalGlobal, Predictor::Inertial)
+                        && iterations == 20
+                    {
                         let local = per_step(&stats, |s| s.local_seconds);
                         let global = per_step(&stats, |s| s.global_seconds);
                         local_fraction = local / (local + global);
                     }
                     json!({
-                        "method": method.name(),
+                        "method": name,
                         "budget": iterations,
                         "position_error_rel": error / diagonal,
                         "iterations_per_step": per_step(&stats, |s| s.iterations as f64),
@@ -144,7 +158,7 @@ pub fn measure(beam: &Beam, mesh: &Mesh, plan: &MethodsPlan) -> Result<Value, St
                     })
                 }
                 Err(e) => json!({
-                    "method": method.name(), "budget": iterations, "diverged": true,
+                    "method": name, "budget": iterations, "diverged": true,
                     "error": e.to_string(),
                 }),
             };

@@ -70,6 +70,8 @@ pub fn measure(
                         "1",
                         "--budgets",
                         BUDGETS,
+                        "--predicted",
+                        &PREDICTED.join(","),
                     ]
                     .iter()
                     .map(|s| s.to_string())
@@ -99,6 +101,12 @@ fn cheapest(rows: &[Value], method: &str, target: f64, local_fraction: f64) -> O
 
 const METHODS: [&str; 5] = ["local-global", "anderson", "chebyshev", "lbfgs", "newton"];
 
+/// The methods measured again with the linear predictor (`[solver]
+/// predictor = "linear"`, docs/solver.md "A better start"), as
+/// `pd-probe methods --predicted` names them; their rows are named
+/// `anderson+linear`. Plain PD's shows what the start alone gains.
+const PREDICTED: [&str; 3] = ["anderson:linear", "lbfgs:linear", "local-global:linear"];
+
 /// The section's Markdown.
 pub fn markdown(runs: &Value) -> String {
     let mut md = String::new();
@@ -118,16 +126,24 @@ pub fn markdown(runs: &Value) -> String {
          the median wall time per step is noisy unless the machine was quiet. Speed-up: the work \
          of plain PD with 20 iterations over the least work with which the method reaches the \
          same error or better (budgets {BUDGETS}; Newton 1, 2, 3, 5); Newton's \
-         by time only, since its work leaves out the 3n x 3n factorisation of each iteration.\n",
+         by time only, since its work leaves out the 3n x 3n factorisation of each iteration. \
+         The last three columns start each step at the linear predictor `y + 2 c_n - c_(n-1)` \
+         (`[solver] predictor = \"linear\"`, docs/solver.md) instead of the inertial target \
+         `y`, against the same PD-20 (inertial) baseline; plain PD's column shows what the \
+         start alone gains.\n",
         first["steps"],
         first["dt"],
         f(&first["reference_tolerance"]),
     );
     let _ = writeln!(
         md,
-        "| mesh | integrator | damping | error of PD-20 | anderson | chebyshev | lbfgs | newton |"
+        "| mesh | integrator | damping | error of PD-20 | anderson | chebyshev | lbfgs | newton \
+         | anderson, linear predictor | lbfgs, linear predictor | local-global, linear predictor |"
     );
-    let _ = writeln!(md, "| --- | --- | --- | --- | --- | --- | --- | --- |");
+    let _ = writeln!(
+        md,
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    );
     for run in runs {
         let rows = run["rows"].as_array().unwrap_or(&empty);
         let fraction = f(&run["local_fraction"]);
@@ -141,11 +157,16 @@ pub fn markdown(runs: &Value) -> String {
         let base = work(plain, fraction);
         let mut cells = Vec::new();
         let base_ms = f(&plain["step_ms_median"]);
-        for method in &METHODS[1..] {
+        let predicted: Vec<String> = PREDICTED.iter().map(|p| p.replace(':', "+")).collect();
+        let columns = METHODS[1..]
+            .iter()
+            .copied()
+            .chain(predicted.iter().map(String::as_str));
+        for method in columns {
             cells.push(match cheapest(rows, method, target, fraction) {
                 // Newton's work leaves out its 3n x 3n factorisation per
                 // iteration, which dominates: only its time compares.
-                Some((_, ms)) if *method == "newton" => {
+                Some((_, ms)) if method == "newton" => {
                     format!("{:.2}x by time ({ms:.1} ms)", base_ms / ms)
                 }
                 Some((w, ms)) => format!("{:.1}x ({w:.1} it, {ms:.1} ms)", base / w),

@@ -279,6 +279,8 @@ struct Case {
     body: Body,
     /// The iteration method (local-global outside the method axis).
     method: pd_solver::SolverMethod,
+    /// Where each step starts (inertial outside `--only methods --predictor`).
+    predictor: pd_solver::Predictor,
 }
 
 impl Case {
@@ -354,6 +356,7 @@ fn run_case(case: &Case) -> Ending {
         scene.settings.threads = 1;
         scene.integrator = case.integrator;
         scene.solver.method = case.method;
+        scene.predictor = case.predictor;
         scene.damping = damping(&presets()[case.model], case.coefficient)?;
         let mut sim = scene.build().map_err(|e| e.to_string())?;
         let start = case.start.apply(sim.state());
@@ -479,6 +482,7 @@ impl Axes {
                                                 start,
                                                 body,
                                                 method: pd_solver::SolverMethod::LocalGlobal,
+                                                predictor: pd_solver::Predictor::Inertial,
                                             });
                                         }
                                     }

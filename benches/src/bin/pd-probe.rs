@@ -11,6 +11,7 @@
 //! pd-probe bandwidth [--mib M] [--reps R]
 //! pd-probe methods  [beam options] [--mesh BASE] [--integrator be|im|bdf2] [--model M] [--steps N] [--budgets 1,2,...]
 //!                   [--methods local-global,anderson,...] [--window W] [--start S] [--cheb-rho R|auto]
+//!                   [--predicted anderson,lbfgs:linear,...]   (those methods again with a predictor, default extrapolated)
 //! beam options: --cells NX,NY,NZ --iters K --threads T --dt H --stiffness PA --soft-clamp
 //! ```
 
@@ -446,6 +447,23 @@ fn methods(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
                 ),
             },
             ..defaults
+        },
+        predicted: match options.value("--predicted") {
+            None => Vec::new(),
+            Some(text) => text
+                .split(',')
+                .map(|item| {
+                    let (name, predictor) = item
+                        .trim()
+                        .split_once(':')
+                        .unwrap_or((item.trim(), "extrapolated"));
+                    let method = SolverMethod::parse(name)
+                        .ok_or_else(|| format!("--predicted: unknown method {name:?}"))?;
+                    let predictor = pd_solver::Predictor::parse(predictor)
+                        .ok_or_else(|| format!("--predicted: unknown predictor {predictor:?}"))?;
+                    Ok::<_, String>((method, predictor))
+                })
+                .collect::<Result<_, _>>()?,
         },
     };
     pd_benches::methods::measure(beam, &mesh, &plan)

@@ -124,6 +124,21 @@ struct Raw {
     /// contact are as before.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     contact: Option<crate::checkpoint_contact::RawContact>,
+    /// The extrapolated predictor's stored correction, written only when
+    /// there is one (pd_solver::PredictorState).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    predictor: Option<RawPredictor>,
+}
+
+/// `pd_solver::PredictorState`: the last step's correction (m per vertex)
+/// and the step's `[h, c1, c2, gamma]`.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPredictor {
+    correction: Vec<[f64; 3]>,
+    key: [f64; 4],
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    previous: Vec<[f64; 3]>,
 }
 
 const FORMAT: &str = "pd-checkpoint";
@@ -153,7 +168,10 @@ pub fn write_checkpoint(path: &Path, file: &CheckpointFile) -> Result<()> {
         && c.energy_reference.is_finite()
         && c.energy_scale.is_finite()
         && (c.contact.colliders.iter().chain(&c.contact.pairs))
-            .all(|s| s.force.iter().chain(&s.normal).all(|x| x.is_finite())))
+            .all(|s| s.force.iter().chain(&s.normal).all(|x| x.is_finite()))
+        && finite(&c.predictor.correction)
+        && finite(&c.predictor.previous)
+        && c.predictor.key.iter().all(|x| x.is_finite()))
     {
         return Err(Error::Content {
             path: path.to_path_buf(),
@@ -192,6 +210,11 @@ pub fn write_checkpoint(path: &Path, file: &CheckpointFile) -> Result<()> {
         energy_reference: c.energy_reference,
         energy_scale: c.energy_scale,
         contact: crate::checkpoint_contact::RawContact::of(&c.contact),
+        predictor: (!c.predictor.is_empty()).then(|| RawPredictor {
+            correction: arrays(&c.predictor.correction),
+            key: c.predictor.key,
+            previous: arrays(&c.predictor.previous),
+        }),
     };
     write_atomically(path, |w| {
         serde_json::to_writer(&mut *w, &raw)?;
@@ -310,6 +333,14 @@ pub fn read_checkpoint(path: &Path) -> Result<CheckpointFile> {
             energy_reference: raw.energy_reference,
             energy_scale: raw.energy_scale,
             contact: raw.contact.map(Into::into).unwrap_or_default(),
+            predictor: raw
+                .predictor
+                .map(|p| pd_solver::PredictorState {
+                    correction: points(&p.correction),
+                    key: p.key,
+                    previous: points(&p.previous),
+                })
+                .unwrap_or_default(),
         },
     })
 }
@@ -346,6 +377,7 @@ mod tests {
                 energy_reference: -2.0 / 7.0,
                 energy_scale: 1e-17 / 3.0,
                 contact: Default::default(),
+                predictor: Default::default(),
             },
         }
     }

@@ -34,6 +34,9 @@ pub struct Checkpoint {
     /// The contacts active at the end of the step, with their
     /// warm-started forces (empty without contact).
     pub contact: crate::contact::ContactCheckpoint,
+    /// The last step's correction of the extrapolated predictor (empty
+    /// without it, step/predictor.rs).
+    pub predictor: crate::step::PredictorState,
 }
 
 impl Simulation {
@@ -81,6 +84,7 @@ impl Simulation {
                 .as_ref()
                 .map(crate::contact::ContactState::save)
                 .unwrap_or_default(),
+            predictor: self.predictor_state.clone(),
         }
     }
 
@@ -89,9 +93,9 @@ impl Simulation {
     ///
     /// # Errors
     /// [`SolverError::InvalidState`] if the checkpoint belongs to another
-    /// integrator, has the wrong number of vertices, a non-finite value, or
-    /// a history the integrator cannot hold; the simulation is then
-    /// unchanged.
+    /// integrator, has the wrong number of vertices, a non-finite value, a
+    /// history the integrator cannot hold, or a predictor correction of the
+    /// wrong length; the simulation is then unchanged.
     pub fn restore(&mut self, checkpoint: &Checkpoint) -> Result<(), SolverError> {
         let invalid = |reason: String| SolverError::InvalidState { reason };
         if checkpoint.integrator != self.integrator.name() {
@@ -123,6 +127,7 @@ impl Simulation {
                 return Err(invalid(format!("{name} is not finite")));
             }
         }
+        Self::check_predictor_state(&checkpoint.predictor, n)?;
         let before = self.integrator.history();
         if let Err(reason) = self.integrator.restore_history(&checkpoint.history, n) {
             // Leave the simulation as it was.
@@ -146,6 +151,7 @@ impl Simulation {
             return Err(invalid(reason));
         }
         self.state = checkpoint.state.clone();
+        self.predictor_state = checkpoint.predictor.clone();
         self.steps = checkpoint.steps;
         self.time = checkpoint.time;
         self.divergence.reference = checkpoint.energy_reference;

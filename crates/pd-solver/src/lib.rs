@@ -54,8 +54,8 @@ pub use model::{Body, BodyId, Model};
 pub use settings::Settings;
 pub use simulation::{Energies, SetupStats, Simulation, State, StepStats};
 pub use step::{
-    Anderson, Chebyshev, IterationChange, Lbfgs, LocalGlobal, Newton, PositionSolver, SolverMethod,
-    SolverSpec, SpectralRadius, StepProblem,
+    Anderson, Chebyshev, IterationChange, Lbfgs, LocalGlobal, Newton, PositionSolver, Predictor,
+    PredictorState, SolverMethod, SolverSpec, SpectralRadius, StepProblem,
 };
 
 /// Everything that can go wrong building or stepping a simulation.

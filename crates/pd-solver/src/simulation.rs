@@ -145,6 +145,9 @@ pub struct Simulation {
     pub(crate) objective_trace: Option<Vec<f64>>,
     /// Contact with colliders, when a scene asks for it (docs/contact.md).
     pub(crate) contact: Option<crate::contact::ContactState>,
+    /// Where each step starts, and the last step's correction (step/predictor.rs).
+    pub(crate) predictor: crate::step::Predictor,
+    pub(crate) predictor_state: crate::step::PredictorState,
 }
 
 impl Simulation {
@@ -237,6 +240,8 @@ impl Simulation {
             scratch: Scratch::new(0, 0, 0, 0),
             objective_trace: None,
             contact: None,
+            predictor: crate::step::Predictor::Inertial,
+            predictor_state: crate::step::PredictorState::default(),
         };
         if !d.is_lagged() {
             sim.prepare_matrix()?;
@@ -252,7 +257,7 @@ impl Simulation {
 
     /// Replaces the state (e.g. from an initial-state file). Fixed vertices
     /// keep their given positions and get zero velocity. Resets the
-    /// integrator's history.
+    /// integrator's history and the predictor's stored correction.
     ///
     /// # Errors
     /// Wrong lengths or non-finite values, naming the vertex.
@@ -280,6 +285,7 @@ impl Simulation {
             }
         }
         self.integrator.reset();
+        self.predictor_state = crate::step::PredictorState::default();
         self.reset_energy_reference();
         Ok(())
     }

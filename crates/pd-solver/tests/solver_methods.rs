@@ -8,7 +8,7 @@ mod common;
 use common::{SCHEMES, Scheme, clamped_beam};
 use pd_damping::{Damping, LaplacianDamping, NoDamping};
 use pd_mesh::Point;
-use pd_solver::{Settings, Simulation, SolverMethod, SolverSpec, SpectralRadius};
+use pd_solver::{Predictor, Settings, Simulation, SolverMethod, SolverSpec, SpectralRadius};
 
 fn damping(laplacian: bool) -> Box<dyn Damping> {
     if laplacian {
@@ -179,15 +179,21 @@ fn every_method_keeps_linear_momentum() {
     }
 }
 
-/// Every method gives bit-identical results on 1 and 2 threads.
+/// Every method gives bit-identical results on 1 and 2 threads, with
+/// either predictor (BDF-2: the extrapolated start is used from step 3).
 #[test]
 fn every_method_is_thread_count_independent() {
-    for method in [
+    let methods = [
         SolverMethod::Anderson,
         SolverMethod::Chebyshev,
         SolverMethod::Lbfgs,
         SolverMethod::Newton,
-    ] {
+    ];
+    let predictors = [Predictor::Inertial, Predictor::Extrapolated];
+    for (method, predictor) in predictors
+        .into_iter()
+        .flat_map(|p| methods.into_iter().map(move |m| (m, p)))
+    {
         let runs: Vec<Vec<Point>> = [1, 2]
             .into_iter()
             .map(|threads| {
@@ -203,13 +209,14 @@ fn every_method_is_thread_count_independent() {
                     Simulation::new(model, Scheme::Bdf2.integrator(), damping(true), settings)
                         .unwrap();
                 sim.set_position_solver(spec(method).create().unwrap());
+                sim.set_predictor(predictor);
                 sim.run(4).unwrap();
                 sim.state().positions.clone()
             })
             .collect();
         for (a, b) in runs[0].iter().zip(&runs[1]) {
             for k in 0..3 {
-                assert_eq!(a[k].to_bits(), b[k].to_bits(), "{method:?}");
+                assert_eq!(a[k].to_bits(), b[k].to_bits(), "{method:?} {predictor:?}");
             }
         }
     }

@@ -18,21 +18,29 @@
 //! that integrator's third of the matrix only and writes
 //! `docs/stability-methods-NAME.md` instead, leaving the whole axis' report
 //! alone.
+//!
+//! `--predictor NAME` (`extrapolated`, `linear`; docs/solver.md "A better
+//! start") runs local-global, anderson and lbfgs with that predictor
+//! against the baseline of plain PD started at the inertial target, and
+//! writes `docs/stability-methods-predictor-NAME[-INTEGRATOR].md`.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use pd_io::scene::IntegratorKind;
-use pd_solver::SolverMethod;
+use pd_solver::{Predictor, SolverMethod};
 
 use super::{Body, Case, Ending, Start, presets, run_case};
 
 /// The damping presets of the method axis, by name.
 const MODELS: [&str; 3] = ["none", "laplacian", "ether-drag"];
 
-/// The axis' cases of `method`, for `integrators`.
-fn cases(method: SolverMethod, integrators: &[IntegratorKind]) -> Vec<Case> {
+/// The axis' cases of `method` started by `predictor`, for `integrators`.
+fn cases(
+    (method, predictor): (SolverMethod, Predictor),
+    integrators: &[IntegratorKind],
+) -> Vec<Case> {
     let mut cases = Vec::new();
     for &integrator in integrators {
         for (model, preset) in presets().iter().enumerate() {
@@ -56,6 +64,7 @@ fn cases(method: SolverMethod, integrators: &[IntegratorKind]) -> Vec<Case> {
                                         start,
                                         body,
                                         method,
+                                        predictor,
                                     });
                                 }
                             }
@@ -68,13 +77,30 @@ fn cases(method: SolverMethod, integrators: &[IntegratorKind]) -> Vec<Case> {
     cases
 }
 
+/// The predictor `--predictor NAME` in `args` selects (inertial without
+/// it).
+fn predictor(args: &[String]) -> Result<Predictor, String> {
+    let Some(i) = args.iter().position(|a| a == "--predictor") else {
+        return Ok(Predictor::Inertial);
+    };
+    let name = args.get(i + 1).map_or("", String::as_str);
+    Predictor::parse(name).ok_or_else(|| {
+        format!("--predictor: expected one of inertial, extrapolated, linear, got \"{name}\"")
+    })
+}
+
 /// The integrators `--integrator NAME` in `args` selects (all without it),
-/// and the report's path.
-fn selection(root: &Path, args: &[String]) -> Result<(Vec<IntegratorKind>, PathBuf), String> {
+/// and the report's path (`stem` = `stability-methods` or, with a
+/// predictor, `stability-methods-predictor-NAME`).
+fn selection(
+    root: &Path,
+    args: &[String],
+    stem: &str,
+) -> Result<(Vec<IntegratorKind>, PathBuf), String> {
     match args.iter().position(|a| a == "--integrator") {
         None => Ok((
             IntegratorKind::ALL.to_vec(),
-            root.join("docs/stability-methods.md"),
+            root.join(format!("docs/{stem}.md")),
         )),
         Some(i) => {
             let name = args.get(i + 1).map_or("", String::as_str);
@@ -83,10 +109,7 @@ fn selection(root: &Path, args: &[String]) -> Result<(Vec<IntegratorKind>, PathB
                     "--integrator: expected one of backward-euler, implicit-midpoint, bdf2, got \"{name}\""
                 )
             })?;
-            Ok((
-                vec![kind],
-                root.join(format!("docs/stability-methods-{name}.md")),
-            ))
+            Ok((vec![kind], root.join(format!("docs/{stem}-{name}.md"))))
         }
     }
 }
@@ -94,19 +117,36 @@ fn selection(root: &Path, args: &[String]) -> Result<(Vec<IntegratorKind>, PathB
 /// Runs the axis (or the integrators `--integrator` selects) and writes the
 /// report.
 pub(super) fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
-    let (integrators, path) = selection(root, args)?;
+    let predictor = predictor(args)?;
+    let stem = match predictor {
+        Predictor::Inertial => "stability-methods".to_string(),
+        p => format!("stability-methods-predictor-{}", p.name()),
+    };
+    let (integrators, path) = selection(root, args, &stem)?;
     let started = Instant::now();
-    let baseline: Vec<Ending> = cases(SolverMethod::LocalGlobal, &integrators)
-        .iter()
-        .map(run_case)
-        .collect();
+    let plain = (SolverMethod::LocalGlobal, Predictor::Inertial);
+    let baseline: Vec<Ending> = cases(plain, &integrators).iter().map(run_case).collect();
+    let variants: Vec<(SolverMethod, Predictor)> = match predictor {
+        Predictor::Inertial => SolverMethod::ALL.map(|m| (m, predictor)).to_vec(),
+        p => [
+            SolverMethod::LocalGlobal,
+            SolverMethod::Anderson,
+            SolverMethod::Lbfgs,
+        ]
+        .map(|m| (m, p))
+        .to_vec(),
+    };
     let mut out = String::new();
     let mut rows = String::new();
     let mut worse = String::new();
     let mut worse_count = 0;
-    for method in SolverMethod::ALL {
-        let cases = cases(method, &integrators);
-        let endings: Vec<Ending> = if method == SolverMethod::LocalGlobal {
+    for (method, predictor) in variants {
+        let cases = cases((method, predictor), &integrators);
+        let name = match predictor {
+            Predictor::Inertial => method.name().to_string(),
+            p => format!("{} ({})", method.name(), p.name()),
+        };
+        let endings: Vec<Ending> = if (method, predictor) == plain {
             baseline.clone()
         } else {
             cases.iter().map(run_case).collect()
@@ -131,18 +171,17 @@ pub(super) fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
                     Ending::Bug(e) => format!("bug: {e}"),
                     Ending::Completed { .. } => unreachable!(),
                 };
-                let _ = writeln!(worse, "| {} | {} | {what} |", method.name(), case.cells());
+                let _ = writeln!(worse, "| {name} | {} | {what} |", case.cells());
             }
         }
         let _ = writeln!(
             rows,
-            "| {} | {} | {completed} | {inverted} | {diverged} | {bugs} |",
-            method.name(),
+            "| {name} | {} | {completed} | {inverted} | {diverged} | {bugs} |",
             cases.len()
         );
     }
     let seconds = started.elapsed().as_secs_f64();
-    let (title, command, which) = if integrators.len() == IntegratorKind::ALL.len() {
+    let (mut title, mut command, which) = if integrators.len() == IntegratorKind::ALL.len() {
         (String::new(), String::new(), "every integrator".to_string())
     } else {
         let names: Vec<&str> = integrators.iter().map(|k| k.name()).collect();
@@ -153,6 +192,10 @@ pub(super) fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
             format!("integrator {names} only (the whole axis: docs/stability-methods.md)"),
         )
     };
+    if predictor != Predictor::Inertial {
+        title = format!(", predictor {}{title}", predictor.name());
+        command = format!(" --predictor {}{command}", predictor.name());
+    }
     let _ = writeln!(
         out,
         "# Stability map: the method axis{title}\n\n\
@@ -176,6 +219,15 @@ pub(super) fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
             "release"
         },
     );
+    if predictor != Predictor::Inertial {
+        let _ = writeln!(
+            out,
+            "\nWith the predictor (docs/solver.md, \"A better start\"): local-global, anderson \
+             and lbfgs start each step from the `{}` predictor; the baseline (`local-global`) \
+             starts at the inertial target, as by default.",
+            predictor.name()
+        );
+    }
     if worse_count > 0 {
         let _ = writeln!(
             out,

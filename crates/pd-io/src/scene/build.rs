@@ -42,6 +42,7 @@ impl Scene {
                 .map_err(|e| self.field_error("solver", e))?;
             simulation.set_position_solver(solver);
         }
+        simulation.set_predictor(self.predictor);
         if let Some(contact) = &self.contact {
             simulation.set_contact(contact.clone()).map_err(|e| {
                 // The method cannot run with colliders: the error is the method's.

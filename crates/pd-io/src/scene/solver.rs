@@ -2,7 +2,7 @@
 //! ([`pd_solver::SolverSpec`], docs/solver.md "Iteration methods"). Its raw
 //! serde image and its validation, by field path (`solver.rho`).
 
-use pd_solver::{SolverError, SolverMethod, SolverSpec, SpectralRadius};
+use pd_solver::{Predictor, SolverError, SolverMethod, SolverSpec, SpectralRadius};
 use serde::Deserialize;
 
 use super::validate::Validator;
@@ -16,6 +16,8 @@ pub(super) struct Solver {
     pub(super) window: Option<usize>,
     pub(super) rho: Option<Rho>,
     pub(super) start: Option<usize>,
+    /// Where each step's iteration starts (`pd_solver::Predictor`).
+    pub(super) predictor: Option<String>,
 }
 
 /// `rho = 0.99` or `rho = "auto"`.
@@ -27,6 +29,22 @@ pub(super) enum Rho {
 }
 
 impl Validator<'_> {
+    /// The validated `solver.predictor`; `inertial` without one.
+    pub(super) fn predictor(&self, raw: Option<&Solver>) -> Result<Predictor> {
+        let Some(name) = raw.and_then(|raw| raw.predictor.as_deref()) else {
+            return Ok(Predictor::default());
+        };
+        Predictor::parse(name).ok_or_else(|| {
+            self.field(
+                "solver.predictor",
+                format!(
+                    "unknown predictor \"{name}\"; expected one of: {}",
+                    Predictor::ALL.map(Predictor::name).join(", ")
+                ),
+            )
+        })
+    }
+
     /// The validated `[solver]` table; the default (local-global) without one.
     pub(super) fn solver(&self, raw: Option<Solver>) -> Result<SolverSpec> {
         let defaults = SolverSpec::default();

@@ -256,6 +256,9 @@ pub struct Scene {
     pub output: OutputSpec,
     /// The iteration method (`[solver]`; local-global by default).
     pub solver: pd_solver::SolverSpec,
+    /// Where each step's iteration starts (`[solver] predictor`; inertial
+    /// by default).
+    pub predictor: pd_solver::Predictor,
     /// Contact with colliders (`[[collider]]`, `[contact]`); `None` when
     /// the scene names no collider.
     pub contact: Option<pd_solver::contact::ContactSettings>,

@@ -90,6 +90,7 @@ impl Validator<'_> {
             .map(|(b, body)| self.body(b, body))
             .collect::<Result<Vec<_>>>()?;
         let output = self.output(raw.output)?;
+        let predictor = self.predictor(raw.solver.as_ref())?;
         let solver = self.solver(raw.solver)?;
         self.check_material_method(&bodies, &solver)?;
         let (contact, body_contact, surface_pairs) =
@@ -103,6 +104,7 @@ impl Validator<'_> {
             bodies,
             output,
             solver,
+            predictor,
             contact,
             body_contact,
             surface_pairs,

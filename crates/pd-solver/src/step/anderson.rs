@@ -196,7 +196,7 @@ impl PositionSolver for Anderson {
         let check = RayCheck::applies(step);
         // Whether an accelerated iterate was taken (else the step is plain
         // PD's and needs no end-of-step check).
-        let mut accelerated = false;
+        let mut accelerated = step.predicted;
         // Differences stored so far (at most `window`), and the ring slot
         // of the next one.
         let (mut stored, mut next) = (0usize, 0usize);

@@ -146,6 +146,11 @@ pub struct StepProblem<'a> {
     pub(crate) stats: &'a mut StepStats,
     pub(crate) trace: Option<&'a mut Vec<f64>>,
     pub(crate) contact: Option<&'a mut crate::contact::ContactState>,
+    /// Whether the displacement starts from a predicted point rather than
+    /// the inertial target (step/predictor.rs): the accelerated methods
+    /// then run implicit midpoint's end-of-step check (step/ray.rs) even
+    /// when they took no accelerated iterate.
+    pub(crate) predicted: bool,
 }
 
 impl StepProblem<'_> {

@@ -216,7 +216,7 @@ impl PositionSolver for Lbfgs {
         // Whether a step other than the plain iterate was taken (else the
         // step is plain PD's and needs no end-of-step check).
         let check = RayCheck::applies(step);
-        let mut accelerated = false;
+        let mut accelerated = step.predicted;
         for k in 0..iterations {
             self.iterate.swap(0, 1);
             self.update.swap(0, 1);

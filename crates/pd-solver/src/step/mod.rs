@@ -22,6 +22,7 @@ pub(crate) mod method;
 pub(crate) mod newton;
 pub(crate) mod objective;
 pub(crate) mod ops;
+pub(crate) mod predictor;
 pub(crate) mod ray;
 
 use std::time::Instant;
@@ -44,6 +45,7 @@ pub use iteration::{IterationChange, LocalGlobal, PositionSolver, StepProblem};
 pub use lbfgs::Lbfgs;
 pub use method::{SolverMethod, SolverSpec, SpectralRadius};
 pub use newton::Newton;
+pub use predictor::{Predictor, PredictorState};
 
 /// Scratch buffers sized once, so that a step allocates nothing.
 #[derive(Debug)]
@@ -61,6 +63,10 @@ pub(crate) struct Scratch {
     pub forces: Vec<Point>,
     /// Per-chunk energy bounds of the divergence check.
     pub energy_partials: Vec<EnergyBound>,
+    /// Whether the step starts from a predicted point (step/predictor.rs).
+    pub predicted: bool,
+    /// The predicted start while the inertial one is evaluated.
+    pub predicted_start: Vec<Point>,
 }
 
 impl Scratch {
@@ -73,6 +79,8 @@ impl Scratch {
             velocities: vec![Point::zeros(); vertices],
             laplacian_anchor: vec![Point::zeros(); vertices],
             forces: vec![Point::zeros(); vertices],
+            predicted: false,
+            predicted_start: Vec::new(),
         }
     }
 }
@@ -107,6 +115,7 @@ impl Simulation {
         let start = Instant::now();
         let factor_seconds = self.prepare_matrix()?;
         self.prepare_targets();
+        let kind = self.apply_predictor();
         let mut stats = StepStats {
             relative_change: f64::NAN,
             factor_seconds,
@@ -114,6 +123,7 @@ impl Simulation {
         };
         self.find_positions(&mut stats)?;
         self.finish_step(&mut stats)?;
+        self.record_correction(kind);
         stats.total_seconds = start.elapsed().as_secs_f64();
         Ok(stats)
     }
@@ -228,7 +238,11 @@ impl Simulation {
             stats,
             trace: self.objective_trace.as_mut(),
             contact: self.contact.as_mut(),
+            predicted: self.scratch.predicted,
         };
+        if problem.predicted {
+            predictor::keep_the_better_start(&mut problem, &mut self.scratch.predicted_start);
+        }
         self.position_solver.find_positions(&mut problem)
     }
 

@@ -1,0 +1,227 @@
+//! Where a step's iteration starts (docs/solver.md, "A better start: the
+//! extrapolated predictor").
+//!
+//! The converged step is `x_{n+1} = y + c_{n+1}`: the integrator's inertial
+//! target `y` plus a correction `c` made of the elastic, damping and
+//! attachment forces (for backward Euler `c = h^2 M^-1 f(x_{n+1})`; the
+//! other integrators have the same form relative to their own `y`). By
+//! default ([`Predictor::Inertial`]) every method starts at `y`. The
+//! correction changes smoothly from step to step, so
+//! [`Predictor::Extrapolated`] starts at `y + c_n`, the previous step's
+//! correction (one stored vector per vertex, no extra work), which is
+//! `O(h)` closer to the answer.
+//!
+//! The stored correction is used only when it belongs to a step of the
+//! same kind: the same time step `h` and the same integrator coefficients
+//! `(c1, c2, gamma)` (BDF-2's first step is backward Euler's and is not
+//! followed by a step of the same kind), no contact (the contact forces are
+//! warm-started separately and the start of their iteration is `y`), and
+//! the same vertex count. Otherwise the step starts at `y`. Fixed vertices
+//! always start (and stay) at their place. The correction is part of a
+//! [`crate::Checkpoint`], so a resumed run continues bit for bit.
+//!
+//! The safeguard ([`keep_the_better_start`]): a predicted start is kept
+//! only if the step objective is lower there than at `y` (two objective
+//! evaluations a predicted step). It does not make the predictor as stable
+//! as the inertial start at large steps: docs/solver.md, "A better start".
+
+use pd_mesh::Point;
+
+use super::iteration::StepProblem;
+use crate::{Simulation, SolverError};
+
+/// Where each step's iteration starts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Predictor {
+    /// At the inertial target `y` (the default; every method's behaviour
+    /// before the predictor existed).
+    #[default]
+    Inertial,
+    /// At `y + c_n`, the inertial target plus the previous step's
+    /// correction `x_n - y_{n-1}`, when the previous step was of the same
+    /// kind (else at `y`).
+    Extrapolated,
+    /// At `y + 2 c_n - c_{n-1}`, the corrections' linear extrapolation,
+    /// when the previous two steps were of the same kind (else as
+    /// [`Predictor::Extrapolated`]).
+    Linear,
+}
+
+impl Predictor {
+    /// Every predictor, in the order scenes list them.
+    pub const ALL: [Predictor; 3] = [
+        Predictor::Inertial,
+        Predictor::Extrapolated,
+        Predictor::Linear,
+    ];
+
+    /// The name as scenes spell it (`inertial`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Predictor::Inertial => "inertial",
+            Predictor::Extrapolated => "extrapolated",
+            Predictor::Linear => "linear",
+        }
+    }
+
+    /// The predictor named `name`, if any.
+    pub fn parse(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|p| p.name() == name)
+    }
+}
+
+/// The previous step's correction, as a checkpoint stores it.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PredictorState {
+    /// `x_{n} - y_{n-1}` per vertex (m), zero at fixed vertices; empty
+    /// when no step with [`Predictor::Extrapolated`] has been taken.
+    pub correction: Vec<Point>,
+    /// The step that produced it: `h` (s), `c1`, `c2` and `gamma` (1/s).
+    pub key: [f64; 4],
+    /// The correction of the step before, of the same kind, for
+    /// [`Predictor::Linear`] (empty when there is none).
+    pub previous: Vec<Point>,
+}
+
+impl PredictorState {
+    /// Whether a correction is stored.
+    pub fn is_empty(&self) -> bool {
+        self.correction.is_empty()
+    }
+}
+
+/// The key of a step: its `h` and integrator coefficients.
+fn step_key(h: f64, c: pd_integrators::StepCoefficients) -> [f64; 4] {
+    [h, c.c1, c.c2, c.gamma]
+}
+
+impl Simulation {
+    /// Chooses where each step's iteration starts (default
+    /// [`Predictor::Inertial`]). Forgets any stored correction, so the next
+    /// step starts at `y`.
+    pub fn set_predictor(&mut self, predictor: Predictor) {
+        self.predictor = predictor;
+        self.predictor_state = PredictorState::default();
+    }
+
+    /// Where each step's iteration starts.
+    pub fn predictor(&self) -> Predictor {
+        self.predictor
+    }
+
+    /// Moves the step's starting displacement from `y - x_n` to
+    /// `y + c_n - x_n` when the predictor and the stored correction allow
+    /// it (called after the targets' phase). Returns the step's kind, for
+    /// [`Simulation::record_correction`] (the integrator's coefficients
+    /// change at its end, e.g. after BDF-2's first step).
+    pub(crate) fn apply_predictor(&mut self) -> [f64; 4] {
+        let h = self.settings.dt;
+        let key = step_key(h, self.integrator.coefficients(h));
+        self.scratch.predicted = false;
+        let state = &self.predictor_state;
+        if self.predictor == Predictor::Inertial
+            || self.contact.is_some()
+            || state.correction.len() != self.state.positions.len()
+            || key.map(f64::to_bits) != state.key.map(f64::to_bits)
+        {
+            return key;
+        }
+        let fixed = self.model.fixed();
+        let dx = &mut self.scratch.iteration.displacement;
+        let linear = self.predictor == Predictor::Linear && !state.previous.is_empty();
+        self.scratch.predicted = true;
+        for (v, ((dx, c), &fixed)) in dx.iter_mut().zip(&state.correction).zip(fixed).enumerate() {
+            if fixed {
+                continue;
+            }
+            *dx += if linear {
+                c * 2.0 - state.previous[v]
+            } else {
+                *c
+            };
+        }
+        key
+    }
+
+    /// Stores the step's correction `x_{n+1} - y` (before contact's
+    /// projection) for the next step, with the step's kind `key`; not with
+    /// [`Predictor::Inertial`].
+    pub(crate) fn record_correction(&mut self, key: [f64; 4]) {
+        if self.predictor == Predictor::Inertial {
+            return;
+        }
+        let fixed = self.model.fixed();
+        let s = &self.scratch;
+        let state = &mut self.predictor_state;
+        let same_kind = state.key.map(f64::to_bits) == key.map(f64::to_bits);
+        if self.predictor == Predictor::Linear && same_kind && !state.correction.is_empty() {
+            std::mem::swap(&mut state.previous, &mut state.correction);
+        } else {
+            state.previous.clear();
+        }
+        let correction = &mut state.correction;
+        correction.resize(s.iteration.displacement.len(), Point::zeros());
+        for (((c, dx), y), &fixed) in correction
+            .iter_mut()
+            .zip(&s.iteration.displacement)
+            .zip(&s.targets.inertial_displacement)
+            .zip(fixed)
+        {
+            *c = if fixed { Point::zeros() } else { dx - y };
+        }
+        self.predictor_state.key = key;
+    }
+
+    /// Checks a checkpoint's stored correction against this simulation
+    /// (`n` vertices): empty, or `n` finite points and a finite key.
+    pub(crate) fn check_predictor_state(
+        state: &PredictorState,
+        n: usize,
+    ) -> Result<(), SolverError> {
+        let invalid = |reason: String| Err(SolverError::InvalidState { reason });
+        if state.is_empty() {
+            return Ok(());
+        }
+        for (name, values, lengths) in [
+            ("correction", &state.correction, [n, n]),
+            ("previous", &state.previous, [0, n]),
+        ] {
+            if !lengths.contains(&values.len()) {
+                return invalid(format!(
+                    "predictor {name} has {} points for {n} vertices",
+                    values.len()
+                ));
+            }
+            if let Some(v) = values.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+                return invalid(format!("predictor {name} of vertex {v} is not finite"));
+            }
+        }
+        if !state.key.iter().all(|k| k.is_finite()) {
+            return invalid("predictor key is not finite".into());
+        }
+        Ok(())
+    }
+}
+
+/// Keeps the step's predicted start only if the step objective is lower
+/// there than at the inertial target `y` (fixed vertices at zero); else
+/// the step starts at `y` and `step.predicted` becomes `false`. `saved` is
+/// scratch (resized to the vertex count). Two objective evaluations.
+pub(crate) fn keep_the_better_start(step: &mut StepProblem<'_>, saved: &mut Vec<Point>) {
+    let predicted = step.objective();
+    saved.clear();
+    saved.extend_from_slice(&step.buffers.displacement);
+    let inertial = &step.targets.inertial_displacement;
+    let dx = &mut step.buffers.displacement;
+    dx.iter_mut().for_each(|d| *d = Point::zeros());
+    for &v in step.global.free() {
+        dx[v] = inertial[v];
+    }
+    let at_y = step.objective();
+    // Not `<=`: a NaN predicted objective falls back to y.
+    if predicted < at_y {
+        step.buffers.displacement.copy_from_slice(saved);
+    } else {
+        step.predicted = false;
+    }
+}
