@@ -24,6 +24,8 @@ use crate::SolverError;
 mod calibration;
 #[cfg(feature = "metis")]
 mod metis;
+#[cfg(test)]
+mod solve_profile;
 mod solve_tree;
 mod supernodal_solve;
 

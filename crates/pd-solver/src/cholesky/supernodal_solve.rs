@@ -162,6 +162,56 @@ impl SupernodalSolve {
         }
     }
 
+    /// [`Self::solve`] in its four parts, timed: the permutation in, the
+    /// forward and the backward substitution, the permutation out (seconds
+    /// of `clock` each; `solve_profile.rs`).
+    #[cfg(test)]
+    pub fn solve_timed(
+        &mut self,
+        symbolic: &SymbolicCholesky<usize>,
+        values: &[f64],
+        rhs: &mut [Point],
+        clock: &dyn Fn() -> f64,
+    ) -> [f64; 4] {
+        let structure = Structure::of(symbolic).expect("the plan of a supernodal factor");
+        let forward = symbolic
+            .perm()
+            .map(|p| p.arrays().0)
+            .expect("a permuted factor");
+        let t0 = clock();
+        for (x, &old) in self.x.iter_mut().zip(forward) {
+            *x = rhs[old];
+        }
+        let t1 = clock();
+        self.forward_substitution(&structure, values);
+        let t2 = clock();
+        self.backward_substitution(&structure, values);
+        let t3 = clock();
+        for (x, &old) in self.x.iter().zip(forward) {
+            rhs[old] = *x;
+        }
+        [t1 - t0, t2 - t1, t3 - t2, clock() - t3]
+    }
+
+    /// The supernodes by width class `(widest width, count, values of the
+    /// diagonal blocks' lower triangles, values below them)`, classes
+    /// 1, 2-3, 4-7, ..., for `solve_profile.rs`.
+    #[cfg(test)]
+    pub fn width_classes(symbolic: &SymbolicCholesky<usize>) -> Vec<(usize, usize, usize, usize)> {
+        let structure = Structure::of(symbolic).expect("a supernodal factor");
+        let mut classes = vec![(0, 0, 0, 0); 16];
+        for s in 0..structure.begin.len() {
+            let c = structure.end[s] - structure.begin[s];
+            let class = &mut classes[c.ilog2() as usize];
+            class.0 = class.0.max(c);
+            class.1 += 1;
+            class.2 += c * (c + 1) / 2;
+            class.3 += c * structure.row_len[s];
+        }
+        classes.retain(|class| class.1 > 0);
+        classes
+    }
+
     /// `x <- L^-1 x`: the bins' subtrees (at once when there are two
     /// threads), their updates of the top's rows subtracted bin 0 first,
     /// then the top's supernodes in order.
@@ -189,13 +239,16 @@ impl SupernodalSolve {
                 }
             }
         }
-        vectorized(|| {
-            let mut below = Below::split(below);
-            for &s in &split.top {
-                let first = structure.begin[s];
-                structure.forward_supernode(values, s, x, first, Some, &mut below, |_, _| {});
-            }
-        });
+        vectorized(
+            #[inline(always)]
+            |simd| {
+                let mut below = Below::split(below, simd);
+                for &s in &split.top {
+                    let first = structure.begin[s];
+                    structure.forward_supernode(values, s, x, first, Some, &mut below, |_, _| {});
+                }
+            },
+        );
     }
 
     /// `x <- L^-T x`: the top's supernodes in reverse order, then the bins'
@@ -209,14 +262,18 @@ impl SupernodalSolve {
             lanes,
             ..
         } = self;
-        vectorized(|| {
-            let mut below = Below::split(below);
-            for &s in split.top.iter().rev() {
-                let first = structure.begin[s];
-                structure
-                    .backward_supernode(values, s, x, first, Some, &mut below, |_| Point::zeros());
-            }
-        });
+        vectorized(
+            #[inline(always)]
+            |simd| {
+                let mut below = Below::split(below, simd);
+                for &s in split.top.iter().rev() {
+                    let first = structure.begin[s];
+                    structure.backward_supernode(values, s, x, first, Some, &mut below, |_| {
+                        Point::zeros()
+                    });
+                }
+            },
+        );
         if split.is_split() {
             let [lane0, lane1] = lanes;
             let shared: &[Point] = x;
@@ -275,15 +332,26 @@ impl Structure<'_> {
             *p = x[column];
         }
         let locate = |row: usize| Some(split.slot[row] as usize).filter(|_| split.slot[row] != TOP);
-        vectorized(|| {
-            let mut below = Below::split(below);
-            for &s in &split.bins[bin] {
-                let first = split.slot[self.begin[s]] as usize;
-                self.forward_supernode(values, s, local, first, locate, &mut below, |row, u| {
-                    top_updates[split.top_position[row] as usize] += u;
-                });
-            }
-        });
+        vectorized(
+            #[inline(always)]
+            |simd| {
+                let mut below = Below::split(below, simd);
+                for &s in &split.bins[bin] {
+                    let first = split.slot[self.begin[s]] as usize;
+                    self.forward_supernode(
+                        values,
+                        s,
+                        local,
+                        first,
+                        locate,
+                        &mut below,
+                        |row, u| {
+                            top_updates[split.top_position[row] as usize] += u;
+                        },
+                    );
+                }
+            },
+        );
     }
 
     /// Backward substitution over bin `bin`'s supernodes, on a compact copy
@@ -303,13 +371,18 @@ impl Structure<'_> {
             *p = x[column];
         }
         let locate = |row: usize| Some(split.slot[row] as usize).filter(|_| split.slot[row] != TOP);
-        vectorized(|| {
-            let mut below = Below::split(below);
-            for &s in split.bins[bin].iter().rev() {
-                let first = split.slot[self.begin[s]] as usize;
-                self.backward_supernode(values, s, local, first, locate, &mut below, |row| x[row]);
-            }
-        });
+        vectorized(
+            #[inline(always)]
+            |simd| {
+                let mut below = Below::split(below, simd);
+                for &s in split.bins[bin].iter().rev() {
+                    let first = split.slot[self.begin[s]] as usize;
+                    self.backward_supernode(values, s, local, first, locate, &mut below, |row| {
+                        x[row]
+                    });
+                }
+            },
+        );
     }
 
     /// Supernode `s`'s forward step on `x`, where its columns start at
@@ -390,24 +463,36 @@ impl Structure<'_> {
     }
 }
 
+/// The AVX2 instruction set, when the CPU has it.
+#[cfg(target_arch = "x86_64")]
+type Simd = pulp::x86::V3;
+/// No explicit SIMD off x86-64.
+#[cfg(not(target_arch = "x86_64"))]
+#[derive(Clone, Copy)]
+enum Simd {}
+
 /// Runs `f` compiled for AVX2 where the CPU has it (`pulp` dispatches at
-/// run time). Rust does not contract `a * b + c` into a fused
-/// multiply-add, so both paths compute the same bits.
+/// run time), handing it the instruction set for the kernels written with
+/// explicit 4-wide operations. Rust does not contract `a * b + c` into a
+/// fused multiply-add, and the explicit kernels do lane by lane what the
+/// plain path does, so both paths compute the same bits. Each caller's
+/// closure is `#[inline(always)]`: compiled on its own, it would not get
+/// the AVX2 target features.
 #[inline(always)]
-fn vectorized(f: impl FnOnce()) {
+fn vectorized(f: impl FnOnce(Option<Simd>)) {
     #[cfg(target_arch = "x86_64")]
     if let Some(simd) = pulp::x86::V3::try_new() {
-        struct Op<F>(F);
-        impl<F: FnOnce()> pulp::WithSimd for Op<F> {
+        struct Op<F>(F, Simd);
+        impl<F: FnOnce(Option<Simd>)> pulp::WithSimd for Op<F> {
             type Output = ();
             #[inline(always)]
             fn with_simd<S: pulp::Simd>(self, _: S) {
-                (self.0)()
+                (self.0)(Some(self.1))
             }
         }
-        return pulp::Simd::vectorize(simd, Op(f));
+        return pulp::Simd::vectorize(simd, Op(f, simd));
     }
-    f()
+    f(None)
 }
 
 /// One supernode's below-diagonal rows, one array per coordinate, so that
@@ -416,15 +501,16 @@ struct Below<'a> {
     x: &'a mut [f64],
     y: &'a mut [f64],
     z: &'a mut [f64],
+    simd: Option<Simd>,
 }
 
 impl<'a> Below<'a> {
     #[inline(always)]
-    fn split(storage: &'a mut [f64]) -> Self {
+    fn split(storage: &'a mut [f64], simd: Option<Simd>) -> Self {
         let third = storage.len() / 3;
         let (x, rest) = storage.split_at_mut(third);
         let (y, z) = rest.split_at_mut(third);
-        Self { x, y, z }
+        Self { x, y, z, simd }
     }
 
     /// `below[..r] = L_below x_top`: the forward step's update of the rows
@@ -458,29 +544,88 @@ impl<'a> Below<'a> {
     }
 
     /// `top -= L_below^T below[..r]`: the backward step's dot products, in
-    /// four fixed lanes per coordinate (deterministic order).
+    /// four fixed lanes per coordinate (deterministic order), two columns
+    /// per pass so that they share the loads of `below` and keep six
+    /// independent sums in flight (each column's sums are the same
+    /// operations in the same order as one column at a time).
     #[inline(always)]
     fn subtract_products(&self, block: &[f64], ld: usize, c: usize, top: &mut [Point], r: usize) {
         let (bx, by, bz) = (&self.x[..r], &self.y[..r], &self.z[..r]);
-        let split = r - r % 4;
-        for (j, p) in top.iter_mut().enumerate() {
-            let l = &block[j * ld + c..(j + 1) * ld];
-            let (mut sx, mut sy, mut sz) = ([0.0f64; 4], [0.0f64; 4], [0.0f64; 4]);
-            for k in (0..split).step_by(4) {
-                for lane in 0..4 {
-                    sx[lane] += l[k + lane] * bx[k + lane];
-                    sy[lane] += l[k + lane] * by[k + lane];
-                    sz[lane] += l[k + lane] * bz[k + lane];
-                }
+        let (x4, _) = bx.as_chunks::<4>();
+        let (y4, _) = by.as_chunks::<4>();
+        let (z4, _) = bz.as_chunks::<4>();
+        let column = |j: usize| &block[j * ld + c..(j + 1) * ld][..r];
+        let mut pairs = top.chunks_exact_mut(2);
+        let mut j = 0;
+        for pair in &mut pairs {
+            let (la, lb) = (column(j), column(j + 1));
+            let (a4, _) = la.as_chunks::<4>();
+            let (b4, _) = lb.as_chunks::<4>();
+            let (mut a, mut b) = (Lanes::default(), Lanes::default());
+            for ((((la, lb), x), y), z) in a4.iter().zip(b4).zip(x4).zip(y4).zip(z4) {
+                a.add(self.simd, la, x, y, z);
+                b.add(self.simd, lb, x, y, z);
             }
-            let sum = |s: [f64; 4]| (s[0] + s[1]) + (s[2] + s[3]);
-            let (mut tx, mut ty, mut tz) = (sum(sx), sum(sy), sum(sz));
-            for k in split..r {
-                tx += l[k] * bx[k];
-                ty += l[k] * by[k];
-                tz += l[k] * bz[k];
-            }
-            *p -= Point::new(tx, ty, tz);
+            pair[0] -= a.finish(la, bx, by, bz);
+            pair[1] -= b.finish(lb, bx, by, bz);
+            j += 2;
         }
+        if let [p] = pairs.into_remainder() {
+            let l = column(j);
+            let (l4, _) = l.as_chunks::<4>();
+            let mut a = Lanes::default();
+            for (((l, x), y), z) in l4.iter().zip(x4).zip(y4).zip(z4) {
+                a.add(self.simd, l, x, y, z);
+            }
+            *p -= a.finish(l, bx, by, bz);
+        }
+    }
+}
+
+/// One column's partial dot products with the three coordinate arrays of
+/// [`Below`]: four lanes per coordinate.
+#[derive(Default)]
+struct Lanes {
+    x: [f64; 4],
+    y: [f64; 4],
+    z: [f64; 4],
+}
+
+impl Lanes {
+    /// Adds four rows' products (with one 4-wide multiply and add per
+    /// coordinate where `simd` is given: the same bits).
+    #[inline(always)]
+    fn add(&mut self, simd: Option<Simd>, l: &[f64; 4], x: &[f64; 4], y: &[f64; 4], z: &[f64; 4]) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(s) = simd {
+            let wide = |a: &[f64; 4]| pulp::f64x4(a[0], a[1], a[2], a[3]);
+            let narrow = |a: pulp::f64x4| [a.0, a.1, a.2, a.3];
+            let l = wide(l);
+            self.x = narrow(s.add_f64x4(wide(&self.x), s.mul_f64x4(l, wide(x))));
+            self.y = narrow(s.add_f64x4(wide(&self.y), s.mul_f64x4(l, wide(y))));
+            self.z = narrow(s.add_f64x4(wide(&self.z), s.mul_f64x4(l, wide(z))));
+            return;
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = simd;
+        for lane in 0..4 {
+            self.x[lane] += l[lane] * x[lane];
+            self.y[lane] += l[lane] * y[lane];
+            self.z[lane] += l[lane] * z[lane];
+        }
+    }
+
+    /// The lanes summed pairwise, then the rows past the last multiple of
+    /// four of `l` added one by one.
+    #[inline(always)]
+    fn finish(&self, l: &[f64], x: &[f64], y: &[f64], z: &[f64]) -> Point {
+        let sum = |s: [f64; 4]| (s[0] + s[1]) + (s[2] + s[3]);
+        let (mut tx, mut ty, mut tz) = (sum(self.x), sum(self.y), sum(self.z));
+        for k in l.len() - l.len() % 4..l.len() {
+            tx += l[k] * x[k];
+            ty += l[k] * y[k];
+            tz += l[k] * z[k];
+        }
+        Point::new(tx, ty, tz)
     }
 }
