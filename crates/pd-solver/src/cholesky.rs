@@ -24,6 +24,7 @@ use crate::SolverError;
 mod calibration;
 #[cfg(feature = "metis")]
 mod metis;
+mod solve_kernels;
 #[cfg(test)]
 mod solve_profile;
 mod solve_tree;
