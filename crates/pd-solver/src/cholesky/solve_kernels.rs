@@ -137,11 +137,10 @@ impl<'a> Below<'a> {
 }
 
 /// `v`'s whole groups of four (the rows past the last multiple of four are
-/// left out), as arrays, so that the kernels index without bounds checks.
+/// left out).
 #[inline(always)]
-fn quads(v: &[f64]) -> impl Iterator<Item = &[f64; 4]> + Clone {
+fn quads(v: &[f64]) -> std::slice::ChunksExact<'_, f64> {
     v.chunks_exact(4)
-        .map(|quad| quad.try_into().expect("chunks_exact(4) yields four values"))
 }
 
 /// One column's partial dot products with the three coordinate arrays of
@@ -154,13 +153,14 @@ struct Lanes {
 }
 
 impl Lanes {
-    /// Adds four rows' products (with one 4-wide multiply and add per
-    /// coordinate where `simd` is given: the same bits).
+    /// Adds four rows' products (groups of four from [`quads`]; with one
+    /// 4-wide multiply and add per coordinate where `simd` is given: the
+    /// same bits).
     #[inline(always)]
-    fn add(&mut self, simd: Option<Simd>, l: &[f64; 4], x: &[f64; 4], y: &[f64; 4], z: &[f64; 4]) {
+    fn add(&mut self, simd: Option<Simd>, l: &[f64], x: &[f64], y: &[f64], z: &[f64]) {
         #[cfg(target_arch = "x86_64")]
         if let Some(s) = simd {
-            let wide = |a: &[f64; 4]| pulp::f64x4(a[0], a[1], a[2], a[3]);
+            let wide = |a: &[f64]| pulp::f64x4(a[0], a[1], a[2], a[3]);
             let narrow = |a: pulp::f64x4| [a.0, a.1, a.2, a.3];
             let l = wide(l);
             self.x = narrow(s.add_f64x4(wide(&self.x), s.mul_f64x4(l, wide(x))));
