@@ -161,8 +161,11 @@ fn ms(seconds: f64) -> f64 {
     seconds * 1e3
 }
 
+/// Solves timed after the steps of `pd-probe step` (`solve_ms_median`).
+const SOLVE_REPS: usize = 10;
+
 /// `steps` steps from rest; medians of the step and of its phases, like the
-/// C++ reference's `run`.
+/// C++ reference's `run`; then the median of [`SOLVE_REPS`] solves alone.
 fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     let model = options.value("--model").unwrap_or(UNDAMPED);
     let integrator = options.value("--integrator").unwrap_or("be");
@@ -183,6 +186,14 @@ fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     let pick = |f: fn(&pd_solver::StepStats) -> f64| -> f64 {
         ms(median(&stats.iter().map(f).collect::<Vec<_>>()))
     };
+    // The solve alone (no right-hand side assembly), per iteration: what
+    // the bench report's limits section compares with the streaming bound.
+    let mut solves = Vec::with_capacity(SOLVE_REPS);
+    for _ in 0..SOLVE_REPS {
+        let t = Instant::now();
+        sim.profile_solve().map_err(|e| e.to_string())?;
+        solves.push(ms(t.elapsed().as_secs_f64()));
+    }
     let positions = &sim.state().positions;
     let centroid = positions.iter().sum::<Point>() / positions.len() as f64;
     let min_y = positions.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
@@ -198,6 +209,7 @@ fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         "step_ms_median": pick(|s| s.total_seconds),
         "local_ms_median": pick(|s| s.local_seconds),
         "global_ms_median": pick(|s| s.global_seconds),
+        "solve_ms_median": median(&solves),
         "steps": steps,
         "iters": beam.iterations,
         "threads": beam.threads,

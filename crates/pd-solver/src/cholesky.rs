@@ -24,6 +24,9 @@ use crate::SolverError;
 mod calibration;
 #[cfg(feature = "metis")]
 mod metis;
+mod solve_kernels;
+#[cfg(test)]
+mod solve_profile;
 mod solve_tree;
 mod supernodal_solve;
 
@@ -295,6 +298,9 @@ pub(crate) struct SymbolicFactor {
     fast_solve: Option<supernodal_solve::SupernodalSolve>,
     /// The right-hand side as points, for `fast_solve`.
     points: Vec<pd_mesh::Point>,
+    /// The right-hand side as three columns, for faer's solve of points
+    /// ([`SymbolicFactor::solve_points`]; empty when `fast_solve` serves).
+    columns: faer::Mat<f64>,
 }
 
 impl std::fmt::Debug for SymbolicFactor {
@@ -364,8 +370,13 @@ impl SymbolicFactor {
         };
         let solve_scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(3, Par::Seq));
         let fast_solve = supernodal_solve::SupernodalSolve::new(&symbolic);
+        let columns = match fast_solve {
+            Some(_) => faer::Mat::zeros(0, 0),
+            None => faer::Mat::zeros(pattern.n, 3),
+        };
         Self {
             points: vec![pd_mesh::Point::zeros(); pattern.n],
+            columns,
             pattern,
             symbolic,
             factor_nnz,
@@ -466,6 +477,27 @@ impl SymbolicFactor {
             Par::Seq,
             MemStack::new(&mut scratch),
         );
+    }
+
+    /// Solves `A x = b` in place for `rhs` given as one point per row (the
+    /// global step's x, y and z at once): the supernodal solve without the
+    /// copies to and from columns, or faer's solve of three columns.
+    pub fn solve_points(&mut self, factor: &NumericFactor, rhs: &mut [pd_mesh::Point]) {
+        if let Some(fast) = &mut self.fast_solve {
+            fast.solve(&self.symbolic, &factor.values, rhs);
+            return;
+        }
+        let mut columns = std::mem::replace(&mut self.columns, faer::Mat::zeros(0, 0));
+        for (r, p) in rhs.iter().enumerate() {
+            for k in 0..3 {
+                columns[(r, k)] = p[k];
+            }
+        }
+        self.solve_in_place(factor, columns.as_mut());
+        for (r, p) in rhs.iter_mut().enumerate() {
+            *p = pd_mesh::Point::new(columns[(r, 0)], columns[(r, 1)], columns[(r, 2)]);
+        }
+        self.columns = columns;
     }
 
     /// Solves `A x = b` in place for every column of `rhs`.

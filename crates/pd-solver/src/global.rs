@@ -259,10 +259,11 @@ impl GlobalSystem {
         self.pattern.to_symmetric(&self.values(coefficients))
     }
 
-    /// Solves with cached factor `index`; `rhs` is free-vertices x 3.
-    pub fn solve(&mut self, index: usize, rhs: faer::MatMut<'_, f64>) {
+    /// Solves in place with cached factor `index`; `rhs` holds one point
+    /// per free vertex.
+    pub fn solve_points(&mut self, index: usize, rhs: &mut [pd_mesh::Point]) {
         let (_, factor) = &self.cache[index];
-        self.symbolic.solve_in_place(factor, rhs);
+        self.symbolic.solve_points(factor, rhs);
     }
 }
 

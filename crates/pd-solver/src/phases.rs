@@ -61,6 +61,29 @@ impl Simulation {
         Ok(())
     }
 
+    /// Runs the solve of the global step alone, on the right-hand side left
+    /// in the step's buffer (what [`Simulation::profile_global_solve`] does
+    /// without assembling `B p`): the part of a global iteration that
+    /// reads the factor, which `cargo xtask bench-report` compares with the
+    /// streaming bound. The solution is discarded; allocates nothing once a
+    /// factor is cached.
+    ///
+    /// # Errors
+    /// A failed factorisation, if the factor was not cached yet.
+    pub fn profile_solve(&mut self) -> Result<(), SolverError> {
+        if !self.damping.implicit_matrix().is_lagged() {
+            self.prepare_matrix()?;
+        }
+        let pool = self.pool.take();
+        let mut run = || self.global.solve(&self.scratch.iteration.rhs);
+        match &pool {
+            Some(pool) => pool.install(run),
+            None => run(),
+        }
+        self.pool = pool;
+        Ok(())
+    }
+
     /// Recomputes the numeric Cholesky factorisation of the coming step's
     /// global matrix into its existing buffer (the symbolic analysis is
     /// reused): for a constant model the cached factor is recomputed with the

@@ -7,7 +7,6 @@
 //! owns its right-hand side: callers hand it one point per free vertex and
 //! read the solution back, per free vertex.
 
-use faer::Mat;
 use pd_constraints::{ConstraintBlock, CsrMatrix};
 use pd_damping::DampingMatrix;
 use pd_integrators::StepCoefficients;
@@ -24,8 +23,9 @@ use crate::weights::DampingWeights;
 #[derive(Debug)]
 enum StepMatrix {
     /// A constant model: the index of the cached factor of this step's
-    /// coefficients, and the n_free x 3 right-hand side and solution.
-    Constant { factor: usize, rhs: Mat<f64> },
+    /// coefficients, and the right-hand side and solution (one point per
+    /// free vertex).
+    Constant { factor: usize, rhs: Vec<Point> },
     /// A lagged model: refactorised every step (boxed: it is large and there
     /// is one per simulation).
     Lagged(Box<LaggedSystem>),
@@ -100,7 +100,7 @@ impl GlobalStep {
         } else {
             StepMatrix::Constant {
                 factor: usize::MAX,
-                rhs: Mat::zeros(system.free.len(), 3),
+                rhs: vec![Point::zeros(); system.free.len()],
             }
         };
         Ok(Self { system, matrix })
@@ -309,13 +309,12 @@ impl GlobalStep {
     /// [`GlobalStep::prepare`] since the last change of coefficients.
     pub fn solve(&mut self, rhs: &[Point]) {
         match &mut self.matrix {
-            StepMatrix::Constant { factor, rhs: mat } => {
-                for (f, p) in rhs.iter().enumerate() {
-                    for k in 0..3 {
-                        mat[(f, k)] = p[k];
-                    }
-                }
-                self.system.solve(*factor, mat.as_mut());
+            StepMatrix::Constant {
+                factor,
+                rhs: points,
+            } => {
+                points.copy_from_slice(rhs);
+                self.system.solve_points(*factor, points);
             }
             StepMatrix::Lagged(lagged) => lagged.solve(rhs),
         }
@@ -325,7 +324,7 @@ impl GlobalStep {
     #[inline]
     pub fn solution(&self, f: usize) -> Point {
         match &self.matrix {
-            StepMatrix::Constant { rhs, .. } => Point::new(rhs[(f, 0)], rhs[(f, 1)], rhs[(f, 2)]),
+            StepMatrix::Constant { rhs, .. } => rhs[f],
             StepMatrix::Lagged(lagged) => lagged.solution(f),
         }
     }

@@ -16,7 +16,7 @@ use super::*;
 
 /// The lower pattern of a tet mesh's vertex graph (what the global matrix of
 /// tet strain has), diagonal included.
-fn tet_pattern(mesh: &pd_mesh::Mesh) -> LowerPattern {
+pub(super) fn tet_pattern(mesh: &pd_mesh::Mesh) -> LowerPattern {
     let n = mesh.num_vertices();
     let mut columns: Vec<Vec<usize>> = (0..n).map(|c| vec![c]).collect();
     for tet in mesh.tets() {
@@ -43,7 +43,7 @@ fn tet_pattern(mesh: &pd_mesh::Mesh) -> LowerPattern {
 }
 
 /// Values of `I + graph Laplacian` on `pattern`: symmetric positive definite.
-fn laplacian_values(p: &LowerPattern) -> Vec<f64> {
+pub(super) fn laplacian_values(p: &LowerPattern) -> Vec<f64> {
     let mut degree = vec![1.0; p.n];
     for c in 0..p.n {
         for &r in &p.row_idx[p.col_ptr[c]..p.col_ptr[c + 1]] {

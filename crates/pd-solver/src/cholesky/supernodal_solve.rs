@@ -26,6 +26,7 @@ use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
 use pd_mesh::Point;
 
+use super::solve_kernels::{Below, vectorized};
 use super::solve_tree::{TOP, TreeSplit};
 
 /// The supernodal structure of a factor: a view of faer's symbolic
@@ -162,6 +163,56 @@ impl SupernodalSolve {
         }
     }
 
+    /// [`Self::solve`] in its four parts, timed: the permutation in, the
+    /// forward and the backward substitution, the permutation out (seconds
+    /// of `clock` each; `solve_profile.rs`).
+    #[cfg(test)]
+    pub fn solve_timed(
+        &mut self,
+        symbolic: &SymbolicCholesky<usize>,
+        values: &[f64],
+        rhs: &mut [Point],
+        clock: &dyn Fn() -> f64,
+    ) -> [f64; 4] {
+        let structure = Structure::of(symbolic).expect("the plan of a supernodal factor");
+        let forward = symbolic
+            .perm()
+            .map(|p| p.arrays().0)
+            .expect("a permuted factor");
+        let t0 = clock();
+        for (x, &old) in self.x.iter_mut().zip(forward) {
+            *x = rhs[old];
+        }
+        let t1 = clock();
+        self.forward_substitution(&structure, values);
+        let t2 = clock();
+        self.backward_substitution(&structure, values);
+        let t3 = clock();
+        for (x, &old) in self.x.iter().zip(forward) {
+            rhs[old] = *x;
+        }
+        [t1 - t0, t2 - t1, t3 - t2, clock() - t3]
+    }
+
+    /// The supernodes by width class `(widest width, count, values of the
+    /// diagonal blocks' lower triangles, values below them)`, classes
+    /// 1, 2-3, 4-7, ..., for `solve_profile.rs`.
+    #[cfg(test)]
+    pub fn width_classes(symbolic: &SymbolicCholesky<usize>) -> Vec<(usize, usize, usize, usize)> {
+        let structure = Structure::of(symbolic).expect("a supernodal factor");
+        let mut classes = vec![(0, 0, 0, 0); 16];
+        for s in 0..structure.begin.len() {
+            let c = structure.end[s] - structure.begin[s];
+            let class = &mut classes[c.ilog2() as usize];
+            class.0 = class.0.max(c);
+            class.1 += 1;
+            class.2 += c * (c + 1) / 2;
+            class.3 += c * structure.row_len[s];
+        }
+        classes.retain(|class| class.1 > 0);
+        classes
+    }
+
     /// `x <- L^-1 x`: the bins' subtrees (at once when there are two
     /// threads), their updates of the top's rows subtracted bin 0 first,
     /// then the top's supernodes in order.
@@ -189,13 +240,16 @@ impl SupernodalSolve {
                 }
             }
         }
-        vectorized(|| {
-            let mut below = Below::split(below);
-            for &s in &split.top {
-                let first = structure.begin[s];
-                structure.forward_supernode(values, s, x, first, Some, &mut below, |_, _| {});
-            }
-        });
+        vectorized(
+            #[inline(always)]
+            |simd| {
+                let mut below = Below::split(below, simd);
+                for &s in &split.top {
+                    let first = structure.begin[s];
+                    structure.forward_supernode(values, s, x, first, Some, &mut below, |_, _| {});
+                }
+            },
+        );
     }
 
     /// `x <- L^-T x`: the top's supernodes in reverse order, then the bins'
@@ -209,14 +263,18 @@ impl SupernodalSolve {
             lanes,
             ..
         } = self;
-        vectorized(|| {
-            let mut below = Below::split(below);
-            for &s in split.top.iter().rev() {
-                let first = structure.begin[s];
-                structure
-                    .backward_supernode(values, s, x, first, Some, &mut below, |_| Point::zeros());
-            }
-        });
+        vectorized(
+            #[inline(always)]
+            |simd| {
+                let mut below = Below::split(below, simd);
+                for &s in split.top.iter().rev() {
+                    let first = structure.begin[s];
+                    structure.backward_supernode(values, s, x, first, Some, &mut below, |_| {
+                        Point::zeros()
+                    });
+                }
+            },
+        );
         if split.is_split() {
             let [lane0, lane1] = lanes;
             let shared: &[Point] = x;
@@ -275,15 +333,26 @@ impl Structure<'_> {
             *p = x[column];
         }
         let locate = |row: usize| Some(split.slot[row] as usize).filter(|_| split.slot[row] != TOP);
-        vectorized(|| {
-            let mut below = Below::split(below);
-            for &s in &split.bins[bin] {
-                let first = split.slot[self.begin[s]] as usize;
-                self.forward_supernode(values, s, local, first, locate, &mut below, |row, u| {
-                    top_updates[split.top_position[row] as usize] += u;
-                });
-            }
-        });
+        vectorized(
+            #[inline(always)]
+            |simd| {
+                let mut below = Below::split(below, simd);
+                for &s in &split.bins[bin] {
+                    let first = split.slot[self.begin[s]] as usize;
+                    self.forward_supernode(
+                        values,
+                        s,
+                        local,
+                        first,
+                        locate,
+                        &mut below,
+                        |row, u| {
+                            top_updates[split.top_position[row] as usize] += u;
+                        },
+                    );
+                }
+            },
+        );
     }
 
     /// Backward substitution over bin `bin`'s supernodes, on a compact copy
@@ -303,13 +372,18 @@ impl Structure<'_> {
             *p = x[column];
         }
         let locate = |row: usize| Some(split.slot[row] as usize).filter(|_| split.slot[row] != TOP);
-        vectorized(|| {
-            let mut below = Below::split(below);
-            for &s in split.bins[bin].iter().rev() {
-                let first = split.slot[self.begin[s]] as usize;
-                self.backward_supernode(values, s, local, first, locate, &mut below, |row| x[row]);
-            }
-        });
+        vectorized(
+            #[inline(always)]
+            |simd| {
+                let mut below = Below::split(below, simd);
+                for &s in split.bins[bin].iter().rev() {
+                    let first = split.slot[self.begin[s]] as usize;
+                    self.backward_supernode(values, s, local, first, locate, &mut below, |row| {
+                        x[row]
+                    });
+                }
+            },
+        );
     }
 
     /// Supernode `s`'s forward step on `x`, where its columns start at
@@ -386,101 +460,6 @@ impl Structure<'_> {
                 sum -= top[j + 1 + i] * l;
             }
             top[j] = sum / column[j];
-        }
-    }
-}
-
-/// Runs `f` compiled for AVX2 where the CPU has it (`pulp` dispatches at
-/// run time). Rust does not contract `a * b + c` into a fused
-/// multiply-add, so both paths compute the same bits.
-#[inline(always)]
-fn vectorized(f: impl FnOnce()) {
-    #[cfg(target_arch = "x86_64")]
-    if let Some(simd) = pulp::x86::V3::try_new() {
-        struct Op<F>(F);
-        impl<F: FnOnce()> pulp::WithSimd for Op<F> {
-            type Output = ();
-            #[inline(always)]
-            fn with_simd<S: pulp::Simd>(self, _: S) {
-                (self.0)()
-            }
-        }
-        return pulp::Simd::vectorize(simd, Op(f));
-    }
-    f()
-}
-
-/// One supernode's below-diagonal rows, one array per coordinate, so that
-/// the loops over rows run four rows per instruction.
-struct Below<'a> {
-    x: &'a mut [f64],
-    y: &'a mut [f64],
-    z: &'a mut [f64],
-}
-
-impl<'a> Below<'a> {
-    #[inline(always)]
-    fn split(storage: &'a mut [f64]) -> Self {
-        let third = storage.len() / 3;
-        let (x, rest) = storage.split_at_mut(third);
-        let (y, z) = rest.split_at_mut(third);
-        Self { x, y, z }
-    }
-
-    /// `below[..r] = L_below x_top`: the forward step's update of the rows
-    /// below the supernode, four columns at a time.
-    #[inline(always)]
-    fn update(&mut self, block: &[f64], ld: usize, c: usize, top: &[Point], r: usize) {
-        let (bx, by, bz) = (&mut self.x[..r], &mut self.y[..r], &mut self.z[..r]);
-        bx.fill(0.0);
-        by.fill(0.0);
-        bz.fill(0.0);
-        let column = |j: usize| &block[j * ld + c..(j + 1) * ld];
-        let mut j = 0;
-        while j + 4 <= c {
-            let (l0, l1, l2, l3) = (column(j), column(j + 1), column(j + 2), column(j + 3));
-            let (p0, p1, p2, p3) = (top[j], top[j + 1], top[j + 2], top[j + 3]);
-            for k in 0..r {
-                bx[k] += p0.x * l0[k] + p1.x * l1[k] + p2.x * l2[k] + p3.x * l3[k];
-                by[k] += p0.y * l0[k] + p1.y * l1[k] + p2.y * l2[k] + p3.y * l3[k];
-                bz[k] += p0.z * l0[k] + p1.z * l1[k] + p2.z * l2[k] + p3.z * l3[k];
-            }
-            j += 4;
-        }
-        for (j, p) in top.iter().enumerate().skip(j) {
-            let l = column(j);
-            for k in 0..r {
-                bx[k] += p.x * l[k];
-                by[k] += p.y * l[k];
-                bz[k] += p.z * l[k];
-            }
-        }
-    }
-
-    /// `top -= L_below^T below[..r]`: the backward step's dot products, in
-    /// four fixed lanes per coordinate (deterministic order).
-    #[inline(always)]
-    fn subtract_products(&self, block: &[f64], ld: usize, c: usize, top: &mut [Point], r: usize) {
-        let (bx, by, bz) = (&self.x[..r], &self.y[..r], &self.z[..r]);
-        let split = r - r % 4;
-        for (j, p) in top.iter_mut().enumerate() {
-            let l = &block[j * ld + c..(j + 1) * ld];
-            let (mut sx, mut sy, mut sz) = ([0.0f64; 4], [0.0f64; 4], [0.0f64; 4]);
-            for k in (0..split).step_by(4) {
-                for lane in 0..4 {
-                    sx[lane] += l[k + lane] * bx[k + lane];
-                    sy[lane] += l[k + lane] * by[k + lane];
-                    sz[lane] += l[k + lane] * bz[k + lane];
-                }
-            }
-            let sum = |s: [f64; 4]| (s[0] + s[1]) + (s[2] + s[3]);
-            let (mut tx, mut ty, mut tz) = (sum(sx), sum(sy), sum(sz));
-            for k in split..r {
-                tx += l[k] * bx[k];
-                ty += l[k] * by[k];
-                tz += l[k] * bz[k];
-            }
-            *p -= Point::new(tx, ty, tz);
         }
     }
 }

@@ -1,0 +1,193 @@
+//! The dense kernels of the supernodal solve (`supernodal_solve.rs`): the
+//! AVX2 dispatch and one supernode's rows below its diagonal block, with the
+//! forward step's update and the backward step's dot products.
+//!
+//! Every kernel computes each value with the same operations in the same
+//! order on every CPU (4 fixed lanes, no fused multiply-add), so the AVX2
+//! and the plain path give the same bits.
+
+use pd_mesh::Point;
+
+/// The AVX2 instruction set, when the CPU has it.
+#[cfg(target_arch = "x86_64")]
+pub(super) type Simd = pulp::x86::V3;
+/// No explicit SIMD off x86-64.
+#[cfg(not(target_arch = "x86_64"))]
+#[derive(Clone, Copy)]
+pub(super) enum Simd {}
+
+/// Runs `f` compiled for AVX2 where the CPU has it (`pulp` dispatches at
+/// run time), handing it the instruction set for the kernels written with
+/// explicit 4-wide operations. Rust does not contract `a * b + c` into a
+/// fused multiply-add, and the explicit kernels do lane by lane what the
+/// plain path does, so both paths compute the same bits. Each caller's
+/// closure is `#[inline(always)]`: compiled on its own, it would not get
+/// the AVX2 target features.
+#[inline(always)]
+pub(super) fn vectorized(f: impl FnOnce(Option<Simd>)) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(simd) = pulp::x86::V3::try_new() {
+        struct Op<F>(F, Simd);
+        impl<F: FnOnce(Option<Simd>)> pulp::WithSimd for Op<F> {
+            type Output = ();
+            #[inline(always)]
+            fn with_simd<S: pulp::Simd>(self, _: S) {
+                (self.0)(Some(self.1))
+            }
+        }
+        return pulp::Simd::vectorize(simd, Op(f, simd));
+    }
+    f(None)
+}
+
+/// One supernode's below-diagonal rows, one array per coordinate, so that
+/// the loops over rows run four rows per instruction.
+pub(super) struct Below<'a> {
+    pub x: &'a mut [f64],
+    pub y: &'a mut [f64],
+    pub z: &'a mut [f64],
+    simd: Option<Simd>,
+}
+
+impl<'a> Below<'a> {
+    #[inline(always)]
+    pub fn split(storage: &'a mut [f64], simd: Option<Simd>) -> Self {
+        let third = storage.len() / 3;
+        let (x, rest) = storage.split_at_mut(third);
+        let (y, z) = rest.split_at_mut(third);
+        Self { x, y, z, simd }
+    }
+
+    /// `below[..r] = L_below x_top`: the forward step's update of the rows
+    /// below the supernode, four columns at a time.
+    #[inline(always)]
+    pub fn update(&mut self, block: &[f64], ld: usize, c: usize, top: &[Point], r: usize) {
+        let (bx, by, bz) = (&mut self.x[..r], &mut self.y[..r], &mut self.z[..r]);
+        bx.fill(0.0);
+        by.fill(0.0);
+        bz.fill(0.0);
+        let column = |j: usize| &block[j * ld + c..(j + 1) * ld];
+        let mut j = 0;
+        while j + 4 <= c {
+            let (l0, l1, l2, l3) = (column(j), column(j + 1), column(j + 2), column(j + 3));
+            let (p0, p1, p2, p3) = (top[j], top[j + 1], top[j + 2], top[j + 3]);
+            for k in 0..r {
+                bx[k] += p0.x * l0[k] + p1.x * l1[k] + p2.x * l2[k] + p3.x * l3[k];
+                by[k] += p0.y * l0[k] + p1.y * l1[k] + p2.y * l2[k] + p3.y * l3[k];
+                bz[k] += p0.z * l0[k] + p1.z * l1[k] + p2.z * l2[k] + p3.z * l3[k];
+            }
+            j += 4;
+        }
+        for (j, p) in top.iter().enumerate().skip(j) {
+            let l = column(j);
+            for k in 0..r {
+                bx[k] += p.x * l[k];
+                by[k] += p.y * l[k];
+                bz[k] += p.z * l[k];
+            }
+        }
+    }
+
+    /// `top -= L_below^T below[..r]`: the backward step's dot products, in
+    /// four fixed lanes per coordinate (deterministic order), two columns
+    /// per pass so that they share the loads of `below` and keep six
+    /// independent sums in flight (each column's sums are the same
+    /// operations in the same order as one column at a time).
+    #[inline(always)]
+    pub fn subtract_products(
+        &self,
+        block: &[f64],
+        ld: usize,
+        c: usize,
+        top: &mut [Point],
+        r: usize,
+    ) {
+        let (bx, by, bz) = (&self.x[..r], &self.y[..r], &self.z[..r]);
+        let x4 = quads(bx);
+        let y4 = quads(by);
+        let z4 = quads(bz);
+        let column = |j: usize| &block[j * ld + c..(j + 1) * ld][..r];
+        let mut pairs = top.chunks_exact_mut(2);
+        let mut j = 0;
+        for pair in &mut pairs {
+            let (la, lb) = (column(j), column(j + 1));
+            let a4 = quads(la);
+            let b4 = quads(lb);
+            let (mut a, mut b) = (Lanes::default(), Lanes::default());
+            for ((((la, lb), x), y), z) in
+                a4.zip(b4).zip(x4.clone()).zip(y4.clone()).zip(z4.clone())
+            {
+                a.add(self.simd, la, x, y, z);
+                b.add(self.simd, lb, x, y, z);
+            }
+            pair[0] -= a.finish(la, bx, by, bz);
+            pair[1] -= b.finish(lb, bx, by, bz);
+            j += 2;
+        }
+        if let [p] = pairs.into_remainder() {
+            let l = column(j);
+            let l4 = quads(l);
+            let mut a = Lanes::default();
+            for (((l, x), y), z) in l4.zip(x4).zip(y4).zip(z4) {
+                a.add(self.simd, l, x, y, z);
+            }
+            *p -= a.finish(l, bx, by, bz);
+        }
+    }
+}
+
+/// `v`'s whole groups of four (the rows past the last multiple of four are
+/// left out).
+#[inline(always)]
+fn quads(v: &[f64]) -> std::slice::ChunksExact<'_, f64> {
+    v.chunks_exact(4)
+}
+
+/// One column's partial dot products with the three coordinate arrays of
+/// [`Below`]: four lanes per coordinate.
+#[derive(Default)]
+struct Lanes {
+    x: [f64; 4],
+    y: [f64; 4],
+    z: [f64; 4],
+}
+
+impl Lanes {
+    /// Adds four rows' products (groups of four from [`quads`]; with one
+    /// 4-wide multiply and add per coordinate where `simd` is given: the
+    /// same bits).
+    #[inline(always)]
+    fn add(&mut self, simd: Option<Simd>, l: &[f64], x: &[f64], y: &[f64], z: &[f64]) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(s) = simd {
+            let wide = |a: &[f64]| pulp::f64x4(a[0], a[1], a[2], a[3]);
+            let narrow = |a: pulp::f64x4| [a.0, a.1, a.2, a.3];
+            let l = wide(l);
+            self.x = narrow(s.add_f64x4(wide(&self.x), s.mul_f64x4(l, wide(x))));
+            self.y = narrow(s.add_f64x4(wide(&self.y), s.mul_f64x4(l, wide(y))));
+            self.z = narrow(s.add_f64x4(wide(&self.z), s.mul_f64x4(l, wide(z))));
+            return;
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = simd;
+        for lane in 0..4 {
+            self.x[lane] += l[lane] * x[lane];
+            self.y[lane] += l[lane] * y[lane];
+            self.z[lane] += l[lane] * z[lane];
+        }
+    }
+
+    /// The lanes summed pairwise, then the rows past the last multiple of
+    /// four of `l` added one by one.
+    #[inline(always)]
+    fn finish(&self, l: &[f64], x: &[f64], y: &[f64], z: &[f64]) -> Point {
+        let sum = |s: [f64; 4]| (s[0] + s[1]) + (s[2] + s[3]);
+        let (mut tx, mut ty, mut tz) = (sum(self.x), sum(self.y), sum(self.z));
+        for k in l.len() - l.len() % 4..l.len() {
+            tx += l[k] * x[k];
+            ty += l[k] * y[k];
+            tz += l[k] * z[k];
+        }
+        Point::new(tx, ty, tz)
+    }
+}

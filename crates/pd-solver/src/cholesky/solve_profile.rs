@@ -1,0 +1,80 @@
+//! Where a 3-column supernodal solve spends its time (ignored: it times
+//! solves, so its numbers mean something only on a quiet machine):
+//!
+//! ```sh
+//! cargo test -p pd-solver --lib solve_profile -- --ignored --nocapture
+//! ```
+//!
+//! For the 80 x 14 x 14 beam of the bench report's limits section and the
+//! TetGen armadillo (skipped if absent) it prints the supernodes by width
+//! class (how many, the values of their diagonal blocks' lower triangles and
+//! below them) and the minimum and median wall time (one thread) of the solve's four parts: the
+//! permutation in, the forward and backward substitutions, the permutation
+//! out (docs/performance.md, "Where the global step's time goes").
+
+use super::calibration::{laplacian_values, tet_pattern};
+use super::supernodal_solve::SupernodalSolve;
+use super::*;
+
+fn profile(label: &str, mesh: &pd_mesh::Mesh) {
+    let pattern = tet_pattern(mesh);
+    let candidates = dissection_candidates(&pattern, mesh.vertices());
+    let mut factor = SymbolicFactor::analyse(pattern, &candidates).unwrap();
+    let values = laplacian_values(factor.pattern());
+    let numeric = factor.factorise(&values).expect("diagonally dominant");
+    let n = factor.pattern().n;
+    println!(
+        "{label}: {n} unknowns, {} stored values ({:.1} MB), {} supernodes",
+        factor.factor_len(),
+        8.0 * factor.factor_len() as f64 / 1e6,
+        factor.supernodes()
+    );
+    println!("  width <= | supernodes | diagonal values | below values");
+    for (widest, count, diagonal, below) in SupernodalSolve::width_classes(&factor.symbolic) {
+        println!("  {widest:>8} | {count:>10} | {diagonal:>15} | {below:>12}");
+    }
+    let mut rhs: Vec<pd_mesh::Point> = (0..n)
+        .map(|i| pd_mesh::Point::new((i % 13) as f64, (i % 7) as f64, (i % 5) as f64))
+        .collect();
+    let mut solve = factor.fast_solve.take().expect("a supernodal factor");
+    let rounds = 41;
+    let mut parts: [Vec<f64>; 4] = Default::default();
+    // One thread (the bins run one after the other); wall time against a
+    // fixed start, read as a minimum over the rounds on a busy machine.
+    let start = std::time::Instant::now();
+    let clock = || start.elapsed().as_secs_f64();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    pool.install(|| {
+        for _ in 0..rounds {
+            let timed = solve.solve_timed(&factor.symbolic, &numeric.values, &mut rhs, &clock);
+            for (part, t) in parts.iter_mut().zip(timed) {
+                part.push(t);
+            }
+        }
+    });
+    let [a, b, c, d] = parts.each_mut().map(|v| {
+        v.sort_by(f64::total_cmp);
+        (v[0] * 1e3, v[v.len() / 2] * 1e3)
+    });
+    println!(
+        "  ms min / median, 1 thread: permute in {:.3} / {:.3}, forward {:.3} / {:.3}, \
+         backward {:.3} / {:.3}, permute out {:.3} / {:.3}",
+        a.0, a.1, b.0, b.1, c.0, c.1, d.0, d.1
+    );
+}
+
+#[test]
+#[ignore = "timing: run on a quiet machine"]
+fn solve_profile() {
+    let beam = pd_mesh::generators::box_tets([1.0, 0.2, 0.2], [80, 14, 14]).unwrap();
+    profile("beam 80 x 14 x 14", &beam);
+    let armadillo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/meshes/armadillo/armadillo");
+    match pd_io::tetgen::read_tetgen_base(&armadillo) {
+        Ok(mesh) => profile("armadillo", &mesh),
+        Err(e) => println!("armadillo skipped: {e}"),
+    }
+}
