@@ -156,6 +156,33 @@ mod tests {
         }
     }
 
+    /// `ConstraintSet::energy_range`, which projects in batches, gives the
+    /// one-at-a-time sum `sum w/2 |G q - P(G q)|^2` to the bit; the list is
+    /// taken three times so that the range spans several energy batches
+    /// and ends in a partial one.
+    fn assert_energy_bit_identical(constraints: &[TetStrain], q: &[Point]) {
+        use crate::{ConstraintBlock, ConstraintSet};
+        let repeated: Vec<TetStrain> = (0..3).flat_map(|_| constraints.iter().cloned()).collect();
+        let mut gx = [Point::zeros(); 3];
+        let one_by_one: f64 = repeated
+            .iter()
+            .map(|c| {
+                apply_operator(c, q, &mut gx);
+                let mut p = [Point::zeros(); 3];
+                c.project(&gx, &mut p);
+                let distance2: f64 = (0..3).map(|r| (gx[r] - p[r]).norm_squared()).sum();
+                0.5 * c.weight() * distance2
+            })
+            .sum();
+        let n = repeated.len();
+        let batched = ConstraintSet::new(repeated).energy_range(q, 0..n);
+        assert_eq!(
+            batched.to_bits(),
+            one_by_one.to_bits(),
+            "{batched} vs {one_by_one}"
+        );
+    }
+
     /// Elements over a random cloud of 8 points: each takes 4 distinct
     /// points, the rest shape (the cloud's rest positions) decides which
     /// combinations are valid; positions are the rest ones mapped by a
@@ -228,6 +255,7 @@ mod tests {
             let noise = noise.map(|n| n.map(|v| v * noise_size));
             let (constraints, q) = elements_and_positions(&rest, a, &noise, log_scale, limited);
             assert_bit_identical(&constraints, &q);
+            assert_energy_bit_identical(&constraints, &q);
         }
     }
 
@@ -250,6 +278,7 @@ mod tests {
             assert!(constraints.len() >= 8, "{} elements", constraints.len());
             q[5].y = bad;
             assert_bit_identical(&constraints, &q);
+            assert_energy_bit_identical(&constraints, &q);
         }
     }
 }
