@@ -4,6 +4,7 @@
 use pd_constraints::assembly::{self, LaplacianKind};
 use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
 use pd_mesh::{Mesh, Point, VertexSelection};
+use pd_solver::contact::{Collider, ColliderShape};
 use pd_solver::{BodyId, Model, Simulation};
 
 /// Unit round-off of f64.
@@ -108,4 +109,40 @@ pub fn momentum(sim: &Simulation) -> Point {
     (s.velocities.iter().zip(sim.model().masses()))
         .map(|(v, m)| v * *m)
         .sum()
+}
+
+/// Adds a cube of side `size` (m), `cells` per side, 1000 kg/m^3,
+/// tet-strain stiffness `k` (Pa), its lowest face centred at `bottom`.
+pub fn add_cube(model: &mut Model, size: f64, cells: usize, k: f64, bottom: Point) {
+    let mesh = pd_mesh::generators::box_tets([size; 3], [cells; 3]).unwrap();
+    let (lo, hi) = mesh.bounding_box().unwrap();
+    let centre = (lo + hi) / 2.0;
+    let offset = bottom - Point::new(centre.x, lo.y, centre.z);
+    let mesh = mesh.translated(offset);
+    let masses = mesh.lumped_masses(1000.0).unwrap();
+    let body = model.add_body(mesh, masses).unwrap();
+    model.add_tet_strain(body, k, None).unwrap();
+}
+
+/// The contact tests' stack: a 0.2 m cube (3 cells, 1e5 Pa) whose lowest
+/// face is `gap` (m) above the floor, and a 0.1 m cube (2 cells, 1e5 Pa)
+/// 0.05 m above it, off-centre by 2 cm so that no vertex meets a vertex.
+pub fn stacked_cubes(gap: f64) -> Model {
+    let mut model = Model::new();
+    add_cube(&mut model, 0.2, 3, 1e5, Point::new(0.0, gap, 0.0));
+    add_cube(&mut model, 0.1, 2, 1e5, Point::new(0.02, 0.25, 0.01));
+    model
+}
+
+/// The floor plane `y = 0` with Coulomb coefficient `friction`, no
+/// restitution.
+pub fn floor(friction: f64) -> Collider {
+    Collider {
+        shape: ColliderShape::Plane {
+            point: Point::zeros(),
+            normal: Point::y(),
+        },
+        friction,
+        restitution: 0.0,
+    }
 }

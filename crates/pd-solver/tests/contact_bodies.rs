@@ -4,39 +4,14 @@
 
 mod common;
 
-use common::momentum;
+use common::{add_cube, floor, momentum, stacked_cubes};
 use pd_damping::{Damping, LaplacianDamping, NoDamping};
 use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
-use pd_mesh::{Point, generators};
-use pd_solver::contact::{BodyContactSettings, Collider, ColliderShape, ContactSettings};
+use pd_mesh::Point;
+use pd_solver::contact::{BodyContactSettings, Collider, ContactSettings};
 use pd_solver::{Model, Settings, Simulation};
 
-const DENSITY: f64 = 1000.0;
 const THICKNESS: f64 = 0.001;
-
-/// Adds a cube of side `size` (m), `cells` per side, tet-strain stiffness
-/// `k` (Pa), its lowest face centred at `bottom`.
-fn add_cube(model: &mut Model, size: f64, cells: usize, k: f64, bottom: Point) {
-    let mesh = generators::box_tets([size; 3], [cells; 3]).unwrap();
-    let (lo, hi) = mesh.bounding_box().unwrap();
-    let centre = (lo + hi) / 2.0;
-    let offset = bottom - Point::new(centre.x, lo.y, centre.z);
-    let mesh = mesh.translated(offset);
-    let masses = mesh.lumped_masses(DENSITY).unwrap();
-    let body = model.add_body(mesh, masses).unwrap();
-    model.add_tet_strain(body, k, None).unwrap();
-}
-
-fn floor() -> Collider {
-    Collider {
-        shape: ColliderShape::Plane {
-            point: Point::zeros(),
-            normal: Point::y(),
-        },
-        friction: 0.5,
-        restitution: 0.0,
-    }
-}
 
 fn simulation(
     model: Model,
@@ -60,9 +35,7 @@ fn simulation(
 /// 1e5 Pa) resting on the floor, off-centre by 2 cm so that no vertex
 /// meets a vertex; `steps` of 5 ms.
 fn stack(integrator: Box<dyn Integrator>, damping: Box<dyn Damping>, threads: usize) -> Simulation {
-    let mut model = Model::new();
-    add_cube(&mut model, 0.2, 3, 1e5, Point::new(0.0, THICKNESS, 0.0));
-    add_cube(&mut model, 0.1, 2, 1e5, Point::new(0.02, 0.25, 0.01));
+    let model = stacked_cubes(THICKNESS);
     let settings = Settings {
         dt: 0.005,
         iterations: 20,
@@ -70,7 +43,7 @@ fn stack(integrator: Box<dyn Integrator>, damping: Box<dyn Damping>, threads: us
         threads,
         ..Settings::default()
     };
-    simulation(model, integrator, damping, settings, vec![floor()])
+    simulation(model, integrator, damping, settings, vec![floor(0.5)])
 }
 
 /// A test case: its name, integrator and damping model.

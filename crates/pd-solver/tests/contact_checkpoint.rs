@@ -8,12 +8,13 @@
 //! left out and requires a different end: the contacts it carries matter,
 //! so the comparison can fail.
 
+mod common;
+
+use common::{floor, stacked_cubes};
 use pd_damping::NoDamping;
 use pd_integrators::{BackwardEuler, Bdf2, Integrator};
 use pd_mesh::{Point, generators};
-use pd_solver::contact::{
-    BodyContactSettings, Collider, ColliderShape, ContactCheckpoint, ContactSettings, SurfacePairs,
-};
+use pd_solver::contact::{BodyContactSettings, ContactCheckpoint, ContactSettings, SurfacePairs};
 use pd_solver::{Checkpoint, Model, Settings, Simulation};
 
 /// Runs `build()` for `n` steps straight, and for `n / 2` steps,
@@ -128,19 +129,7 @@ fn a_cloth_folding_onto_itself_resumes_bit_for_bit() {
 /// cells) resting on the floor, 2 cm off-centre (`contact_bodies.rs`),
 /// BDF-2 (a history to carry), `pairs` between the surfaces.
 fn stack(pairs: SurfacePairs) -> Simulation {
-    let mut model = Model::new();
-    for (size, cells, bottom) in [
-        (0.2, 3, Point::new(0.0, 0.001, 0.0)),
-        (0.1, 2, Point::new(0.02, 0.25, 0.01)),
-    ] {
-        let mesh = generators::box_tets([size; 3], [cells; 3]).unwrap();
-        let (lo, hi) = mesh.bounding_box().unwrap();
-        let centre = (lo + hi) / 2.0;
-        let mesh = mesh.translated(bottom - Point::new(centre.x, lo.y, centre.z));
-        let masses = mesh.lumped_masses(1000.0).unwrap();
-        let body = model.add_body(mesh, masses).unwrap();
-        model.add_tet_strain(body, 1e5, None).unwrap();
-    }
+    let model = stacked_cubes(0.001);
     let settings = Settings {
         dt: 0.005,
         iterations: 20,
@@ -150,16 +139,8 @@ fn stack(pairs: SurfacePairs) -> Simulation {
     };
     let integrator: Box<dyn Integrator> = Box::new(Bdf2::new());
     let mut sim = Simulation::new(model, integrator, Box::new(NoDamping), settings).unwrap();
-    let floor = Collider {
-        shape: ColliderShape::Plane {
-            point: Point::zeros(),
-            normal: Point::y(),
-        },
-        friction: 0.5,
-        restitution: 0.0,
-    };
     sim.set_contact(ContactSettings {
-        colliders: vec![floor],
+        colliders: vec![floor(0.5)],
         thickness: 0.001,
     })
     .unwrap();

@@ -143,6 +143,14 @@ impl SupernodalSolve {
     pub fn solve(&mut self, symbolic: &SymbolicCholesky<usize>, values: &[f64], rhs: &mut [Point]) {
         let structure = Structure::of(symbolic).expect("the plan of a supernodal factor");
         let forward = symbolic.perm().map(|p| p.arrays().0);
+        self.permute_in(forward, rhs);
+        self.forward_substitution(&structure, values);
+        self.backward_substitution(&structure, values);
+        self.permute_out(forward, rhs);
+    }
+
+    /// `x = P rhs`: the right-hand side in the factor's order.
+    fn permute_in(&mut self, forward: Option<&[usize]>, rhs: &[Point]) {
         match forward {
             Some(forward) => {
                 for (x, &old) in self.x.iter_mut().zip(forward) {
@@ -151,8 +159,10 @@ impl SupernodalSolve {
             }
             None => self.x.copy_from_slice(rhs),
         }
-        self.forward_substitution(&structure, values);
-        self.backward_substitution(&structure, values);
+    }
+
+    /// `rhs = P^T x`: the solution back in the caller's order.
+    fn permute_out(&self, forward: Option<&[usize]>, rhs: &mut [Point]) {
         match forward {
             Some(forward) => {
                 for (x, &old) in self.x.iter().zip(forward) {
@@ -175,22 +185,15 @@ impl SupernodalSolve {
         clock: &dyn Fn() -> f64,
     ) -> [f64; 4] {
         let structure = Structure::of(symbolic).expect("the plan of a supernodal factor");
-        let forward = symbolic
-            .perm()
-            .map(|p| p.arrays().0)
-            .expect("a permuted factor");
+        let forward = symbolic.perm().map(|p| p.arrays().0);
         let t0 = clock();
-        for (x, &old) in self.x.iter_mut().zip(forward) {
-            *x = rhs[old];
-        }
+        self.permute_in(forward, rhs);
         let t1 = clock();
         self.forward_substitution(&structure, values);
         let t2 = clock();
         self.backward_substitution(&structure, values);
         let t3 = clock();
-        for (x, &old) in self.x.iter().zip(forward) {
-            rhs[old] = *x;
-        }
+        self.permute_out(forward, rhs);
         [t1 - t0, t2 - t1, t3 - t2, clock() - t3]
     }
 

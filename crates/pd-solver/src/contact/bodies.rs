@@ -526,16 +526,22 @@ impl BodyContact {
     }
 }
 
-/// The unit normal of triangle `t` and the signed distance of `p` from
-/// its plane: the same operations as [`project_onto`] without the
-/// barycentric weights, so the same values bit for bit.
-fn plane_of(t: &[Point; 3], p: &Point) -> Option<(Point, f64)> {
+/// The plane of triangle `t`: `(b - a) x (c - a)`, its squared length and
+/// the unit normal; `None` for a degenerate triangle.
+fn plane(t: &[Point; 3]) -> Option<(Point, f64, Point)> {
     let cross = (t[1] - t[0]).cross(&(t[2] - t[0]));
     let area2 = cross.norm_squared();
     if !(area2 > 0.0) {
         return None;
     }
-    let normal = cross / area2.sqrt();
+    Some((cross, area2, cross / area2.sqrt()))
+}
+
+/// The unit normal of triangle `t` and the signed distance of `p` from
+/// its plane: [`project_onto`] without the barycentric weights (the same
+/// operations, so the same values bit for bit).
+fn plane_of(t: &[Point; 3], p: &Point) -> Option<(Point, f64)> {
+    let (_, _, normal) = plane(t)?;
     Some((normal, normal.dot(&(p - t[0]))))
 }
 
@@ -543,13 +549,8 @@ fn plane_of(t: &[Point; 3], p: &Point) -> Option<(Point, f64)> {
 /// unit normal `(b - a) x (c - a)` and signed distance along it; `None`
 /// for a degenerate triangle.
 fn project_onto(t: &[Point; 3], p: &Point) -> Option<([f64; 3], Point, f64)> {
+    let (cross, area2, normal) = plane(t)?;
     let (e1, e2) = (t[1] - t[0], t[2] - t[0]);
-    let cross = e1.cross(&e2);
-    let area2 = cross.norm_squared();
-    if !(area2 > 0.0) {
-        return None;
-    }
-    let normal = cross / area2.sqrt();
     let q = p - t[0];
     let distance = normal.dot(&q);
     let w1 = e2.cross(&q).dot(&(-cross)) / area2;

@@ -39,6 +39,44 @@ impl Lcg {
     }
 }
 
+/// One iteration at `x_n + dx`: sweeps the boxes, rebuilds the lists if
+/// they do not cover the iterate, builds the grid, and requires every
+/// searching vertex's listed pair to be the grid's (`context` names the
+/// case in a failure); `each(bodies, v, listed)` runs after vertex `v`'s
+/// comparison. Returns whether the lists covered the iterate, and the
+/// number of vertices with a pair.
+fn compare_iteration(
+    bodies: &mut BodyContact,
+    (x_n, dx): (&[Point], &[Point]),
+    thickness: f64,
+    context: &str,
+    mut each: impl FnMut(&mut BodyContact, usize, Option<Pair>),
+) -> (bool, usize) {
+    bodies.sweep_boxes(x_n, dx, thickness);
+    let covered = bodies.candidates.covers(x_n, dx, &bodies.on_surface);
+    if !covered {
+        assert!(bodies.build_candidates(x_n, dx, thickness));
+    }
+    bodies.grid.build(&bodies.boxes);
+    let cell = cell_size(&bodies.boxes);
+    let mut hits = 0;
+    for v in 0..x_n.len() {
+        if !bodies.searching(v) {
+            continue;
+        }
+        let grid = bodies.first_hit(v, x_n, dx, thickness);
+        let listed = bodies.first_listed_hit(v, x_n, dx, (thickness, cell));
+        assert_eq!(
+            format!("{grid:?}"),
+            format!("{listed:?}"),
+            "{context}, vertex {v}"
+        );
+        hits += usize::from(grid.is_some());
+        each(bodies, v, listed);
+    }
+    (covered, hits)
+}
+
 /// Two sheets, the upper falling onto the lower, in random iterates of
 /// growing size (some outside the lists' boxes, which rebuilds them):
 /// the listed detection returns exactly the grid's pair for every
@@ -88,26 +126,11 @@ fn listed_detection_is_the_grid_detection_bit_for_bit() {
         bodies.begin_step(&x_n);
         for scale in [1.0, 0.5, 1.5, 4.0, 40.0] {
             let dx: Vec<Point> = fall.iter().map(|d| d * scale).collect();
-            bodies.sweep_boxes(&x_n, &dx, thickness);
-            if !bodies.candidates.covers(&x_n, &dx, &bodies.on_surface) {
-                rebuilds += 1;
-                assert!(bodies.build_candidates(&x_n, &dx, thickness));
-            }
-            bodies.grid.build(&bodies.boxes);
-            let cell = cell_size(&bodies.boxes);
-            for v in 0..x_n.len() {
-                if !bodies.searching(v) {
-                    continue;
-                }
-                let grid = bodies.first_hit(v, &x_n, &dx, thickness);
-                let listed = bodies.first_listed_hit(v, &x_n, &dx, (thickness, cell));
-                assert_eq!(
-                    format!("{grid:?}"),
-                    format!("{listed:?}"),
-                    "trial {trial}, scale {scale}, vertex {v}"
-                );
-                hits += usize::from(grid.is_some());
-            }
+            let context = format!("trial {trial}, scale {scale}");
+            let (covered, found) =
+                compare_iteration(&mut bodies, (&x_n, &dx), thickness, &context, |_, _, _| {});
+            rebuilds += usize::from(!covered);
+            hits += found;
         }
     }
     // Not vacuous: pairs were found and the lists were rebuilt.
@@ -163,34 +186,27 @@ fn lists_kept_across_steps_give_the_grid_detection_bit_for_bit() {
         // must serve them once their pairs are dropped.
         for (iteration, scale) in [1.0, 0.5, 3.0].into_iter().enumerate() {
             let dx: Vec<Point> = motion.iter().map(|d| d * scale).collect();
-            bodies.sweep_boxes(&x_n, &dx, thickness);
-            if bodies.candidates.covers(&x_n, &dx, &bodies.on_surface) {
+            let context = format!("step {step}, iteration {iteration}");
+            let (covered, found) = compare_iteration(
+                &mut bodies,
+                (&x_n, &dx),
+                thickness,
+                &context,
+                |bodies, v, listed| {
+                    // Every other pair gets a force and is kept into the
+                    // next step (if its vertex stays over the triangle).
+                    bodies.pairs[v] = listed.map(|p| Pair {
+                        force: p.normal * f64::from(u8::from(v % 2 == 0)),
+                        ..p
+                    });
+                },
+            );
+            if covered {
                 reused += usize::from(iteration == 0);
             } else {
                 rebuilt += 1;
-                assert!(bodies.build_candidates(&x_n, &dx, thickness));
             }
-            bodies.grid.build(&bodies.boxes);
-            let cell = cell_size(&bodies.boxes);
-            for v in 0..x_n.len() {
-                if !bodies.searching(v) {
-                    continue;
-                }
-                let grid = bodies.first_hit(v, &x_n, &dx, thickness);
-                let listed = bodies.first_listed_hit(v, &x_n, &dx, (thickness, cell));
-                assert_eq!(
-                    format!("{grid:?}"),
-                    format!("{listed:?}"),
-                    "step {step}, iteration {iteration}, vertex {v}"
-                );
-                hits += usize::from(grid.is_some());
-                // Every other pair gets a force and is kept into the next
-                // step (if its vertex stays over the triangle).
-                bodies.pairs[v] = listed.map(|p| Pair {
-                    force: p.normal * f64::from(u8::from(v % 2 == 0)),
-                    ..p
-                });
-            }
+            hits += found;
         }
         x_n = x_n.iter().zip(&motion).map(|(x, d)| x + d).collect();
     }
