@@ -53,6 +53,17 @@ fn resumes_bit_for_bit(build: impl Fn() -> Simulation, n: usize) -> Checkpoint {
     saved
 }
 
+/// Both scenes' settings: 5 ms steps, 20 iterations, gravity, one thread.
+fn settings() -> Settings {
+    Settings {
+        dt: 0.005,
+        iterations: 20,
+        gravity: Point::new(0.0, -9.81, 0.0),
+        threads: 1,
+        ..Settings::default()
+    }
+}
+
 /// A 0.6 m cotton-like sheet (16 x 16 cells; 0.2 kg/m^2, membrane 5e3
 /// N/m, bending 1e-4 N m) lying in the xz plane, its left half fixed,
 /// its right half thrown up and over the left about the middle line (15
@@ -70,13 +81,7 @@ fn folding_sheet() -> Simulation {
     model.add_bending(body, 1.0e-4).unwrap();
     let fixed: Vec<usize> = (0..rest.len()).filter(|&v| rest[v].x < -1e-9).collect();
     model.fix_vertices(body, &fixed).unwrap();
-    let settings = Settings {
-        dt: 0.005,
-        iterations: 20,
-        gravity: Point::new(0.0, -9.81, 0.0),
-        threads: 1,
-        ..Settings::default()
-    };
+    let settings = settings();
     let mut sim = Simulation::new(
         model,
         Box::new(BackwardEuler),
@@ -130,13 +135,7 @@ fn a_cloth_folding_onto_itself_resumes_bit_for_bit() {
 /// BDF-2 (a history to carry), `pairs` between the surfaces.
 fn stack(pairs: SurfacePairs) -> Simulation {
     let model = stacked_cubes(0.001);
-    let settings = Settings {
-        dt: 0.005,
-        iterations: 20,
-        gravity: Point::new(0.0, -9.81, 0.0),
-        threads: 1,
-        ..Settings::default()
-    };
+    let settings = settings();
     let integrator: Box<dyn Integrator> = Box::new(Bdf2::new());
     let mut sim = Simulation::new(model, integrator, Box::new(NoDamping), settings).unwrap();
     sim.set_contact(ContactSettings {
