@@ -279,22 +279,26 @@ impl<C: Constraint> ConstraintBlock for ConstraintSet<C> {
     }
 
     fn energy_bound_range(&self, q: &[Point], first: usize, projections: &[Point]) -> EnergyBound {
+        // The energies a batch at a time (`Constraint::energies_many`, SIMD
+        // lanes for tet strain, the same bits), merged one by one in order.
         let count = projections.len() / C::ROWS;
-        let mut gx = [Point::zeros(); MAX_ROWS];
+        let mut energies = [0.0; ENERGY_BATCH];
         let mut bound = EnergyBound::default();
-        for (i, (c, p)) in self.constraints[first..first + count]
-            .iter()
-            .zip(projections.chunks_exact(C::ROWS))
-            .enumerate()
+        let mut index = first;
+        for (batch, p) in self.constraints[first..first + count]
+            .chunks(ENERGY_BATCH)
+            .zip(projections.chunks(ENERGY_BATCH * C::ROWS))
         {
-            apply_operator(c, q, &mut gx[..C::ROWS]);
-            let distance2: f64 = (0..C::ROWS).map(|r| (gx[r] - p[r]).norm_squared()).sum();
-            let energy = 0.5 * c.weight() * distance2;
-            bound.merge(&EnergyBound {
-                total: energy,
-                worst: first + i,
-                worst_energy: energy,
-            });
+            let energies = &mut energies[..batch.len()];
+            C::energies_many(batch, q, p, energies);
+            for &energy in energies.iter() {
+                bound.merge(&EnergyBound {
+                    total: energy,
+                    worst: index,
+                    worst_energy: energy,
+                });
+                index += 1;
+            }
         }
         bound
     }

@@ -16,7 +16,7 @@
 use pd_mesh::Point;
 use pulp::f64x4;
 
-use super::{TetStrain, project_one_by_one};
+use super::{TetStrain, energies_one_by_one, project_one_by_one};
 use crate::polar::closest_rotation;
 use crate::polar_batch::{Batch, LANES, Simd, lane_matrix, lanes_of, newton_polar_lanes};
 
@@ -57,6 +57,59 @@ impl pulp::WithSimd for ProjectBatched<'_> {
             scatter(&x, converged, &f, rows);
         }
         project_one_by_one(rest, q, out_batches.into_remainder());
+    }
+}
+
+/// [`TetStrain`]'s [`energies_many`](crate::Constraint::energies_many)
+/// loop as a `pulp` operation: `w/2 |G q - p|^2` per element, with `G q`
+/// from [`gradients`] and the squared distances summed in the scalar
+/// order (per row `((0 + dx^2) + dy^2) + dz^2`, then the rows in order),
+/// so every energy is bit-identical to the one-at-a-time one.
+pub(super) struct EnergiesBatched<'a> {
+    pub simd: Simd,
+    pub constraints: &'a [TetStrain],
+    pub q: &'a [Point],
+    pub projections: &'a [Point],
+    pub out: &'a mut [f64],
+}
+
+impl pulp::WithSimd for EnergiesBatched<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        let Self {
+            simd: s,
+            constraints,
+            q,
+            projections,
+            out,
+        } = self;
+        let batches = constraints.chunks_exact(LANES);
+        let rest = batches.remainder();
+        let mut p_batches = projections.chunks_exact(LANES * 3);
+        let mut out_batches = out.chunks_exact_mut(LANES);
+        for ((batch, p), energies) in batches.zip(&mut p_batches).zip(&mut out_batches) {
+            let [e0, e1, e2, e3] = batch else {
+                // `chunks_exact` yields exactly LANES elements.
+                continue;
+            };
+            let f = gradients(s, [e0, e1, e2, e3], q);
+            let zero = s.splat_f64x4(0.0);
+            let mut rows = [zero; 3];
+            for (r, row) in rows.iter_mut().enumerate() {
+                for j in 0..3 {
+                    let projected = f64x4(p[r][j], p[3 + r][j], p[6 + r][j], p[9 + r][j]);
+                    let d = s.sub_f64x4(f[3 * r + j], projected);
+                    *row = s.add_f64x4(*row, s.mul_f64x4(d, d));
+                }
+            }
+            let distance2 = lanes_of(s.add_f64x4(s.add_f64x4(rows[0], rows[1]), rows[2]));
+            for ((e, c), d) in energies.iter_mut().zip(batch).zip(distance2) {
+                *e = 0.5 * c.weight * d;
+            }
+        }
+        energies_one_by_one(rest, q, p_batches.remainder(), out_batches.into_remainder());
     }
 }
 
@@ -183,6 +236,58 @@ mod tests {
         );
     }
 
+    /// `energies_many` (SIMD lanes and the remainder) equals the
+    /// one-at-a-time `w/2 |G q - p|^2` of each element to the bit, from
+    /// the elements' own projections and from unrelated rows; and
+    /// `ConstraintSet::energy_bound_range`, which sums them a batch at a
+    /// time, equals `energy_range`'s sum and names the same largest term
+    /// as a one-by-one scan (the list taken three times, so that several
+    /// batches and a partial one are summed).
+    fn assert_energies_bit_identical(constraints: &[TetStrain], q: &[Point]) {
+        use crate::{ConstraintBlock, ConstraintSet};
+        let repeated: Vec<TetStrain> = (0..3).flat_map(|_| constraints.iter().cloned()).collect();
+        let n = repeated.len();
+        let mut projected = vec![Point::zeros(); 3 * n];
+        TetStrain::project_many(&repeated, q, &mut projected);
+        let unrelated: Vec<Point> = (0..3 * n)
+            .map(|i| Point::new(i as f64 * 0.37 - 1.0, 0.5, -(i as f64) * 0.11))
+            .collect();
+        for p in [&projected, &unrelated] {
+            let mut batched = vec![0.0; n];
+            TetStrain::energies_many(&repeated, q, p, &mut batched);
+            let mut gx = [Point::zeros(); 3];
+            for (i, (c, rows)) in repeated.iter().zip(p.chunks_exact(3)).enumerate() {
+                apply_operator(c, q, &mut gx);
+                let distance2: f64 = (0..3).map(|r| (gx[r] - rows[r]).norm_squared()).sum();
+                let one = 0.5 * c.weight() * distance2;
+                assert_eq!(
+                    batched[i].to_bits(),
+                    one.to_bits(),
+                    "element {i}: {} vs {one}",
+                    batched[i]
+                );
+            }
+        }
+        let set = ConstraintSet::new(repeated);
+        let bound = set.energy_bound_range(q, 0, &projected);
+        let total = set.energy_range(q, 0..n);
+        assert_eq!(
+            bound.total.to_bits(),
+            total.to_bits(),
+            "{} vs {total}",
+            bound.total
+        );
+        let mut energies = vec![0.0; n];
+        TetStrain::energies_many(set.constraints(), q, &projected, &mut energies);
+        let mut worst = (0, 0.0);
+        for (i, &e) in energies.iter().enumerate() {
+            if !(e <= worst.1) {
+                worst = (i, e);
+            }
+        }
+        assert_eq!(bound.worst, worst.0);
+    }
+
     /// Elements over a random cloud of 8 points: each takes 4 distinct
     /// points, the rest shape (the cloud's rest positions) decides which
     /// combinations are valid; positions are the rest ones mapped by a
@@ -256,6 +361,7 @@ mod tests {
             let (constraints, q) = elements_and_positions(&rest, a, &noise, log_scale, limited);
             assert_bit_identical(&constraints, &q);
             assert_energy_bit_identical(&constraints, &q);
+            assert_energies_bit_identical(&constraints, &q);
         }
     }
 
@@ -279,6 +385,7 @@ mod tests {
             q[5].y = bad;
             assert_bit_identical(&constraints, &q);
             assert_energy_bit_identical(&constraints, &q);
+            assert_energies_bit_identical(&constraints, &q);
         }
     }
 }
