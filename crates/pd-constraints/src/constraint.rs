@@ -65,6 +65,19 @@ pub trait Constraint: Clone + std::fmt::Debug + Send + Sync + 'static {
         }
     }
 
+    /// [`Constraint::project_many`] and then [`Constraint::energies_many`]
+    /// from the projections just written, with the same results to the
+    /// bit; a kind may compute both in one pass (tet strain).
+    fn project_many_with_energies(
+        constraints: &[Self],
+        q: &[Point],
+        out: &mut [Point],
+        energies: &mut [f64],
+    ) {
+        Self::project_many(constraints, q, out);
+        Self::energies_many(constraints, q, out, energies);
+    }
+
     /// Hessian of `w/2 |gx - P(gx)|^2` with respect to `gx`: a
     /// `3 ROWS x 3 ROWS` row-major matrix, index `3 r + a` for row `r`, axis
     /// `a`, written into `out`. With `project_psd` its negative eigenvalues

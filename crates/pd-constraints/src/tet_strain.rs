@@ -141,11 +141,39 @@ impl Constraint for TetStrain {
                     constraints,
                     q,
                     out,
+                    energies: None,
                 },
             );
             return;
         }
         project_one_by_one(constraints, q, out);
+    }
+
+    /// As [`Self::project_many`], each SIMD batch's energies from its
+    /// lanes of `G q` and of the projection (no second gather); the rest,
+    /// one at a time. Bit-identical to the default.
+    fn project_many_with_energies(
+        constraints: &[Self],
+        q: &[Point],
+        out: &mut [Point],
+        energies: &mut [f64],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(simd) = Simd::try_new() {
+            pulp::Simd::vectorize(
+                simd,
+                batch::ProjectBatched {
+                    simd,
+                    constraints,
+                    q,
+                    out,
+                    energies: Some(energies),
+                },
+            );
+            return;
+        }
+        project_one_by_one(constraints, q, out);
+        energies_one_by_one(constraints, q, out, energies);
     }
 
     /// Batches of [`LANES`](crate::polar_batch::LANES) elements gather

@@ -27,6 +27,9 @@ pub(super) struct ProjectBatched<'a> {
     pub constraints: &'a [TetStrain],
     pub q: &'a [Point],
     pub out: &'a mut [Point],
+    /// With `Some`, each element's energy `w/2 |G q - p|^2` too
+    /// (`project_many_with_energies`).
+    pub energies: Option<&'a mut [f64]>,
 }
 
 impl pulp::WithSimd for ProjectBatched<'_> {
@@ -39,25 +42,90 @@ impl pulp::WithSimd for ProjectBatched<'_> {
             constraints,
             q,
             out,
+            energies,
         } = self;
         let batches = constraints.chunks_exact(LANES);
         let rest = batches.remainder();
         let mut out_batches = out.chunks_exact_mut(LANES * 3);
+        let mut energies = energies.map(|e| e.chunks_exact_mut(LANES));
         for (batch, rows) in batches.zip(&mut out_batches) {
+            let energy = energies.as_mut().and_then(Iterator::next);
             let [e0, e1, e2, e3] = batch else {
                 // `chunks_exact` yields exactly LANES elements.
                 continue;
             };
             if batch.iter().any(|c| c.limits.is_some()) {
                 project_one_by_one(batch, q, rows);
+                if let Some(energy) = energy {
+                    energies_one_by_one(batch, q, rows, energy);
+                }
                 continue;
             }
             let f = gradients(simd, [e0, e1, e2, e3], q);
             let (x, converged) = newton_polar_lanes(simd, &f);
             scatter(&x, converged, &f, rows);
+            if let Some(energy) = energy {
+                lane_energies(simd, batch, &f, &x, converged, rows, energy);
+            }
         }
-        project_one_by_one(rest, q, out_batches.into_remainder());
+        let rows = out_batches.into_remainder();
+        project_one_by_one(rest, q, rows);
+        if let Some(energies) = energies {
+            energies_one_by_one(rest, q, rows, energies.into_remainder());
+        }
     }
+}
+
+/// The energies `w/2 |F - P|^2` of a batch from its lanes of `F = G q` and
+/// of the projection: the converged iterate `x`, or (when a lane was
+/// projected by the scalar fallback) the rows just written. Summed as
+/// [`distances`] does, bit-identical to the one-at-a-time energies.
+#[inline(always)]
+fn lane_energies(
+    s: Simd,
+    batch: &[TetStrain],
+    f: &Batch,
+    x: &Batch,
+    converged: [bool; LANES],
+    rows: &[Point],
+    out: &mut [f64],
+) {
+    let distance2 = if converged.iter().all(|&c| c) {
+        distances(s, f, x)
+    } else {
+        distances(s, f, &gather_rows(rows))
+    };
+    for ((e, c), d) in out.iter_mut().zip(batch).zip(distance2) {
+        *e = 0.5 * c.weight * d;
+    }
+}
+
+/// Rows `3 l..3 l + 3` of `rows` as lane `l` of a batch (entry `3 r + j`
+/// is coordinate `j` of row `r`, as in [`gradients`]).
+#[inline(always)]
+fn gather_rows(p: &[Point]) -> Batch {
+    let mut lanes = [f64x4(0.0, 0.0, 0.0, 0.0); 9];
+    for r in 0..3 {
+        for j in 0..3 {
+            lanes[3 * r + j] = f64x4(p[r][j], p[3 + r][j], p[6 + r][j], p[9 + r][j]);
+        }
+    }
+    lanes
+}
+
+/// `sum_r |F_r - P_r|^2` per lane, summed in the scalar order: per row
+/// `((0 + dx^2) + dy^2) + dz^2`, then the rows in order.
+#[inline(always)]
+fn distances(s: Simd, f: &Batch, p: &Batch) -> [f64; LANES] {
+    let zero = s.splat_f64x4(0.0);
+    let mut rows = [zero; 3];
+    for (r, row) in rows.iter_mut().enumerate() {
+        for j in 0..3 {
+            let d = s.sub_f64x4(f[3 * r + j], p[3 * r + j]);
+            *row = s.add_f64x4(*row, s.mul_f64x4(d, d));
+        }
+    }
+    lanes_of(s.add_f64x4(s.add_f64x4(rows[0], rows[1]), rows[2]))
 }
 
 /// [`TetStrain`]'s [`energies_many`](crate::Constraint::energies_many)
@@ -95,16 +163,7 @@ impl pulp::WithSimd for EnergiesBatched<'_> {
                 continue;
             };
             let f = gradients(s, [e0, e1, e2, e3], q);
-            let zero = s.splat_f64x4(0.0);
-            let mut rows = [zero; 3];
-            for (r, row) in rows.iter_mut().enumerate() {
-                for j in 0..3 {
-                    let projected = f64x4(p[r][j], p[3 + r][j], p[6 + r][j], p[9 + r][j]);
-                    let d = s.sub_f64x4(f[3 * r + j], projected);
-                    *row = s.add_f64x4(*row, s.mul_f64x4(d, d));
-                }
-            }
-            let distance2 = lanes_of(s.add_f64x4(s.add_f64x4(rows[0], rows[1]), rows[2]));
+            let distance2 = distances(s, &f, &gather_rows(p));
             for ((e, c), d) in energies.iter_mut().zip(batch).zip(distance2) {
                 *e = 0.5 * c.weight * d;
             }
@@ -238,7 +297,9 @@ mod tests {
 
     /// `energies_many` (SIMD lanes and the remainder) equals the
     /// one-at-a-time `w/2 |G q - p|^2` of each element to the bit, from
-    /// the elements' own projections and from unrelated rows; and
+    /// the elements' own projections and from unrelated rows;
+    /// `project_many_with_energies` and `project_energy_range` give the
+    /// projections and energies of the two passes to the bit; and
     /// `ConstraintSet::energy_bound_range`, which sums them a batch at a
     /// time, equals `energy_range`'s sum and names the same largest term
     /// as a one-by-one scan (the list taken three times, so that several
@@ -268,8 +329,27 @@ mod tests {
                 );
             }
         }
+        // One pass: the same projections and the same energies.
+        let mut rows = vec![Point::zeros(); 3 * n];
+        let mut fused = vec![0.0; n];
+        TetStrain::project_many_with_energies(&repeated, q, &mut rows, &mut fused);
+        let mut separate = vec![0.0; n];
+        TetStrain::energies_many(&repeated, q, &projected, &mut separate);
+        let bits = |v: &[Point]| -> Vec<u64> {
+            v.iter()
+                .flat_map(|p| p.iter().map(|c| c.to_bits()))
+                .collect()
+        };
+        assert_eq!(bits(&rows), bits(&projected));
+        let energy_bits = |v: &[f64]| -> Vec<u64> { v.iter().map(|e| e.to_bits()).collect() };
+        assert_eq!(energy_bits(&fused), energy_bits(&separate));
         let set = ConstraintSet::new(repeated);
         let bound = set.energy_bound_range(q, 0, &projected);
+        let mut rows = vec![Point::zeros(); 3 * n];
+        let fused_bound = set.project_energy_range(q, 0, &mut rows);
+        assert_eq!(bits(&rows), bits(&projected));
+        assert_eq!(fused_bound.total.to_bits(), bound.total.to_bits());
+        assert_eq!(fused_bound.worst, bound.worst);
         let total = set.energy_range(q, 0..n);
         assert_eq!(
             bound.total.to_bits(),

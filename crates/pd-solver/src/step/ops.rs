@@ -81,8 +81,7 @@ impl StepProblem<'_> {
     pub(crate) fn project_with_objective(&mut self, partials: &mut [EnergyBound]) -> f64 {
         let t0 = Instant::now();
         let value = super::objective::objective_with(self, |local, q, projections| {
-            local.project(q, projections);
-            local.energy_bound(q, projections, partials).0.total
+            local.project_with_energy(q, projections, partials)
         });
         self.stats.objective_evaluations += 1;
         self.stats.local_seconds += t0.elapsed().as_secs_f64();
