@@ -136,12 +136,12 @@ impl Constraint for TetStrain {
         if let Some(simd) = Simd::try_new() {
             pulp::Simd::vectorize(
                 simd,
-                batch::ProjectBatched {
+                batch::ProjectBatched::<false> {
                     simd,
                     constraints,
                     q,
                     out,
-                    energies: None,
+                    energies: &mut [],
                 },
             );
             return;
@@ -162,12 +162,12 @@ impl Constraint for TetStrain {
         if let Some(simd) = Simd::try_new() {
             pulp::Simd::vectorize(
                 simd,
-                batch::ProjectBatched {
+                batch::ProjectBatched::<true> {
                     simd,
                     constraints,
                     q,
                     out,
-                    energies: Some(energies),
+                    energies,
                 },
             );
             return;

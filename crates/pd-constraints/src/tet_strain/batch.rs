@@ -22,17 +22,18 @@ use crate::polar_batch::{Batch, LANES, Simd, lane_matrix, lanes_of, newton_polar
 
 /// [`TetStrain`]'s [`project_many`](crate::Constraint::project_many) loop as
 /// a `pulp` operation.
-pub(super) struct ProjectBatched<'a> {
+/// With `ENERGIES`, each element's energy `w/2 |G q - p|^2` goes into
+/// `energies` too (`project_many_with_energies`); without, `energies` is
+/// empty and the loop is the plain projection's (compiled without it).
+pub(super) struct ProjectBatched<'a, const ENERGIES: bool> {
     pub simd: Simd,
     pub constraints: &'a [TetStrain],
     pub q: &'a [Point],
     pub out: &'a mut [Point],
-    /// With `Some`, each element's energy `w/2 |G q - p|^2` too
-    /// (`project_many_with_energies`).
-    pub energies: Option<&'a mut [f64]>,
+    pub energies: &'a mut [f64],
 }
 
-impl pulp::WithSimd for ProjectBatched<'_> {
+impl<const ENERGIES: bool> pulp::WithSimd for ProjectBatched<'_, ENERGIES> {
     type Output = ();
 
     #[inline(always)]
@@ -47,16 +48,15 @@ impl pulp::WithSimd for ProjectBatched<'_> {
         let batches = constraints.chunks_exact(LANES);
         let rest = batches.remainder();
         let mut out_batches = out.chunks_exact_mut(LANES * 3);
-        let mut energies = energies.map(|e| e.chunks_exact_mut(LANES));
+        let mut energy_batches = energies.chunks_exact_mut(LANES);
         for (batch, rows) in batches.zip(&mut out_batches) {
-            let energy = energies.as_mut().and_then(Iterator::next);
             let [e0, e1, e2, e3] = batch else {
                 // `chunks_exact` yields exactly LANES elements.
                 continue;
             };
             if batch.iter().any(|c| c.limits.is_some()) {
                 project_one_by_one(batch, q, rows);
-                if let Some(energy) = energy {
+                if ENERGIES && let Some(energy) = energy_batches.next() {
                     energies_one_by_one(batch, q, rows, energy);
                 }
                 continue;
@@ -64,14 +64,14 @@ impl pulp::WithSimd for ProjectBatched<'_> {
             let f = gradients(simd, [e0, e1, e2, e3], q);
             let (x, converged) = newton_polar_lanes(simd, &f);
             scatter(&x, converged, &f, rows);
-            if let Some(energy) = energy {
+            if ENERGIES && let Some(energy) = energy_batches.next() {
                 lane_energies(simd, batch, &f, &x, converged, rows, energy);
             }
         }
         let rows = out_batches.into_remainder();
         project_one_by_one(rest, q, rows);
-        if let Some(energies) = energies {
-            energies_one_by_one(rest, q, rows, energies.into_remainder());
+        if ENERGIES {
+            energies_one_by_one(rest, q, rows, energy_batches.into_remainder());
         }
     }
 }
