@@ -46,6 +46,38 @@ pub trait Constraint: Clone + std::fmt::Debug + Send + Sync + 'static {
         }
     }
 
+    /// The energies `w/2 |G q - p|^2` of a run of constraints at the
+    /// positions `q` from their projections `p` (`ROWS` rows each, as
+    /// [`Constraint::project_many`] wrote them), one per constraint into
+    /// `out`, in J. The default computes one at a time; a kind may batch
+    /// several into SIMD lanes (tet strain), with results identical to the
+    /// default to the bit.
+    fn energies_many(constraints: &[Self], q: &[Point], projections: &[Point], out: &mut [f64]) {
+        let mut gx = [Point::zeros(); crate::MAX_ROWS];
+        for ((c, p), e) in constraints
+            .iter()
+            .zip(projections.chunks_exact(Self::ROWS))
+            .zip(out)
+        {
+            apply_operator(c, q, &mut gx[..Self::ROWS]);
+            let distance2: f64 = (0..Self::ROWS).map(|r| (gx[r] - p[r]).norm_squared()).sum();
+            *e = 0.5 * c.weight() * distance2;
+        }
+    }
+
+    /// [`Constraint::project_many`] and then [`Constraint::energies_many`]
+    /// from the projections just written, with the same results to the
+    /// bit; a kind may compute both in one pass (tet strain).
+    fn project_many_with_energies(
+        constraints: &[Self],
+        q: &[Point],
+        out: &mut [Point],
+        energies: &mut [f64],
+    ) {
+        Self::project_many(constraints, q, out);
+        Self::energies_many(constraints, q, out, energies);
+    }
+
     /// Hessian of `w/2 |gx - P(gx)|^2` with respect to `gx`: a
     /// `3 ROWS x 3 ROWS` row-major matrix, index `3 r + a` for row `r`, axis
     /// `a`, written into `out`. With `project_psd` its negative eigenvalues

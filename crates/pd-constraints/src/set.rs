@@ -169,6 +169,15 @@ pub trait ConstraintBlock: std::fmt::Debug + Send + Sync {
     /// the projection is the closest point of the set. No projection is
     /// computed, so it costs a fraction of [`ConstraintBlock::energy_range`].
     fn energy_bound_range(&self, q: &[Point], first: usize, projections: &[Point]) -> EnergyBound;
+    /// [`ConstraintBlock::project_range`] followed by
+    /// [`ConstraintBlock::energy_bound_range`] at the same `q` from the
+    /// projections just written (so the bound is the energy itself), with
+    /// the same results to the bit; a kind may compute both in one pass
+    /// (tet strain: from the SIMD lanes of its projection).
+    fn project_energy_range(&self, q: &[Point], first: usize, out: &mut [Point]) -> EnergyBound {
+        self.project_range(q, first, out);
+        self.energy_bound_range(q, first, out)
+    }
     /// Adds the energy gradient `w_i G_i^T (G_i q - P_i(G_i q))` of every
     /// constraint to `gradient` (one entry per vertex, in N).
     fn add_gradient(&self, q: &[Point], gradient: &mut [Point]);
@@ -278,23 +287,52 @@ impl<C: Constraint> ConstraintBlock for ConstraintSet<C> {
         Box::new(self.clone())
     }
 
-    fn energy_bound_range(&self, q: &[Point], first: usize, projections: &[Point]) -> EnergyBound {
-        let count = projections.len() / C::ROWS;
-        let mut gx = [Point::zeros(); MAX_ROWS];
+    fn project_energy_range(&self, q: &[Point], first: usize, out: &mut [Point]) -> EnergyBound {
+        // A batch at a time: projections and energies in one pass
+        // (`Constraint::project_many_with_energies`), merged in order.
+        let count = out.len() / C::ROWS;
+        let mut energies = [0.0; ENERGY_BATCH];
         let mut bound = EnergyBound::default();
-        for (i, (c, p)) in self.constraints[first..first + count]
-            .iter()
-            .zip(projections.chunks_exact(C::ROWS))
-            .enumerate()
+        let mut index = first;
+        for (batch, rows) in self.constraints[first..first + count]
+            .chunks(ENERGY_BATCH)
+            .zip(out.chunks_mut(ENERGY_BATCH * C::ROWS))
         {
-            apply_operator(c, q, &mut gx[..C::ROWS]);
-            let distance2: f64 = (0..C::ROWS).map(|r| (gx[r] - p[r]).norm_squared()).sum();
-            let energy = 0.5 * c.weight() * distance2;
-            bound.merge(&EnergyBound {
-                total: energy,
-                worst: first + i,
-                worst_energy: energy,
-            });
+            let energies = &mut energies[..batch.len()];
+            C::project_many_with_energies(batch, q, rows, energies);
+            for &energy in energies.iter() {
+                bound.merge(&EnergyBound {
+                    total: energy,
+                    worst: index,
+                    worst_energy: energy,
+                });
+                index += 1;
+            }
+        }
+        bound
+    }
+
+    fn energy_bound_range(&self, q: &[Point], first: usize, projections: &[Point]) -> EnergyBound {
+        // The energies a batch at a time (`Constraint::energies_many`, SIMD
+        // lanes for tet strain, the same bits), merged one by one in order.
+        let count = projections.len() / C::ROWS;
+        let mut energies = [0.0; ENERGY_BATCH];
+        let mut bound = EnergyBound::default();
+        let mut index = first;
+        for (batch, p) in self.constraints[first..first + count]
+            .chunks(ENERGY_BATCH)
+            .zip(projections.chunks(ENERGY_BATCH * C::ROWS))
+        {
+            let energies = &mut energies[..batch.len()];
+            C::energies_many(batch, q, p, energies);
+            for &energy in energies.iter() {
+                bound.merge(&EnergyBound {
+                    total: energy,
+                    worst: index,
+                    worst_energy: energy,
+                });
+                index += 1;
+            }
         }
         bound
     }

@@ -136,16 +136,76 @@ impl Constraint for TetStrain {
         if let Some(simd) = Simd::try_new() {
             pulp::Simd::vectorize(
                 simd,
-                batch::ProjectBatched {
+                batch::ProjectBatched::<false> {
                     simd,
                     constraints,
                     q,
                     out,
+                    energies: &mut [],
                 },
             );
             return;
         }
         project_one_by_one(constraints, q, out);
+    }
+
+    /// As [`Self::project_many`], each SIMD batch's energies from its
+    /// lanes of `G q` and of the projection (no second gather); the rest,
+    /// one at a time. Bit-identical to the default.
+    fn project_many_with_energies(
+        constraints: &[Self],
+        q: &[Point],
+        out: &mut [Point],
+        energies: &mut [f64],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(simd) = Simd::try_new() {
+            pulp::Simd::vectorize(
+                simd,
+                batch::ProjectBatched::<true> {
+                    simd,
+                    constraints,
+                    q,
+                    out,
+                    energies,
+                },
+            );
+            return;
+        }
+        project_one_by_one(constraints, q, out);
+        energies_one_by_one(constraints, q, out, energies);
+    }
+
+    /// Batches of [`LANES`](crate::polar_batch::LANES) elements gather
+    /// `G q` into SIMD lanes as [`Self::project_many`] does (bit-identical
+    /// to the default's sums); the rest, one at a time.
+    fn energies_many(constraints: &[Self], q: &[Point], projections: &[Point], out: &mut [f64]) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(simd) = Simd::try_new() {
+            pulp::Simd::vectorize(
+                simd,
+                batch::EnergiesBatched {
+                    simd,
+                    constraints,
+                    q,
+                    projections,
+                    out,
+                },
+            );
+            return;
+        }
+        energies_one_by_one(constraints, q, projections, out);
+    }
+}
+
+/// The default [`Constraint::energies_many`], for the elements a batch
+/// leaves over.
+fn energies_one_by_one(constraints: &[TetStrain], q: &[Point], p: &[Point], out: &mut [f64]) {
+    let mut gx = [Point::zeros(); 3];
+    for ((c, p), e) in constraints.iter().zip(p.chunks_exact(3)).zip(out) {
+        apply_operator(c, q, &mut gx);
+        let distance2: f64 = (0..3).map(|r| (gx[r] - p[r]).norm_squared()).sum();
+        *e = 0.5 * c.weight * distance2;
     }
 }
 

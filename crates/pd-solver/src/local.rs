@@ -48,6 +48,47 @@ impl LocalStep {
         }
     }
 
+    /// [`LocalStep::project`] and then the energy at `q` from those
+    /// projections (J; [`LocalStep::energy_bound`]'s total, which is then
+    /// the energy itself), in one pass over the constraints
+    /// ([`ConstraintBlock::project_energy_range`]) with the same results to
+    /// the bit. `partials` (one per [`LocalStep::num_chunks`]) is scratch.
+    pub fn project_with_energy(
+        &self,
+        q: &[Point],
+        projections: &mut [Point],
+        partials: &mut [EnergyBound],
+    ) -> f64 {
+        let mut first_chunk = 0;
+        for (block, &offset) in self.blocks.iter().zip(&self.offsets) {
+            let rows = block.rows_per_constraint();
+            let chunks = block.len().div_ceil(CHUNK);
+            let mine = &mut projections[offset..offset + block.len() * rows];
+            partials[first_chunk..first_chunk + chunks]
+                .par_iter_mut()
+                .zip(mine.par_chunks_mut(CHUNK * rows))
+                .enumerate()
+                .for_each(|(chunk, (out, p))| {
+                    *out = block.project_energy_range(q, chunk * CHUNK, p);
+                });
+            first_chunk += chunks;
+        }
+        // Summed as `energy_bound` sums: chunks in order within a block,
+        // then the blocks in order.
+        let mut total = EnergyBound::default();
+        let mut first_chunk = 0;
+        for block in &self.blocks {
+            let chunks = block.len().div_ceil(CHUNK);
+            let mut bound = EnergyBound::default();
+            for partial in &partials[first_chunk..first_chunk + chunks] {
+                bound.merge(partial);
+            }
+            total.merge(&bound);
+            first_chunk += chunks;
+        }
+        total.total
+    }
+
     /// Number of parallel tasks of a pass over every constraint: the length
     /// of the buffer [`LocalStep::energy_bound`] needs.
     pub fn num_chunks(&self) -> usize {

@@ -16,20 +16,24 @@
 use pd_mesh::Point;
 use pulp::f64x4;
 
-use super::{TetStrain, project_one_by_one};
+use super::{TetStrain, energies_one_by_one, project_one_by_one};
 use crate::polar::closest_rotation;
 use crate::polar_batch::{Batch, LANES, Simd, lane_matrix, lanes_of, newton_polar_lanes};
 
 /// [`TetStrain`]'s [`project_many`](crate::Constraint::project_many) loop as
 /// a `pulp` operation.
-pub(super) struct ProjectBatched<'a> {
+/// With `ENERGIES`, each element's energy `w/2 |G q - p|^2` goes into
+/// `energies` too (`project_many_with_energies`); without, `energies` is
+/// empty and the loop is the plain projection's (compiled without it).
+pub(super) struct ProjectBatched<'a, const ENERGIES: bool> {
     pub simd: Simd,
     pub constraints: &'a [TetStrain],
     pub q: &'a [Point],
     pub out: &'a mut [Point],
+    pub energies: &'a mut [f64],
 }
 
-impl pulp::WithSimd for ProjectBatched<'_> {
+impl<const ENERGIES: bool> pulp::WithSimd for ProjectBatched<'_, ENERGIES> {
     type Output = ();
 
     #[inline(always)]
@@ -39,10 +43,12 @@ impl pulp::WithSimd for ProjectBatched<'_> {
             constraints,
             q,
             out,
+            energies,
         } = self;
         let batches = constraints.chunks_exact(LANES);
         let rest = batches.remainder();
         let mut out_batches = out.chunks_exact_mut(LANES * 3);
+        let mut energy_batches = energies.chunks_exact_mut(LANES);
         for (batch, rows) in batches.zip(&mut out_batches) {
             let [e0, e1, e2, e3] = batch else {
                 // `chunks_exact` yields exactly LANES elements.
@@ -50,13 +56,119 @@ impl pulp::WithSimd for ProjectBatched<'_> {
             };
             if batch.iter().any(|c| c.limits.is_some()) {
                 project_one_by_one(batch, q, rows);
+                if ENERGIES && let Some(energy) = energy_batches.next() {
+                    energies_one_by_one(batch, q, rows, energy);
+                }
                 continue;
             }
             let f = gradients(simd, [e0, e1, e2, e3], q);
             let (x, converged) = newton_polar_lanes(simd, &f);
             scatter(&x, converged, &f, rows);
+            if ENERGIES && let Some(energy) = energy_batches.next() {
+                lane_energies(simd, batch, &f, &x, converged, rows, energy);
+            }
         }
-        project_one_by_one(rest, q, out_batches.into_remainder());
+        let rows = out_batches.into_remainder();
+        project_one_by_one(rest, q, rows);
+        if ENERGIES {
+            energies_one_by_one(rest, q, rows, energy_batches.into_remainder());
+        }
+    }
+}
+
+/// The energies `w/2 |F - P|^2` of a batch from its lanes of `F = G q` and
+/// of the projection: the converged iterate `x`, or (when a lane was
+/// projected by the scalar fallback) the rows just written. Summed as
+/// [`distances`] does, bit-identical to the one-at-a-time energies.
+#[inline(always)]
+fn lane_energies(
+    s: Simd,
+    batch: &[TetStrain],
+    f: &Batch,
+    x: &Batch,
+    converged: [bool; LANES],
+    rows: &[Point],
+    out: &mut [f64],
+) {
+    let distance2 = if converged.iter().all(|&c| c) {
+        distances(s, f, x)
+    } else {
+        distances(s, f, &gather_rows(rows))
+    };
+    for ((e, c), d) in out.iter_mut().zip(batch).zip(distance2) {
+        *e = 0.5 * c.weight * d;
+    }
+}
+
+/// Rows `3 l..3 l + 3` of `rows` as lane `l` of a batch (entry `3 r + j`
+/// is coordinate `j` of row `r`, as in [`gradients`]).
+#[inline(always)]
+fn gather_rows(p: &[Point]) -> Batch {
+    let mut lanes = [f64x4(0.0, 0.0, 0.0, 0.0); 9];
+    for r in 0..3 {
+        for j in 0..3 {
+            lanes[3 * r + j] = f64x4(p[r][j], p[3 + r][j], p[6 + r][j], p[9 + r][j]);
+        }
+    }
+    lanes
+}
+
+/// `sum_r |F_r - P_r|^2` per lane, summed in the scalar order: per row
+/// `((0 + dx^2) + dy^2) + dz^2`, then the rows in order.
+#[inline(always)]
+fn distances(s: Simd, f: &Batch, p: &Batch) -> [f64; LANES] {
+    let zero = s.splat_f64x4(0.0);
+    let mut rows = [zero; 3];
+    for (r, row) in rows.iter_mut().enumerate() {
+        for j in 0..3 {
+            let d = s.sub_f64x4(f[3 * r + j], p[3 * r + j]);
+            *row = s.add_f64x4(*row, s.mul_f64x4(d, d));
+        }
+    }
+    lanes_of(s.add_f64x4(s.add_f64x4(rows[0], rows[1]), rows[2]))
+}
+
+/// [`TetStrain`]'s [`energies_many`](crate::Constraint::energies_many)
+/// loop as a `pulp` operation: `w/2 |G q - p|^2` per element, with `G q`
+/// from [`gradients`] and the squared distances summed in the scalar
+/// order (per row `((0 + dx^2) + dy^2) + dz^2`, then the rows in order),
+/// so every energy is bit-identical to the one-at-a-time one.
+pub(super) struct EnergiesBatched<'a> {
+    pub simd: Simd,
+    pub constraints: &'a [TetStrain],
+    pub q: &'a [Point],
+    pub projections: &'a [Point],
+    pub out: &'a mut [f64],
+}
+
+impl pulp::WithSimd for EnergiesBatched<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        let Self {
+            simd: s,
+            constraints,
+            q,
+            projections,
+            out,
+        } = self;
+        let batches = constraints.chunks_exact(LANES);
+        let rest = batches.remainder();
+        let mut p_batches = projections.chunks_exact(LANES * 3);
+        let mut out_batches = out.chunks_exact_mut(LANES);
+        for ((batch, p), energies) in batches.zip(&mut p_batches).zip(&mut out_batches) {
+            let [e0, e1, e2, e3] = batch else {
+                // `chunks_exact` yields exactly LANES elements.
+                continue;
+            };
+            let f = gradients(s, [e0, e1, e2, e3], q);
+            let distance2 = distances(s, &f, &gather_rows(p));
+            for ((e, c), d) in energies.iter_mut().zip(batch).zip(distance2) {
+                *e = 0.5 * c.weight * d;
+            }
+        }
+        energies_one_by_one(rest, q, p_batches.remainder(), out_batches.into_remainder());
     }
 }
 
@@ -183,6 +295,79 @@ mod tests {
         );
     }
 
+    /// `energies_many` (SIMD lanes and the remainder) equals the
+    /// one-at-a-time `w/2 |G q - p|^2` of each element to the bit, from
+    /// the elements' own projections and from unrelated rows;
+    /// `project_many_with_energies` and `project_energy_range` give the
+    /// projections and energies of the two passes to the bit; and
+    /// `ConstraintSet::energy_bound_range`, which sums them a batch at a
+    /// time, equals `energy_range`'s sum and names the same largest term
+    /// as a one-by-one scan (the list taken three times, so that several
+    /// batches and a partial one are summed).
+    fn assert_energies_bit_identical(constraints: &[TetStrain], q: &[Point]) {
+        use crate::{ConstraintBlock, ConstraintSet};
+        let repeated: Vec<TetStrain> = (0..3).flat_map(|_| constraints.iter().cloned()).collect();
+        let n = repeated.len();
+        let mut projected = vec![Point::zeros(); 3 * n];
+        TetStrain::project_many(&repeated, q, &mut projected);
+        let unrelated: Vec<Point> = (0..3 * n)
+            .map(|i| Point::new(i as f64 * 0.37 - 1.0, 0.5, -(i as f64) * 0.11))
+            .collect();
+        for p in [&projected, &unrelated] {
+            let mut batched = vec![0.0; n];
+            TetStrain::energies_many(&repeated, q, p, &mut batched);
+            let mut gx = [Point::zeros(); 3];
+            for (i, (c, rows)) in repeated.iter().zip(p.chunks_exact(3)).enumerate() {
+                apply_operator(c, q, &mut gx);
+                let distance2: f64 = (0..3).map(|r| (gx[r] - rows[r]).norm_squared()).sum();
+                let one = 0.5 * c.weight() * distance2;
+                assert_eq!(
+                    batched[i].to_bits(),
+                    one.to_bits(),
+                    "element {i}: {} vs {one}",
+                    batched[i]
+                );
+            }
+        }
+        // One pass: the same projections and the same energies.
+        let mut rows = vec![Point::zeros(); 3 * n];
+        let mut fused = vec![0.0; n];
+        TetStrain::project_many_with_energies(&repeated, q, &mut rows, &mut fused);
+        let mut separate = vec![0.0; n];
+        TetStrain::energies_many(&repeated, q, &projected, &mut separate);
+        let bits = |v: &[Point]| -> Vec<u64> {
+            v.iter()
+                .flat_map(|p| p.iter().map(|c| c.to_bits()))
+                .collect()
+        };
+        assert_eq!(bits(&rows), bits(&projected));
+        let energy_bits = |v: &[f64]| -> Vec<u64> { v.iter().map(|e| e.to_bits()).collect() };
+        assert_eq!(energy_bits(&fused), energy_bits(&separate));
+        let set = ConstraintSet::new(repeated);
+        let bound = set.energy_bound_range(q, 0, &projected);
+        let mut rows = vec![Point::zeros(); 3 * n];
+        let fused_bound = set.project_energy_range(q, 0, &mut rows);
+        assert_eq!(bits(&rows), bits(&projected));
+        assert_eq!(fused_bound.total.to_bits(), bound.total.to_bits());
+        assert_eq!(fused_bound.worst, bound.worst);
+        let total = set.energy_range(q, 0..n);
+        assert_eq!(
+            bound.total.to_bits(),
+            total.to_bits(),
+            "{} vs {total}",
+            bound.total
+        );
+        let mut energies = vec![0.0; n];
+        TetStrain::energies_many(set.constraints(), q, &projected, &mut energies);
+        let mut worst = (0, 0.0);
+        for (i, &e) in energies.iter().enumerate() {
+            if !(e <= worst.1) {
+                worst = (i, e);
+            }
+        }
+        assert_eq!(bound.worst, worst.0);
+    }
+
     /// Elements over a random cloud of 8 points: each takes 4 distinct
     /// points, the rest shape (the cloud's rest positions) decides which
     /// combinations are valid; positions are the rest ones mapped by a
@@ -256,6 +441,7 @@ mod tests {
             let (constraints, q) = elements_and_positions(&rest, a, &noise, log_scale, limited);
             assert_bit_identical(&constraints, &q);
             assert_energy_bit_identical(&constraints, &q);
+            assert_energies_bit_identical(&constraints, &q);
         }
     }
 
@@ -279,6 +465,7 @@ mod tests {
             q[5].y = bad;
             assert_bit_identical(&constraints, &q);
             assert_energy_bit_identical(&constraints, &q);
+            assert_energies_bit_identical(&constraints, &q);
         }
     }
 }

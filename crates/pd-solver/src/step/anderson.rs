@@ -64,6 +64,9 @@ pub struct Anderson {
     theta: Vec<f64>,
     /// Per-chunk scratch of the objective's energy sum.
     partials: Vec<EnergyBound>,
+    /// The projections at the plain iterate `G(x_k)` while a trial is
+    /// evaluated (in the endgame, where the bar evaluated them).
+    plain_projections: Vec<Point>,
     /// The end-of-step check of implicit midpoint (step/ray.rs).
     ray: RayCheck,
 }
@@ -82,6 +85,7 @@ impl Anderson {
             gram: vec![0.0; window * window],
             theta: vec![0.0; window],
             partials: Vec::new(),
+            plain_projections: Vec::new(),
             ray: RayCheck::default(),
         }
     }
@@ -106,6 +110,15 @@ impl Anderson {
             v.clone_from(&zero);
         }
         self.iterate = zero;
+    }
+
+    /// Swaps the step's projections with `plain_projections` (sized to
+    /// them on first use).
+    fn swap_projections(&mut self, step: &mut StepProblem<'_>) {
+        let projections = &mut step.buffers.projections;
+        self.plain_projections
+            .resize(projections.len(), Point::zeros());
+        std::mem::swap(projections, &mut self.plain_projections);
     }
 
     /// Solves the mass-weighted least squares over the `len` stored
@@ -190,9 +203,17 @@ impl PositionSolver for Anderson {
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {
         self.size(step.displacement().len(), step.local_chunks());
         step.record_objective();
-        // The local step at x_k gives its objective too: a trial point's
-        // projections serve the next global step when it is accepted.
-        let mut merit = step.project_with_objective(&mut self.partials);
+        // The first iteration judges no trial, so its start needs only its
+        // projections (kept from the predictor's safeguard when it ran);
+        // later local steps give the objective too, and an accepted trial
+        // point's projections serve the next global step.
+        let mut merit = match step.take_start_projections() {
+            Some(value) => value,
+            None => {
+                step.project_here();
+                f64::NAN
+            }
+        };
         let check = RayCheck::applies(step);
         // Whether an accelerated iterate was taken (else the step is plain
         // PD's and needs no end-of-step check).
@@ -233,8 +254,13 @@ impl PositionSolver for Anderson {
             have_previous = true;
             // The bar a trial must clear: g(x_k), or near the end of the
             // budget g(G(x_k)) (see ENDGAME).
-            let bar = if stored > 0 && k + ENDGAME >= iterations {
-                step.objective()
+            // The endgame's evaluation at G(x_k) keeps its projections in
+            // `plain_projections`: a rejection then needs no projection pass.
+            let endgame = stored > 0 && k + ENDGAME >= iterations;
+            let bar = if endgame {
+                let value = step.project_with_objective(&mut self.partials);
+                self.swap_projections(step);
+                value
             } else {
                 merit
             };
@@ -258,7 +284,12 @@ impl PositionSolver for Anderson {
             if !accepted {
                 // The plain iterate G(x_k); the history restarts from it.
                 step.displacement_mut().copy_from_slice(&self.map[0]);
-                merit = step.project_with_objective(&mut self.partials);
+                merit = if endgame {
+                    self.swap_projections(step);
+                    bar
+                } else {
+                    step.project_with_objective(&mut self.partials)
+                };
                 if stored > 0 {
                     stored = 0;
                     next = 0;

@@ -112,6 +112,13 @@ pub(crate) struct IterationBuffers {
     /// Three per-vertex scratch vectors (the objective's `x - x_hat` of the
     /// mass and `L_d` terms and `K (x - x_hat)`).
     pub scratch: [Vec<Point>; 3],
+    /// A second projection buffer, for keeping one point's projections
+    /// while another is evaluated (the predictor's safeguard); empty until
+    /// first used.
+    pub spare_projections: Vec<Point>,
+    /// Per-chunk scratch of the objective's energy sum (the predictor's
+    /// safeguard); empty until first used.
+    pub partials: Vec<pd_constraints::EnergyBound>,
 }
 
 impl IterationBuffers {
@@ -123,6 +130,8 @@ impl IterationBuffers {
             constant_rhs: vec![Point::zeros(); free],
             rhs: vec![Point::zeros(); free],
             scratch: std::array::from_fn(|_| vec![Point::zeros(); vertices]),
+            spare_projections: Vec::new(),
+            partials: Vec::new(),
         }
     }
 }
@@ -151,6 +160,12 @@ pub struct StepProblem<'a> {
     /// then run implicit midpoint's end-of-step check (step/ray.rs) even
     /// when they took no accelerated iterate.
     pub(crate) predicted: bool,
+    /// `Some(g)` when the step's projections are those at the current
+    /// displacement and `g` is the step objective there, summed from them
+    /// (set by the predictor's safeguard, so that a method's first local
+    /// step need not project the start again; see
+    /// [`StepProblem::take_start_projections`]).
+    pub(crate) start_objective: Option<f64>,
 }
 
 impl StepProblem<'_> {

@@ -205,8 +205,12 @@ impl PositionSolver for Lbfgs {
             self.partials = vec![EnergyBound::default(); step.local_chunks()];
         }
         // Trial points are judged from their local step's projections,
-        // which then serve the next global step.
-        let mut merit = step.project_with_objective(&mut self.partials);
+        // which then serve the next global step (the start's are kept from
+        // the predictor's safeguard when it ran).
+        let mut merit = match step.take_start_projections() {
+            Some(value) => value,
+            None => step.project_with_objective(&mut self.partials),
+        };
         let (mut stored, mut newest) = (0usize, self.window - 1);
         let iterations = step.iterations();
         // With materials, `update` is the corrected `w'` and the plain

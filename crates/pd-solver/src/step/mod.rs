@@ -239,6 +239,7 @@ impl Simulation {
             trace: self.objective_trace.as_mut(),
             contact: self.contact.as_mut(),
             predicted: self.scratch.predicted,
+            start_objective: None,
         };
         if problem.predicted {
             predictor::keep_the_better_start(&mut problem, &mut self.scratch.predicted_start);

@@ -81,12 +81,40 @@ impl StepProblem<'_> {
     pub(crate) fn project_with_objective(&mut self, partials: &mut [EnergyBound]) -> f64 {
         let t0 = Instant::now();
         let value = super::objective::objective_with(self, |local, q, projections| {
-            local.project(q, projections);
-            local.energy_bound(q, projections, partials).0.total
+            local.project_with_energy(q, projections, partials)
         });
         self.stats.objective_evaluations += 1;
         self.stats.local_seconds += t0.elapsed().as_secs_f64();
         value
+    }
+
+    /// The local half without the objective: projects every constraint at
+    /// `x_n + c2 dx` into the step's projections. For a start whose
+    /// objective nothing reads (Anderson's first iteration judges no trial).
+    /// Counts one objective evaluation, as
+    /// [`StepProblem::project_with_objective`] does, which the next
+    /// [`StepProblem::global_half`] takes back as its own local step.
+    pub(crate) fn project_here(&mut self) {
+        let t0 = Instant::now();
+        let c2 = self.coefficients.c2;
+        let x_n = self.positions;
+        let b = &mut *self.buffers;
+        for ((q, x), d) in b.q.iter_mut().zip(x_n).zip(&b.displacement) {
+            *q = x + d * c2;
+        }
+        self.local.project(&b.q, &mut b.projections);
+        self.stats.objective_evaluations += 1;
+        self.stats.local_seconds += t0.elapsed().as_secs_f64();
+    }
+
+    /// The objective at the start, when the step's projections are already
+    /// those at the current displacement (the predictor's safeguard
+    /// evaluated it there): `Some(g)` in J, `None` otherwise (the caller
+    /// projects). Only the first call of a step can return `Some`. Counts
+    /// nothing: the safeguard's evaluation, already counted, becomes the
+    /// local step the next [`StepProblem::global_half`] takes back.
+    pub(crate) fn take_start_projections(&mut self) -> Option<f64> {
+        self.start_objective.take()
     }
 
     /// The global step's right-hand side from the step's current

@@ -206,22 +206,52 @@ impl Simulation {
 /// Keeps the step's predicted start only if the step objective is lower
 /// there than at the inertial target `y` (fixed vertices at zero); else
 /// the step starts at `y` and `step.predicted` becomes `false`. `saved` is
-/// scratch (resized to the vertex count). Two objective evaluations.
+/// scratch (resized to the vertex count). Two objective evaluations, each
+/// with its own projection pass: the kept start's projections stay in the
+/// step's buffer and its objective in `step.start_objective`, so that the
+/// method's first local step does not project there again
+/// ([`StepProblem::take_start_projections`]). The values are those of
+/// [`StepProblem::objective`] bit for bit (the energy summed from the same
+/// projections in the same order), so the choice is the same.
 pub(crate) fn keep_the_better_start(step: &mut StepProblem<'_>, saved: &mut Vec<Point>) {
-    let predicted = step.objective();
-    saved.clear();
-    saved.extend_from_slice(&step.buffers.displacement);
-    let inertial = &step.targets.inertial_displacement;
-    let dx = &mut step.buffers.displacement;
-    dx.iter_mut().for_each(|d| *d = Point::zeros());
-    for &v in step.global.free() {
-        dx[v] = inertial[v];
+    let chunks = step.local_chunks();
+    let b = &mut *step.buffers;
+    if b.partials.len() != chunks {
+        b.partials = vec![pd_constraints::EnergyBound::default(); chunks];
     }
-    let at_y = step.objective();
+    saved.clear();
+    saved.extend_from_slice(&b.displacement);
+    step.start_at_y();
+    let mut partials = std::mem::take(&mut step.buffers.partials);
+    let at_y = step.project_with_objective(&mut partials);
+    let b = &mut *step.buffers;
+    b.spare_projections
+        .resize(b.projections.len(), Point::zeros());
+    std::mem::swap(&mut b.projections, &mut b.spare_projections);
+    b.displacement.copy_from_slice(saved);
+    let predicted = step.project_with_objective(&mut partials);
+    step.buffers.partials = partials;
     // Not `<=`: a NaN predicted objective falls back to y.
     if predicted < at_y {
-        step.buffers.displacement.copy_from_slice(saved);
+        step.start_objective = Some(predicted);
     } else {
+        step.start_at_y();
+        let b = &mut *step.buffers;
+        std::mem::swap(&mut b.projections, &mut b.spare_projections);
         step.predicted = false;
+        step.start_objective = Some(at_y);
+    }
+}
+
+impl StepProblem<'_> {
+    /// Sets the displacement to the inertial target's (zero at fixed
+    /// vertices).
+    fn start_at_y(&mut self) {
+        let inertial = &self.targets.inertial_displacement;
+        let dx = &mut self.buffers.displacement;
+        dx.iter_mut().for_each(|d| *d = Point::zeros());
+        for &v in self.global.free() {
+            dx[v] = inertial[v];
+        }
     }
 }

@@ -1,0 +1,95 @@
+//! `cargo run --release -p pd-benches --example method_ab -- METHOD BUDGET
+//! [--predictor P] [--integrator be|im|bdf2] [--damping D] [--steps N]
+//! [--warmup W] [--cells NX,NY,NZ] [--window W]`: runs the benchmark beam
+//! (one thread) with one iteration method and budget and prints, on one
+//! line, the median and mean wall time per step (ms) after `W` warm-up
+//! steps, the local-global iterations and objective evaluations per step,
+//! and an FNV-1a hash of every final position and velocity bit. For quick
+//! A/B comparisons of a method's cost (run the two builds alternately) and
+//! for checking that a change keeps its results bit for bit.
+
+use pd_benches::Beam;
+use pd_io::recorder::median;
+use pd_solver::{Predictor, Simulation, SolverMethod, SolverSpec};
+
+fn value<'a>(args: &'a [String], name: &str) -> Option<&'a str> {
+    args.iter()
+        .position(|a| a == name)
+        .and_then(|i| args.get(i + 1))
+        .map(String::as_str)
+}
+
+fn parse<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> Result<T, String> {
+    value(args, name).map_or(Ok(default), |t| {
+        t.parse().map_err(|_| format!("{name}: cannot parse {t:?}"))
+    })
+}
+
+fn hash(sim: &Simulation) -> u64 {
+    let state = sim.state();
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    for p in state.positions.iter().chain(&state.velocities) {
+        for c in p.iter() {
+            for byte in c.to_bits().to_le_bytes() {
+                hash = (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
+            }
+        }
+    }
+    hash
+}
+
+fn main() -> Result<(), String> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let (Some(method), Some(budget)) = (args.first(), args.get(1)) else {
+        return Err("usage: method_ab METHOD BUDGET [options]".into());
+    };
+    let method = SolverMethod::parse(method).ok_or(format!("unknown method {method:?}"))?;
+    let budget: usize = budget.parse().map_err(|_| format!("BUDGET: {budget:?}"))?;
+    let predictor = value(&args, "--predictor").unwrap_or("inertial");
+    let predictor =
+        Predictor::parse(predictor).ok_or(format!("unknown predictor {predictor:?}"))?;
+    let integrator = value(&args, "--integrator").unwrap_or("be");
+    let damping = value(&args, "--damping").unwrap_or("none");
+    let steps: usize = parse(&args, "--steps", 40)?;
+    let warmup: usize = parse(&args, "--warmup", 5)?;
+    let mut beam = Beam {
+        iterations: budget,
+        threads: 1,
+        ..Beam::default()
+    };
+    if let Some(cells) = value(&args, "--cells") {
+        let cells: Vec<usize> = cells
+            .split(',')
+            .map(|c| c.parse().map_err(|_| format!("--cells: {c:?}")))
+            .collect::<Result<_, _>>()?;
+        beam.cells = cells.try_into().map_err(|_| "--cells needs three counts")?;
+    }
+    let mut sim = beam.simulation(damping, integrator)?;
+    let spec = SolverSpec {
+        method,
+        window: parse(&args, "--window", SolverSpec::default().window)?,
+        ..SolverSpec::default()
+    };
+    sim.set_position_solver(spec.create().map_err(|e| e.to_string())?);
+    sim.set_predictor(predictor);
+    sim.run(warmup).map_err(|e| e.to_string())?;
+    let stats = sim.run(steps).map_err(|e| e.to_string())?;
+    let times: Vec<f64> = stats.iter().map(|s| s.total_seconds * 1e3).collect();
+    let n = stats.len().max(1) as f64;
+    let iterations = stats.iter().map(|s| s.iterations as f64).sum::<f64>() / n;
+    let evaluations = stats
+        .iter()
+        .map(|s| s.objective_evaluations as f64)
+        .sum::<f64>()
+        / n;
+    println!(
+        "{} {budget} {} {integrator} {damping}: median {:.3} ms mean {:.3} ms, \
+         {iterations:.2} iterations {evaluations:.2} evaluations a step, hash {:016x}",
+        method.name(),
+        predictor.name(),
+        median(&times),
+        times.iter().sum::<f64>() / n,
+        hash(&sim)
+    );
+    Ok(())
+}
