@@ -166,3 +166,50 @@ fn solve_cost_calibration() {
         );
     }
 }
+
+/// How much METIS's fill depends on its random seed and on the number of
+/// separators it tries per level, on the 95,499-vertex beam (the issue 18
+/// fill target compares nnz(L) with CHOLMOD's, which also runs METIS):
+/// prints nnz(L), stored values, supernodes and the modelled solve cost
+/// per option set. docs/performance.md ("METIS's seed") quotes the output.
+///
+/// ```sh
+/// cargo test -p pd-solver --lib metis_option_fill -- --ignored --nocapture
+/// ```
+#[cfg(feature = "metis")]
+#[test]
+#[ignore = "measurement: prints a table, about 10 s"]
+fn metis_option_fill() {
+    let mesh = pd_mesh::generators::box_tets([1.0, 0.2, 0.2], [130, 26, 26]).unwrap();
+    let pattern = tet_pattern(&mesh);
+    let (start, neighbours) = adjacency(&pattern);
+    let seed = metis_sys::moptions_et_METIS_OPTION_SEED;
+    let nseps = metis_sys::moptions_et_METIS_OPTION_NSEPS;
+    let mut runs: Vec<(String, Vec<(i32, i32)>)> = vec![("default".into(), vec![])];
+    runs.extend((1..9).map(|s| (format!("seed {s}"), vec![(seed, s)])));
+    runs.extend((2..4).map(|k| (format!("nseps {k}"), vec![(nseps, k)])));
+    for (name, overrides) in runs {
+        let start_time = std::time::Instant::now();
+        let order = super::metis::node_nd_with(&start, &neighbours, &overrides).unwrap();
+        let seconds = start_time.elapsed().as_secs_f64();
+        let mut inverse = vec![0; order.len()];
+        for (new, &old) in order.iter().enumerate() {
+            inverse[old] = new;
+        }
+        let nnz = exact_factor_nnz(&pattern, &inverse);
+        let perm = faer::perm::PermRef::new_checked(&order, &inverse, pattern.n);
+        let symbolic = factorize_symbolic_cholesky(
+            pattern.symbolic(),
+            Side::Lower,
+            SymmetricOrdering::Custom(perm),
+            CholeskySymbolicParams::default(),
+        )
+        .unwrap();
+        println!(
+            "{name:<10} nnz {nnz:>10} stored {:>10} supernodes {:>6} cost {:>10} metis {seconds:.3} s",
+            symbolic.len_val(),
+            supernode_count(&symbolic),
+            solve_cost(&symbolic),
+        );
+    }
+}

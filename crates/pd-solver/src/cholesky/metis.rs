@@ -18,6 +18,17 @@ use metis_sys::{
 /// indices or METIS reports an error. Deterministic: METIS's default options
 /// use a fixed random seed.
 pub(super) fn node_nd(start: &[usize], neighbours: &[usize]) -> Option<Vec<usize>> {
+    node_nd_with(start, neighbours, &[])
+}
+
+/// [`node_nd`] with some of METIS's options set: `(option, value)` pairs,
+/// `option` one of `metis_sys`' `moptions_et_METIS_OPTION_*` indices (the
+/// numbering option is set to 0 first and must not be overridden).
+pub(super) fn node_nd_with(
+    start: &[usize],
+    neighbours: &[usize],
+    overrides: &[(i32, idx_t)],
+) -> Option<Vec<usize>> {
     let n = start.len().checked_sub(1)?;
     let to_idx = |x: usize| idx_t::try_from(x).ok();
     let mut vertices = to_idx(n)?;
@@ -34,6 +45,9 @@ pub(super) fn node_nd(start: &[usize], neighbours: &[usize]) -> Option<Vec<usize
         return None;
     }
     options[moptions_et_METIS_OPTION_NUMBERING as usize] = 0;
+    for &(option, value) in overrides {
+        options[option as usize] = value;
+    }
     let mut perm: Vec<idx_t> = vec![0; n];
     let mut iperm: Vec<idx_t> = vec![0; n];
     // SAFETY: `xadj` has n + 1 entries and `adjncy` xadj[n] entries, all
