@@ -5,6 +5,7 @@
 use std::sync::Arc;
 
 use crate::cholesky::{LowerPattern, NumericFactor, SymbolicFactor, dissection_candidates};
+use crate::projection_scatter::ProjectionScatter;
 use crate::weights::combine_weighted;
 use crate::{SolverError, local::LocalStep};
 use pd_constraints::{CsrMatrix, assembly, assembly::LaplacianKind};
@@ -54,8 +55,9 @@ pub(crate) struct GlobalSystem {
     pub damping_rows: CsrMatrix,
     /// Rows of `L_anchor` (attachments) for the free vertices (all columns).
     pub anchoring_rows: CsrMatrix,
-    /// Rows of the projection operator `B` for the free vertices.
-    pub projection_rows: CsrMatrix,
+    /// The projection operator `B`'s rows for the free vertices, stored
+    /// for the scatter of `B p` (`projection_scatter.rs`).
+    pub projection_rows: ProjectionScatter,
     /// Per pattern slot: the mass on the diagonal, else 0.
     pub mass_part: Vec<f64>,
     /// Per pattern slot: the entry of `L_sys`.
@@ -73,12 +75,15 @@ pub(crate) struct GlobalSystem {
 
 impl GlobalSystem {
     /// Assembles the operators and analyses the pattern (once per model).
-    /// `rest` (the rest positions) steers the nested-dissection ordering.
+    /// `rest` (the rest positions) steers the nested-dissection ordering;
+    /// `threads` (the step's thread count) sets how many parts the
+    /// right-hand side's scatter is cut into, which changes no result.
     pub fn new(
         local: &LocalStep,
         masses: &[f64],
         fixed: &[bool],
         rest: &[pd_mesh::Point],
+        threads: usize,
     ) -> Result<Self, SolverError> {
         let n = masses.len();
         let mut free_index = vec![FIXED; n];
@@ -168,7 +173,10 @@ impl GlobalSystem {
         let symbolic = SymbolicFactor::analyse(pattern.clone(), &candidates)?;
         drop(candidates);
         let order = symbolic.order();
-        let projection_rows = assembly::projection_operator_rows(local.blocks(), n, &free);
+        let projection_rows = ProjectionScatter::new(
+            &assembly::projection_operator_rows(local.blocks(), n, &free),
+            threads,
+        );
         Ok(Self {
             pattern,
             damping_rows,

@@ -1,0 +1,414 @@
+//! The global step's projection term `B p` (DESIGN.md 3.2), computed by
+//! scattering each projection into the vertices it acts on, in the order
+//! of the stacked projections, instead of gathering each vertex's
+//! projections row by row.
+//!
+//! Why: a vertex's row of `B` names some 45 projections (a tet's three rows
+//! for each of the ~15 tets around it), and on a mesh whose vertices are
+//! numbered in no spatial order (TetGen's) they sit anywhere in an array of
+//! several MB, so the row-by-row gather (`CsrMatrix::row_dot`) waited on a
+//! cache miss per entry. Here the projections and the operator are read
+//! once, front to back, and the writes go to the right-hand side, one point
+//! per free vertex (355 kB for the armadillo's 14,779 vertices: in L2).
+//!
+//! Same bits as the gather: every output starts at zero and takes
+//! `out += p_c * B[f][c]` for its columns `c` in ascending order, which is
+//! exactly `row_dot`'s fold; then `constant + out * energy_factor`, as
+//! before. The free vertices are cut into contiguous ranges (chunks), one
+//! per thread at most, each holding its own part of the operator and
+//! writing only its own outputs: an output is computed by one chunk in one
+//! fixed order, so neither the number of chunks nor the number of threads
+//! changes a bit (unit test `scatter_is_the_row_gather_bit_for_bit`).
+
+use pd_constraints::CsrMatrix;
+use pd_mesh::Point;
+
+/// One chunk's part of `B`: the entries of the outputs `first..end`, by
+/// projection (source) in ascending order, in groups: a group is a run of
+/// consecutive projections with the same outputs (a tet's three rows act
+/// on the same four vertices), stored with its outputs once and its values
+/// output by output, so that each output of a group is loaded and stored
+/// once while it takes the group's projections in order.
+#[derive(Debug, Clone, Default)]
+struct Chunk {
+    /// First output (free vertex) of the chunk.
+    first: usize,
+    /// One past its last output.
+    end: usize,
+    /// Per group: its first projection and one past its last.
+    sources: Vec<(u32, u32)>,
+    /// Outputs of group `g`: `targets[target_start[g]..target_start[g + 1]]`.
+    target_start: Vec<u32>,
+    /// Outputs of the groups, relative to `first`, ascending within a group.
+    targets: Vec<u32>,
+    /// The groups' values (`w G^T S`, 1/m^2 scaled by the constraint's
+    /// weight), group after group, within a group output by output and for
+    /// each output projection by projection.
+    values: Vec<f64>,
+}
+
+/// The projection operator `B` over the free vertices, stored for the
+/// scatter (see the module docs).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct ProjectionScatter {
+    outputs: usize,
+    chunks: Vec<Chunk>,
+}
+
+impl ProjectionScatter {
+    /// The scatter form of `rows` (`B`'s rows for the free vertices, one
+    /// column per stacked projection), cut into at most `chunks` ranges of
+    /// outputs with about equal numbers of entries (more if a chunk would
+    /// otherwise hold 2^31 entries or more).
+    pub fn new(rows: &CsrMatrix, chunks: usize) -> Self {
+        let outputs = rows.nrows();
+        let nnz = rows.nnz();
+        // A chunk closes once it holds `per_chunk` entries; a row has at
+        // most u32::MAX entries (one per column), so a chunk stays below
+        // 2^32 - 1 when `per_chunk` is at most half that.
+        let per_chunk = nnz.div_ceil(chunks.max(1)).clamp(1, u32::MAX as usize / 2);
+        let mut ranges: Vec<(usize, usize)> = Vec::new();
+        let (mut first, mut count) = (0, 0);
+        for f in 0..outputs {
+            count += rows.row(f).count();
+            if count >= per_chunk {
+                ranges.push((first, f + 1));
+                (first, count) = (f + 1, 0);
+            }
+        }
+        // Rows left over join the last chunk when they hold no entry.
+        match ranges.last_mut() {
+            Some(last) if count == 0 => last.1 = outputs,
+            _ if first < outputs => ranges.push((first, outputs)),
+            _ => {}
+        }
+        let mut counts = vec![0u32; rows.ncols()];
+        let chunks = ranges
+            .into_iter()
+            .map(|(first, end)| Chunk::new(rows, first, end, &mut counts))
+            .collect();
+        Self { outputs, chunks }
+    }
+
+    /// Number of chunks (ranges of outputs computed independently).
+    #[cfg(test)]
+    pub fn num_chunks(&self) -> usize {
+        self.chunks.len()
+    }
+
+    /// `out[f] = constant[f] + (B p)[f] * energy_factor` for every free
+    /// vertex `f`, the chunks in parallel (rayon); the same bits for any
+    /// number of threads. Allocates nothing.
+    pub fn rhs(
+        &self,
+        constant: &[Point],
+        projections: &[Point],
+        energy_factor: f64,
+        out: &mut [Point],
+    ) {
+        assert_eq!(out.len(), self.outputs, "one output per free vertex");
+        assert_eq!(constant.len(), self.outputs, "one constant per free vertex");
+        run(&self.chunks, 0, constant, projections, energy_factor, out);
+    }
+}
+
+/// The chunks `chunks`, whose outputs start at `offset` in the caller's
+/// arrays and fill `out`, split in halves with `rayon::join`.
+fn run(
+    chunks: &[Chunk],
+    offset: usize,
+    constant: &[Point],
+    projections: &[Point],
+    energy_factor: f64,
+    out: &mut [Point],
+) {
+    match chunks {
+        [] => {}
+        [chunk] => chunk.rhs(&constant[..out.len()], projections, energy_factor, out),
+        _ => {
+            let (left, right) = chunks.split_at(chunks.len() / 2);
+            let split = right[0].first - offset;
+            let (out_left, out_right) = out.split_at_mut(split);
+            let (constant_left, constant_right) = constant.split_at(split);
+            rayon::join(
+                || {
+                    run(
+                        left,
+                        offset,
+                        constant_left,
+                        projections,
+                        energy_factor,
+                        out_left,
+                    )
+                },
+                || {
+                    run(
+                        right,
+                        right[0].first,
+                        constant_right,
+                        projections,
+                        energy_factor,
+                        out_right,
+                    )
+                },
+            );
+        }
+    }
+}
+
+impl Chunk {
+    /// The entries of `rows` in the rows `first..end`, by column, grouped;
+    /// `counts` (one per column, all zero) is scratch and left zero.
+    fn new(rows: &CsrMatrix, first: usize, end: usize, counts: &mut [u32]) -> Self {
+        for f in first..end {
+            for (c, _) in rows.row(f) {
+                counts[c] += 1;
+            }
+        }
+        // Column by column first (compressed sparse columns of the rows),
+        // then grouped in place: the grouped arrays are never longer.
+        let mut columns = Vec::new();
+        let mut starts = vec![0u32];
+        for (c, count) in counts.iter_mut().enumerate() {
+            if *count > 0 {
+                columns.push(c as u32);
+                starts.push(starts.last().copied().unwrap_or(0) + *count);
+                // From here on: the next free slot of column c's entries.
+                *count = starts[starts.len() - 2];
+            }
+        }
+        let len = starts.last().copied().unwrap_or(0) as usize;
+        let (mut targets, mut values) = (vec![0u32; len], vec![0.0; len]);
+        for f in first..end {
+            for (c, value) in rows.row(f) {
+                let at = counts[c] as usize;
+                targets[at] = (f - first) as u32;
+                values[at] = value;
+                counts[c] += 1;
+            }
+        }
+        for &c in &columns {
+            counts[c as usize] = 0;
+        }
+        let (sources, target_start) = group(&columns, &starts, &mut targets, &mut values);
+        Self {
+            first,
+            end,
+            sources,
+            target_start,
+            targets,
+            values,
+        }
+    }
+
+    /// This chunk's outputs (`out` and `constant` start at `first`).
+    fn rhs(
+        &self,
+        constant: &[Point],
+        projections: &[Point],
+        energy_factor: f64,
+        out: &mut [Point],
+    ) {
+        let out = &mut out[..self.end - self.first];
+        out.iter_mut().for_each(|o| *o = Point::zeros());
+        let mut values = self.values.as_slice();
+        for (g, &(from, to)) in self.sources.iter().enumerate() {
+            let p = &projections[from as usize..to as usize];
+            let targets =
+                &self.targets[self.target_start[g] as usize..self.target_start[g + 1] as usize];
+            let (mine, rest) = values.split_at(targets.len() * p.len());
+            values = rest;
+            match p {
+                // A tet's three rows: the common case, unrolled.
+                [p0, p1, p2] => {
+                    for (&t, v) in targets.iter().zip(mine.chunks_exact(3)) {
+                        let o = &mut out[t as usize];
+                        *o = *o + p0 * v[0] + p1 * v[1] + p2 * v[2];
+                    }
+                }
+                _ => {
+                    for (&t, v) in targets.iter().zip(mine.chunks_exact(p.len())) {
+                        let o = &mut out[t as usize];
+                        for (p, &v) in p.iter().zip(v) {
+                            *o += p * v;
+                        }
+                    }
+                }
+            }
+        }
+        for (o, &c) in out.iter_mut().zip(constant) {
+            *o = c + *o * energy_factor;
+        }
+    }
+}
+
+/// Groups the columns (`columns`, ascending, with entries
+/// `starts[k]..starts[k + 1]` of `targets` and `values`) into runs of
+/// consecutive columns with the same targets, in place: each group's
+/// targets are kept once and its values reordered target by target.
+/// Returns each group's column range and the start of its targets.
+fn group(
+    columns: &[u32],
+    starts: &[u32],
+    targets: &mut Vec<u32>,
+    values: &mut [f64],
+) -> (Vec<(u32, u32)>, Vec<u32>) {
+    let same_targets = |a: usize, b: usize, targets: &[u32]| {
+        targets[starts[a] as usize..starts[a + 1] as usize]
+            == targets[starts[b] as usize..starts[b + 1] as usize]
+    };
+    let (mut sources, mut target_start) = (Vec::new(), vec![0u32]);
+    let mut scratch = Vec::new();
+    let mut written = 0;
+    let mut k = 0;
+    while k < columns.len() {
+        let mut next = k + 1;
+        while next < columns.len()
+            && columns[next] == columns[next - 1] + 1
+            && same_targets(k, next, targets)
+        {
+            next += 1;
+        }
+        let (from, to) = (starts[k] as usize, starts[next] as usize);
+        let width = starts[k + 1] as usize - from;
+        let height = next - k;
+        // Column-major (target fastest) to target-major.
+        scratch.clear();
+        scratch.extend_from_slice(&values[from..to]);
+        for t in 0..width {
+            for c in 0..height {
+                values[from + t * height + c] = scratch[c * width + t];
+            }
+        }
+        targets.copy_within(from..from + width, written);
+        written += width;
+        sources.push((columns[k], columns[next - 1] + 1));
+        target_start.push(written as u32);
+        k = next;
+    }
+    targets.truncate(written);
+    targets.shrink_to_fit();
+    (sources, target_start)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pd_constraints::Triplet;
+
+    /// A random-looking operator: rows of varying length over scattered
+    /// columns (some rows empty), and projections of mixed magnitude so
+    /// that a different summation order would round differently.
+    fn operator(rows: usize, columns: usize) -> CsrMatrix {
+        let mut triplets = Vec::new();
+        let mut state: u64 = 0x9e37_79b9_7f4a_7c15;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for r in 0..rows {
+            if r % 11 == 3 {
+                continue;
+            }
+            for _ in 0..(next() % 40) {
+                let c = (next() % columns as u64) as usize;
+                let v = (next() % 2001) as f64 / 1000.0 - 1.0;
+                triplets.push(Triplet::new(r, c, v * 10f64.powi((next() % 7) as i32 - 3)));
+            }
+        }
+        CsrMatrix::from_triplets(rows, columns, &triplets)
+    }
+
+    /// An operator made of elements, as the assembly makes one: element
+    /// `e` owns `rows_per` consecutive columns (1 to 4 by element), all
+    /// acting on the same few rows, so that the scatter forms groups of
+    /// every height; the element order is shuffled against the row order.
+    fn element_operator(rows: usize, elements: usize) -> (CsrMatrix, usize) {
+        let mut triplets = Vec::new();
+        let mut column = 0;
+        for e in 0..elements {
+            let rows_per = 1 + e % 4;
+            let stencil: Vec<usize> = (0..4)
+                .map(|k| (e * 37 + k * 101 + k * k * e) % rows)
+                .collect();
+            for c in column..column + rows_per {
+                for (k, &r) in stencil.iter().enumerate() {
+                    if !stencil[..k].contains(&r) {
+                        let v = ((e * 7 + c * 3 + k) % 19) as f64 / 7.0 - 1.3;
+                        triplets.push(Triplet::new(r, c, v * 10f64.powi((c % 5) as i32 - 2)));
+                    }
+                }
+            }
+            column += rows_per;
+        }
+        (CsrMatrix::from_triplets(rows, column, &triplets), column)
+    }
+
+    fn bits(points: &[Point]) -> Vec<[u64; 3]> {
+        points
+            .iter()
+            .map(|p| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()])
+            .collect()
+    }
+
+    #[test]
+    fn scatter_is_the_row_gather_bit_for_bit() {
+        let (n, columns) = (300, 900);
+        check_against_gather(&operator(n, columns));
+        let (b, _) = element_operator(n, 700);
+        check_against_gather(&b);
+    }
+
+    /// The scatter of `b` gives the bits of the row gather for 1, 2, 3, 7
+    /// and 1000 chunks, on 1 and 2 threads.
+    fn check_against_gather(b: &CsrMatrix) {
+        let (n, columns) = (b.nrows(), b.ncols());
+        let projections: Vec<Point> = (0..columns)
+            .map(|i| {
+                let t = i as f64;
+                Point::new(
+                    (t * 0.37).sin() * 1e3,
+                    (t * 1.3).cos(),
+                    (t * 0.11).sin() * 1e-2,
+                )
+            })
+            .collect();
+        let constant: Vec<Point> = (0..n)
+            .map(|i| Point::new(i as f64 * 0.1, -(i as f64), 1.0 / (1.0 + i as f64)))
+            .collect();
+        let factor = 0.73;
+        let gathered: Vec<Point> = (0..n)
+            .map(|f| constant[f] + b.row_dot(f, &projections) * factor)
+            .collect();
+        for chunks in [1, 2, 3, 7, 1000] {
+            let scatter = ProjectionScatter::new(b, chunks);
+            assert!(scatter.num_chunks() <= chunks.min(n));
+            for threads in [1, 2] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                let mut out = vec![Point::new(9.0, 9.0, 9.0); n];
+                pool.install(|| scatter.rhs(&constant, &projections, factor, &mut out));
+                assert_eq!(
+                    bits(&out),
+                    bits(&gathered),
+                    "{chunks} chunks, {threads} threads"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn an_operator_without_rows_or_entries_gives_the_constant() {
+        let empty = ProjectionScatter::new(&CsrMatrix::from_triplets(0, 5, &[]), 2);
+        empty.rhs(&[], &[Point::zeros(); 5], 1.0, &mut []);
+        let zero = ProjectionScatter::new(&CsrMatrix::from_triplets(3, 5, &[]), 2);
+        let constant = [Point::new(1.0, 2.0, 3.0); 3];
+        let mut out = [Point::zeros(); 3];
+        zero.rhs(&constant, &[Point::zeros(); 5], 2.0, &mut out);
+        assert_eq!(out, constant);
+    }
+}
