@@ -173,10 +173,8 @@ impl GlobalSystem {
         let symbolic = SymbolicFactor::analyse(pattern.clone(), &candidates)?;
         drop(candidates);
         let order = symbolic.order();
-        let projection_rows = ProjectionScatter::new(
-            &assembly::projection_operator_rows(local.blocks(), n, &free),
-            threads,
-        );
+        let projection_rows =
+            ProjectionScatter::from_blocks(local.blocks(), &free, &free_index, threads);
         Ok(Self {
             pattern,
             damping_rows,

@@ -20,8 +20,10 @@
 //! fixed order, so neither the number of chunks nor the number of threads
 //! changes a bit (unit test `scatter_is_the_row_gather_bit_for_bit`).
 
-use pd_constraints::CsrMatrix;
+use pd_constraints::{ConstraintBlock, CsrMatrix, assembly};
 use pd_mesh::Point;
+
+use crate::global::FIXED;
 
 /// One chunk's part of `B`: the entries of the outputs `first..end`, by
 /// projection (source) in ascending order, in groups: a group is a run of
@@ -39,7 +41,8 @@ struct Chunk {
     sources: Vec<(u32, u32)>,
     /// Outputs of group `g`: `targets[target_start[g]..target_start[g + 1]]`.
     target_start: Vec<u32>,
-    /// Outputs of the groups, relative to `first`, ascending within a group.
+    /// Outputs of the groups, relative to `first`, in the order the
+    /// operator's entries came (a stencil's order).
     targets: Vec<u32>,
     /// The groups' values (`w G^T S`, 1/m^2 scaled by the constraint's
     /// weight), group after group, within a group output by output and for
@@ -55,22 +58,83 @@ pub(crate) struct ProjectionScatter {
     chunks: Vec<Chunk>,
 }
 
+/// Hands every entry `(row, column, value)` of an operator to its
+/// argument, in a fixed order (the same on every call).
+type Visit<'a> = dyn FnMut(&mut dyn FnMut(usize, usize, f64)) + 'a;
+
 impl ProjectionScatter {
+    /// The scatter form of `B`'s rows for the free vertices, built from the
+    /// constraint blocks' entries directly (`free` lists the free vertices,
+    /// `free_index` maps a vertex to its position there or to [`FIXED`]),
+    /// without assembling `B`: the scatter takes `B`'s place, and building
+    /// both would add `B`'s size to the setup's peak memory. When some
+    /// vertex's entries do not come with strictly increasing projections
+    /// (a stencil naming a vertex twice, whose entries `B` sums) it falls
+    /// back to `B` ([`ProjectionScatter::new`]), so the entries are always
+    /// `B`'s. `chunks` as for [`ProjectionScatter::new`].
+    pub fn from_blocks(
+        blocks: &[Box<dyn ConstraintBlock>],
+        free: &[usize],
+        free_index: &[usize],
+        chunks: usize,
+    ) -> Self {
+        let (offsets, total) = assembly::projection_offsets(blocks);
+        let mut visit = |entry: &mut dyn FnMut(usize, usize, f64)| {
+            for (block, &first_row) in blocks.iter().zip(&offsets) {
+                block.for_each_projection_entry(first_row, &mut |vertex, column, value| {
+                    let row = free_index[vertex];
+                    if row != FIXED {
+                        entry(row, column, value);
+                    }
+                });
+            }
+        };
+        let mut lengths = vec![0usize; free.len()];
+        let mut next_column = vec![0usize; free.len()];
+        let mut clean = u32::try_from(total).is_ok();
+        visit(&mut |row, column, _| {
+            clean &= column >= next_column[row];
+            next_column[row] = column + 1;
+            lengths[row] += 1;
+        });
+        drop(next_column);
+        if !clean {
+            let rows = assembly::projection_operator_rows(blocks, free_index.len(), free);
+            return Self::new(&rows, chunks);
+        }
+        Self::build(&lengths, total, chunks, &mut visit)
+    }
+
     /// The scatter form of `rows` (`B`'s rows for the free vertices, one
     /// column per stacked projection), cut into at most `chunks` ranges of
     /// outputs with about equal numbers of entries (more if a chunk would
     /// otherwise hold 2^31 entries or more).
     pub fn new(rows: &CsrMatrix, chunks: usize) -> Self {
-        let outputs = rows.nrows();
-        let nnz = rows.nnz();
+        let lengths: Vec<usize> = (0..rows.nrows()).map(|f| rows.row(f).count()).collect();
+        let mut visit = |entry: &mut dyn FnMut(usize, usize, f64)| {
+            for f in 0..rows.nrows() {
+                for (c, value) in rows.row(f) {
+                    entry(f, c, value);
+                }
+            }
+        };
+        Self::build(&lengths, rows.ncols(), chunks, &mut visit)
+    }
+
+    /// The chunks of the operator whose rows hold `lengths` entries and
+    /// which `visit` lists (`columns` columns, each row's in increasing
+    /// order).
+    fn build(lengths: &[usize], columns: usize, chunks: usize, visit: &mut Visit<'_>) -> Self {
+        let outputs = lengths.len();
+        let nnz: usize = lengths.iter().sum();
         // A chunk closes once it holds `per_chunk` entries; a row has at
         // most u32::MAX entries (one per column), so a chunk stays below
         // 2^32 - 1 when `per_chunk` is at most half that.
         let per_chunk = nnz.div_ceil(chunks.max(1)).clamp(1, u32::MAX as usize / 2);
         let mut ranges: Vec<(usize, usize)> = Vec::new();
         let (mut first, mut count) = (0, 0);
-        for f in 0..outputs {
-            count += rows.row(f).count();
+        for (f, &len) in lengths.iter().enumerate() {
+            count += len;
             if count >= per_chunk {
                 ranges.push((first, f + 1));
                 (first, count) = (f + 1, 0);
@@ -82,10 +146,10 @@ impl ProjectionScatter {
             _ if first < outputs => ranges.push((first, outputs)),
             _ => {}
         }
-        let mut counts = vec![0u32; rows.ncols()];
+        let mut counts = vec![0u32; columns];
         let chunks = ranges
             .into_iter()
-            .map(|(first, end)| Chunk::new(rows, first, end, &mut counts))
+            .map(|(first, end)| Chunk::new(visit, first, end, &mut counts))
             .collect();
         Self { outputs, chunks }
     }
@@ -157,14 +221,16 @@ fn run(
 }
 
 impl Chunk {
-    /// The entries of `rows` in the rows `first..end`, by column, grouped;
-    /// `counts` (one per column, all zero) is scratch and left zero.
-    fn new(rows: &CsrMatrix, first: usize, end: usize, counts: &mut [u32]) -> Self {
-        for f in first..end {
-            for (c, _) in rows.row(f) {
+    /// The entries `visit` lists in the rows `first..end`, by column,
+    /// grouped; `counts` (one per column, all zero) is scratch and left
+    /// zero.
+    fn new(visit: &mut Visit<'_>, first: usize, end: usize, counts: &mut [u32]) -> Self {
+        let mine = first..end;
+        visit(&mut |f, c, _| {
+            if mine.contains(&f) {
                 counts[c] += 1;
             }
-        }
+        });
         // Column by column first (compressed sparse columns of the rows),
         // then grouped in place: the grouped arrays are never longer.
         let mut columns = Vec::new();
@@ -179,14 +245,14 @@ impl Chunk {
         }
         let len = starts.last().copied().unwrap_or(0) as usize;
         let (mut targets, mut values) = (vec![0u32; len], vec![0.0; len]);
-        for f in first..end {
-            for (c, value) in rows.row(f) {
+        visit(&mut |f, c, value| {
+            if mine.contains(&f) {
                 let at = counts[c] as usize;
                 targets[at] = (f - first) as u32;
                 values[at] = value;
                 counts[c] += 1;
             }
-        }
+        });
         for &c in &columns {
             counts[c as usize] = 0;
         }
@@ -398,6 +464,76 @@ mod tests {
                     "{chunks} chunks, {threads} threads"
                 );
             }
+        }
+    }
+
+    /// Tets of a box moved off the grid, attachments and energy elements
+    /// (which stream their entries through the trait's default), as the
+    /// assembly's tests build them.
+    fn mixed_blocks() -> (Vec<Box<dyn ConstraintBlock>>, usize) {
+        use pd_constraints::{
+            Attachment, ConstraintSet, MaterialKind, MaterialSet, MaterialTet, TetStrain,
+        };
+        let mesh = pd_mesh::generators::box_tets([1.0, 0.7, 0.4], [3, 2, 2]).unwrap();
+        let rest: Vec<Point> = mesh
+            .vertices()
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                p + Point::new(0.01 * (i as f64).sin(), 0.013 * (i as f64 * 1.7).cos(), 0.0)
+            })
+            .collect();
+        let tets = mesh
+            .tets()
+            .iter()
+            .map(|&t| TetStrain::new(&rest, t, 1.7e5, None).unwrap())
+            .collect();
+        let attachments = [0, 5, 7]
+            .iter()
+            .map(|&v| Attachment::new(v, Point::new(0.1, 0.2, 0.3), 1e3).unwrap())
+            .collect();
+        let materials = mesh.tets()[..4]
+            .iter()
+            .map(|&t| MaterialTet::new(mesh.vertices(), t).unwrap())
+            .collect();
+        let blocks: Vec<Box<dyn ConstraintBlock>> = vec![
+            Box::new(ConstraintSet::new(tets)),
+            Box::new(ConstraintSet::new(attachments)),
+            Box::new(MaterialSet::new(MaterialKind::NeoHookean, 1e5, 0.3, materials).unwrap()),
+        ];
+        (blocks, rest.len())
+    }
+
+    #[test]
+    fn built_from_the_blocks_it_is_the_scatter_of_the_assembled_rows() {
+        let (blocks, n) = mixed_blocks();
+        let (_, total) = assembly::projection_offsets(&blocks);
+        // Every third vertex fixed (vertex 5 carries an attachment).
+        let free: Vec<usize> = (0..n).filter(|v| v % 3 != 2).collect();
+        let mut free_index = vec![FIXED; n];
+        for (f, &v) in free.iter().enumerate() {
+            free_index[v] = f;
+        }
+        let rows = assembly::projection_operator_rows(&blocks, n, &free);
+        let projections: Vec<Point> = (0..total)
+            .map(|i| Point::new((i as f64 * 0.7).sin(), (i as f64).cos() * 1e2, 0.3))
+            .collect();
+        let constant = vec![Point::new(0.5, -0.25, 2.0); free.len()];
+        for chunks in [1, 2, 5] {
+            let streamed = ProjectionScatter::from_blocks(&blocks, &free, &free_index, chunks);
+            let assembled = ProjectionScatter::new(&rows, chunks);
+            let mut a = vec![Point::zeros(); free.len()];
+            let mut b = vec![Point::zeros(); free.len()];
+            streamed.rhs(&constant, &projections, 1.3, &mut a);
+            assembled.rhs(&constant, &projections, 1.3, &mut b);
+            assert_eq!(bits(&a), bits(&b), "{chunks} chunks");
+            // The tets' three rows each form groups of three projections.
+            assert!(
+                streamed
+                    .chunks
+                    .iter()
+                    .any(|c| c.sources.iter().any(|s| s.1 - s.0 == 3))
+            );
         }
     }
 
