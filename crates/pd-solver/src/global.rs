@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use crate::cholesky::{LowerPattern, NumericFactor, SymbolicFactor, dissection_candidates};
-use crate::projection_scatter::ProjectionScatter;
+use crate::projection_scatter::ProjectionOperator;
 use crate::weights::combine_weighted;
 use crate::{SolverError, local::LocalStep};
 use pd_constraints::{CsrMatrix, assembly, assembly::LaplacianKind};
@@ -56,8 +56,9 @@ pub(crate) struct GlobalSystem {
     /// Rows of `L_anchor` (attachments) for the free vertices (all columns).
     pub anchoring_rows: CsrMatrix,
     /// The projection operator `B`'s rows for the free vertices, stored
-    /// for the scatter of `B p` (`projection_scatter.rs`).
-    pub projection_rows: ProjectionScatter,
+    /// for the scatter of `B p` on one thread or the row gather on more
+    /// (`projection_scatter.rs`).
+    pub projection_rows: ProjectionOperator,
     /// Per pattern slot: the mass on the diagonal, else 0.
     pub mass_part: Vec<f64>,
     /// Per pattern slot: the entry of `L_sys`.
@@ -76,8 +77,8 @@ pub(crate) struct GlobalSystem {
 impl GlobalSystem {
     /// Assembles the operators and analyses the pattern (once per model).
     /// `rest` (the rest positions) steers the nested-dissection ordering;
-    /// `threads` (the step's thread count) sets how many parts the
-    /// right-hand side's scatter is cut into, which changes no result.
+    /// `threads` (the step's thread count) picks how `B p` is computed
+    /// (scatter or row gather: the same bits).
     pub fn new(
         local: &LocalStep,
         masses: &[f64],
@@ -173,8 +174,7 @@ impl GlobalSystem {
         let symbolic = SymbolicFactor::analyse(pattern.clone(), &candidates)?;
         drop(candidates);
         let order = symbolic.order();
-        let projection_rows =
-            ProjectionScatter::from_blocks(local.blocks(), &free, &free_index, threads);
+        let projection_rows = ProjectionOperator::new(local.blocks(), &free, &free_index, threads);
         Ok(Self {
             pattern,
             damping_rows,

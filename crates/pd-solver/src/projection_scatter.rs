@@ -14,34 +14,30 @@
 //! Same bits as the gather: every output starts at zero and takes
 //! `out += p_c * B[f][c]` for its columns `c` in ascending order, which is
 //! exactly `row_dot`'s fold; then `constant + out * energy_factor`, as
-//! before. The free vertices are cut into contiguous ranges (chunks), one
-//! per thread at most, each holding its own part of the operator and
-//! writing only its own outputs: an output is computed by one chunk in one
-//! fixed order, so neither the number of chunks nor the number of threads
-//! changes a bit (unit test `scatter_is_the_row_gather_bit_for_bit`).
+//! before (unit tests `scatter_is_the_row_gather_bit_for_bit` and
+//! `built_from_the_blocks_it_is_the_scatter_of_the_assembled_rows`). The
+//! scatter runs on one thread: [`ProjectionOperator`] keeps the
+//! row-parallel gather for a step on more threads, whose results are the
+//! same bits.
 
 use pd_constraints::{ConstraintBlock, CsrMatrix, assembly};
 use pd_mesh::Point;
+use rayon::prelude::*;
 
 use crate::global::FIXED;
 
-/// One chunk's part of `B`: the entries of the outputs `first..end`, by
-/// projection (source) in ascending order, in groups: a group is a run of
-/// consecutive projections with the same outputs (a tet's three rows act
-/// on the same four vertices), stored with its outputs once and its values
-/// output by output, so that each output of a group is loaded and stored
-/// once while it takes the group's projections in order.
+/// `B`'s entries by projection (source) in ascending order, in groups: a
+/// group is a run of consecutive projections with the same outputs (a
+/// tet's three rows act on the same four vertices), stored with its outputs
+/// once and its values output by output, so that each output of a group is
+/// loaded and stored once while it takes the group's projections in order.
 #[derive(Debug, Clone, Default)]
-struct Chunk {
-    /// First output (free vertex) of the chunk.
-    first: usize,
-    /// One past its last output.
-    end: usize,
+struct Groups {
     /// Per group: its first projection and one past its last.
     sources: Vec<(u32, u32)>,
     /// Outputs of group `g`: `targets[target_start[g]..target_start[g + 1]]`.
     target_start: Vec<u32>,
-    /// Outputs of the groups, relative to `first`, in the order the
+    /// Outputs (free vertices) of the groups, in the order the
     /// operator's entries came (a stencil's order).
     targets: Vec<u32>,
     /// The groups' values (`w G^T S`, 1/m^2 scaled by the constraint's
@@ -55,7 +51,62 @@ struct Chunk {
 #[derive(Debug, Clone, Default)]
 pub(crate) struct ProjectionScatter {
     outputs: usize,
-    chunks: Vec<Chunk>,
+    groups: Groups,
+}
+
+/// `B` for the right-hand side: scattered on one thread, gathered row by
+/// row in parallel on more (the gather splits across threads without
+/// splitting an output's sum; the scatter would have to re-read the
+/// projections of every element that straddles two threads' vertices, on a
+/// randomly numbered mesh most of them). Both give the same bits.
+#[derive(Debug, Clone)]
+pub(crate) enum ProjectionOperator {
+    /// `B`'s rows for the free vertices, gathered row-parallel.
+    Rows(CsrMatrix),
+    /// `B` stored for the scatter.
+    Scatter(ProjectionScatter),
+}
+
+impl ProjectionOperator {
+    /// `B`'s rows for the free vertices (`free`, with `free_index` mapping
+    /// a vertex to its position there or to [`FIXED`]) in the form that
+    /// suits a step on `threads` threads.
+    pub fn new(
+        blocks: &[Box<dyn ConstraintBlock>],
+        free: &[usize],
+        free_index: &[usize],
+        threads: usize,
+    ) -> Self {
+        let scatter = (threads <= 1)
+            .then(|| ProjectionScatter::from_blocks(blocks, free, free_index))
+            .flatten();
+        match scatter {
+            Some(scatter) => Self::Scatter(scatter),
+            None => Self::Rows(assembly::projection_operator_rows(
+                blocks,
+                free_index.len(),
+                free,
+            )),
+        }
+    }
+
+    /// `out[f] = constant[f] + (B p)[f] * energy_factor` for every free
+    /// vertex `f`; the same bits in either form and for any thread count.
+    /// Allocates nothing.
+    pub fn rhs(
+        &self,
+        constant: &[Point],
+        projections: &[Point],
+        energy_factor: f64,
+        out: &mut [Point],
+    ) {
+        match self {
+            Self::Rows(rows) => out.par_iter_mut().enumerate().for_each(|(f, out)| {
+                *out = constant[f] + rows.row_dot(f, projections) * energy_factor;
+            }),
+            Self::Scatter(scatter) => scatter.rhs(constant, projections, energy_factor, out),
+        }
+    }
 }
 
 /// Hands every entry `(row, column, value)` of an operator to its
@@ -71,13 +122,13 @@ impl ProjectionScatter {
     /// vertex's entries do not come with strictly increasing projections
     /// (a stencil naming a vertex twice, whose entries `B` sums) it falls
     /// back to `B` ([`ProjectionScatter::new`]), so the entries are always
-    /// `B`'s. `chunks` as for [`ProjectionScatter::new`].
+    /// `B`'s. `None` for an operator beyond 32-bit offsets (some 4e9
+    /// entries, columns or rows: the caller then keeps the row gather).
     pub fn from_blocks(
         blocks: &[Box<dyn ConstraintBlock>],
         free: &[usize],
         free_index: &[usize],
-        chunks: usize,
-    ) -> Self {
+    ) -> Option<Self> {
         let (offsets, total) = assembly::projection_offsets(blocks);
         let mut visit = |entry: &mut dyn FnMut(usize, usize, f64)| {
             for (block, &first_row) in blocks.iter().zip(&offsets) {
@@ -89,28 +140,25 @@ impl ProjectionScatter {
                 });
             }
         };
-        let mut lengths = vec![0usize; free.len()];
         let mut next_column = vec![0usize; free.len()];
-        let mut clean = u32::try_from(total).is_ok();
+        let mut entries = 0usize;
+        let mut clean = true;
         visit(&mut |row, column, _| {
             clean &= column >= next_column[row];
             next_column[row] = column + 1;
-            lengths[row] += 1;
+            entries += 1;
         });
         drop(next_column);
         if !clean {
             let rows = assembly::projection_operator_rows(blocks, free_index.len(), free);
-            return Self::new(&rows, chunks);
+            return Self::new(&rows);
         }
-        Self::build(&lengths, total, chunks, &mut visit)
+        Self::build(free.len(), total, entries, &mut visit)
     }
 
     /// The scatter form of `rows` (`B`'s rows for the free vertices, one
-    /// column per stacked projection), cut into at most `chunks` ranges of
-    /// outputs with about equal numbers of entries (more if a chunk would
-    /// otherwise hold 2^31 entries or more).
-    pub fn new(rows: &CsrMatrix, chunks: usize) -> Self {
-        let lengths: Vec<usize> = (0..rows.nrows()).map(|f| rows.row(f).count()).collect();
+    /// column per stacked projection); `None` as for [`Self::from_blocks`].
+    pub fn new(rows: &CsrMatrix) -> Option<Self> {
         let mut visit = |entry: &mut dyn FnMut(usize, usize, f64)| {
             for f in 0..rows.nrows() {
                 for (c, value) in rows.row(f) {
@@ -118,51 +166,30 @@ impl ProjectionScatter {
                 }
             }
         };
-        Self::build(&lengths, rows.ncols(), chunks, &mut visit)
+        Self::build(rows.nrows(), rows.ncols(), rows.nnz(), &mut visit)
     }
 
-    /// The chunks of the operator whose rows hold `lengths` entries and
-    /// which `visit` lists (`columns` columns, each row's in increasing
-    /// order).
-    fn build(lengths: &[usize], columns: usize, chunks: usize, visit: &mut Visit<'_>) -> Self {
-        let outputs = lengths.len();
-        let nnz: usize = lengths.iter().sum();
-        // A chunk closes once it holds `per_chunk` entries; a row has at
-        // most u32::MAX entries (one per column), so a chunk stays below
-        // 2^32 - 1 when `per_chunk` is at most half that.
-        let per_chunk = nnz.div_ceil(chunks.max(1)).clamp(1, u32::MAX as usize / 2);
-        let mut ranges: Vec<(usize, usize)> = Vec::new();
-        let (mut first, mut count) = (0, 0);
-        for (f, &len) in lengths.iter().enumerate() {
-            count += len;
-            if count >= per_chunk {
-                ranges.push((first, f + 1));
-                (first, count) = (f + 1, 0);
-            }
+    /// The operator with `outputs` rows, `columns` columns and `entries`
+    /// entries that `visit` lists, each row's in increasing column order;
+    /// `None` if its entries, columns or rows do not fit 32-bit offsets.
+    fn build(
+        outputs: usize,
+        columns: usize,
+        entries: usize,
+        visit: &mut Visit<'_>,
+    ) -> Option<Self> {
+        if [entries, columns, outputs]
+            .iter()
+            .any(|&n| u32::try_from(n).is_err())
+        {
+            return None;
         }
-        // Rows left over join the last chunk when they hold no entry.
-        match ranges.last_mut() {
-            Some(last) if count == 0 => last.1 = outputs,
-            _ if first < outputs => ranges.push((first, outputs)),
-            _ => {}
-        }
-        let mut counts = vec![0u32; columns];
-        let chunks = ranges
-            .into_iter()
-            .map(|(first, end)| Chunk::new(visit, first, end, &mut counts))
-            .collect();
-        Self { outputs, chunks }
-    }
-
-    /// Number of chunks (ranges of outputs computed independently).
-    #[cfg(test)]
-    pub fn num_chunks(&self) -> usize {
-        self.chunks.len()
+        let groups = Groups::new(visit, &mut vec![0u32; columns]);
+        Some(Self { outputs, groups })
     }
 
     /// `out[f] = constant[f] + (B p)[f] * energy_factor` for every free
-    /// vertex `f`, the chunks in parallel (rayon); the same bits for any
-    /// number of threads. Allocates nothing.
+    /// vertex `f`, on the calling thread. Allocates nothing.
     pub fn rhs(
         &self,
         constant: &[Point],
@@ -172,65 +199,15 @@ impl ProjectionScatter {
     ) {
         assert_eq!(out.len(), self.outputs, "one output per free vertex");
         assert_eq!(constant.len(), self.outputs, "one constant per free vertex");
-        run(&self.chunks, 0, constant, projections, energy_factor, out);
+        self.groups.rhs(constant, projections, energy_factor, out);
     }
 }
 
-/// The chunks `chunks`, whose outputs start at `offset` in the caller's
-/// arrays and fill `out`, split in halves with `rayon::join`.
-fn run(
-    chunks: &[Chunk],
-    offset: usize,
-    constant: &[Point],
-    projections: &[Point],
-    energy_factor: f64,
-    out: &mut [Point],
-) {
-    match chunks {
-        [] => {}
-        [chunk] => chunk.rhs(&constant[..out.len()], projections, energy_factor, out),
-        _ => {
-            let (left, right) = chunks.split_at(chunks.len() / 2);
-            let split = right[0].first - offset;
-            let (out_left, out_right) = out.split_at_mut(split);
-            let (constant_left, constant_right) = constant.split_at(split);
-            rayon::join(
-                || {
-                    run(
-                        left,
-                        offset,
-                        constant_left,
-                        projections,
-                        energy_factor,
-                        out_left,
-                    )
-                },
-                || {
-                    run(
-                        right,
-                        right[0].first,
-                        constant_right,
-                        projections,
-                        energy_factor,
-                        out_right,
-                    )
-                },
-            );
-        }
-    }
-}
-
-impl Chunk {
-    /// The entries `visit` lists in the rows `first..end`, by column,
-    /// grouped; `counts` (one per column, all zero) is scratch and left
-    /// zero.
-    fn new(visit: &mut Visit<'_>, first: usize, end: usize, counts: &mut [u32]) -> Self {
-        let mine = first..end;
-        visit(&mut |f, c, _| {
-            if mine.contains(&f) {
-                counts[c] += 1;
-            }
-        });
+impl Groups {
+    /// The entries `visit` lists, by column, grouped; `counts` (one per
+    /// column, all zero) is scratch.
+    fn new(visit: &mut Visit<'_>, counts: &mut [u32]) -> Self {
+        visit(&mut |_, c, _| counts[c] += 1);
         // Column by column first (compressed sparse columns of the rows),
         // then grouped in place: the grouped arrays are never longer.
         let mut columns = Vec::new();
@@ -246,20 +223,13 @@ impl Chunk {
         let len = starts.last().copied().unwrap_or(0) as usize;
         let (mut targets, mut values) = (vec![0u32; len], vec![0.0; len]);
         visit(&mut |f, c, value| {
-            if mine.contains(&f) {
-                let at = counts[c] as usize;
-                targets[at] = (f - first) as u32;
-                values[at] = value;
-                counts[c] += 1;
-            }
+            let at = counts[c] as usize;
+            targets[at] = f as u32;
+            values[at] = value;
+            counts[c] += 1;
         });
-        for &c in &columns {
-            counts[c as usize] = 0;
-        }
         let (sources, target_start) = group(&columns, &starts, &mut targets, &mut values);
         Self {
-            first,
-            end,
             sources,
             target_start,
             targets,
@@ -267,7 +237,7 @@ impl Chunk {
         }
     }
 
-    /// This chunk's outputs (`out` and `constant` start at `first`).
+    /// `out = constant + B p * energy_factor`.
     fn rhs(
         &self,
         constant: &[Point],
@@ -275,7 +245,6 @@ impl Chunk {
         energy_factor: f64,
         out: &mut [Point],
     ) {
-        let out = &mut out[..self.end - self.first];
         out.iter_mut().for_each(|o| *o = Point::zeros());
         let mut values = self.values.as_slice();
         for (g, &(from, to)) in self.sources.iter().enumerate() {
@@ -427,8 +396,7 @@ mod tests {
         check_against_gather(&b);
     }
 
-    /// The scatter of `b` gives the bits of the row gather for 1, 2, 3, 7
-    /// and 1000 chunks, on 1 and 2 threads.
+    /// The scatter of `b` gives the bits of the row gather.
     fn check_against_gather(b: &CsrMatrix) {
         let (n, columns) = (b.nrows(), b.ncols());
         let projections: Vec<Point> = (0..columns)
@@ -448,23 +416,19 @@ mod tests {
         let gathered: Vec<Point> = (0..n)
             .map(|f| constant[f] + b.row_dot(f, &projections) * factor)
             .collect();
-        for chunks in [1, 2, 3, 7, 1000] {
-            let scatter = ProjectionScatter::new(b, chunks);
-            assert!(scatter.num_chunks() <= chunks.min(n));
-            for threads in [1, 2] {
-                let pool = rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .build()
-                    .unwrap();
-                let mut out = vec![Point::new(9.0, 9.0, 9.0); n];
-                pool.install(|| scatter.rhs(&constant, &projections, factor, &mut out));
-                assert_eq!(
-                    bits(&out),
-                    bits(&gathered),
-                    "{chunks} chunks, {threads} threads"
-                );
-            }
-        }
+        let scatter = ProjectionScatter::new(b).unwrap();
+        let mut out = vec![Point::new(9.0, 9.0, 9.0); n];
+        scatter.rhs(&constant, &projections, factor, &mut out);
+        assert_eq!(bits(&out), bits(&gathered));
+        // And the operator's own dispatch on more threads: the row gather.
+        let operator = ProjectionOperator::Rows(b.clone());
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        let mut parallel = vec![Point::zeros(); n];
+        pool.install(|| operator.rhs(&constant, &projections, factor, &mut parallel));
+        assert_eq!(bits(&parallel), bits(&gathered));
     }
 
     /// Tets of a box moved off the grid, attachments and energy elements
@@ -519,29 +483,32 @@ mod tests {
             .map(|i| Point::new((i as f64 * 0.7).sin(), (i as f64).cos() * 1e2, 0.3))
             .collect();
         let constant = vec![Point::new(0.5, -0.25, 2.0); free.len()];
-        for chunks in [1, 2, 5] {
-            let streamed = ProjectionScatter::from_blocks(&blocks, &free, &free_index, chunks);
-            let assembled = ProjectionScatter::new(&rows, chunks);
+        for threads in [1, 2] {
+            let ProjectionOperator::Scatter(streamed) =
+                ProjectionOperator::new(&blocks, &free, &free_index, 1)
+            else {
+                panic!("one thread scatters");
+            };
+            let assembled = ProjectionScatter::new(&rows).unwrap();
+            let operator = ProjectionOperator::new(&blocks, &free, &free_index, threads);
             let mut a = vec![Point::zeros(); free.len()];
             let mut b = vec![Point::zeros(); free.len()];
+            let mut c = vec![Point::zeros(); free.len()];
             streamed.rhs(&constant, &projections, 1.3, &mut a);
             assembled.rhs(&constant, &projections, 1.3, &mut b);
-            assert_eq!(bits(&a), bits(&b), "{chunks} chunks");
+            operator.rhs(&constant, &projections, 1.3, &mut c);
+            assert_eq!(bits(&a), bits(&b));
+            assert_eq!(bits(&a), bits(&c), "{threads} threads");
             // The tets' three rows each form groups of three projections.
-            assert!(
-                streamed
-                    .chunks
-                    .iter()
-                    .any(|c| c.sources.iter().any(|s| s.1 - s.0 == 3))
-            );
+            assert!(streamed.groups.sources.iter().any(|s| s.1 - s.0 == 3));
         }
     }
 
     #[test]
     fn an_operator_without_rows_or_entries_gives_the_constant() {
-        let empty = ProjectionScatter::new(&CsrMatrix::from_triplets(0, 5, &[]), 2);
+        let empty = ProjectionScatter::new(&CsrMatrix::from_triplets(0, 5, &[])).unwrap();
         empty.rhs(&[], &[Point::zeros(); 5], 1.0, &mut []);
-        let zero = ProjectionScatter::new(&CsrMatrix::from_triplets(3, 5, &[]), 2);
+        let zero = ProjectionScatter::new(&CsrMatrix::from_triplets(3, 5, &[])).unwrap();
         let constant = [Point::new(1.0, 2.0, 3.0); 3];
         let mut out = [Point::zeros(); 3];
         zero.rhs(&constant, &[Point::zeros(); 5], 2.0, &mut out);
