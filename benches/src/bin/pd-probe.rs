@@ -194,6 +194,14 @@ fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         sim.profile_solve().map_err(|e| e.to_string())?;
         solves.push(ms(t.elapsed().as_secs_f64()));
     }
+    // The right-hand side `B p` and the solve, per iteration: minus the
+    // solve alone, the right-hand side's share (docs/performance.md).
+    let mut rhs_and_solves = Vec::with_capacity(SOLVE_REPS);
+    for _ in 0..SOLVE_REPS {
+        let t = Instant::now();
+        sim.profile_global_solve().map_err(|e| e.to_string())?;
+        rhs_and_solves.push(ms(t.elapsed().as_secs_f64()));
+    }
     let positions = &sim.state().positions;
     let centroid = positions.iter().sum::<Point>() / positions.len() as f64;
     let min_y = positions.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
@@ -210,6 +218,7 @@ fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         "local_ms_median": pick(|s| s.local_seconds),
         "global_ms_median": pick(|s| s.global_seconds),
         "solve_ms_median": median(&solves),
+        "rhs_and_solve_ms_median": median(&rhs_and_solves),
         "steps": steps,
         "iters": beam.iterations,
         "threads": beam.threads,

@@ -5,6 +5,7 @@
 use std::sync::Arc;
 
 use crate::cholesky::{LowerPattern, NumericFactor, SymbolicFactor, dissection_candidates};
+use crate::projection_scatter::ProjectionOperator;
 use crate::weights::combine_weighted;
 use crate::{SolverError, local::LocalStep};
 use pd_constraints::{CsrMatrix, assembly, assembly::LaplacianKind};
@@ -54,8 +55,10 @@ pub(crate) struct GlobalSystem {
     pub damping_rows: CsrMatrix,
     /// Rows of `L_anchor` (attachments) for the free vertices (all columns).
     pub anchoring_rows: CsrMatrix,
-    /// Rows of the projection operator `B` for the free vertices.
-    pub projection_rows: CsrMatrix,
+    /// The projection operator `B`'s rows for the free vertices, stored
+    /// for the scatter of `B p` on one thread or the row gather on more
+    /// (`projection_scatter.rs`).
+    pub projection_rows: ProjectionOperator,
     /// Per pattern slot: the mass on the diagonal, else 0.
     pub mass_part: Vec<f64>,
     /// Per pattern slot: the entry of `L_sys`.
@@ -73,12 +76,15 @@ pub(crate) struct GlobalSystem {
 
 impl GlobalSystem {
     /// Assembles the operators and analyses the pattern (once per model).
-    /// `rest` (the rest positions) steers the nested-dissection ordering.
+    /// `rest` (the rest positions) steers the nested-dissection ordering;
+    /// `threads` (the step's thread count) picks how `B p` is computed
+    /// (scatter or row gather: the same bits).
     pub fn new(
         local: &LocalStep,
         masses: &[f64],
         fixed: &[bool],
         rest: &[pd_mesh::Point],
+        threads: usize,
     ) -> Result<Self, SolverError> {
         let n = masses.len();
         let mut free_index = vec![FIXED; n];
@@ -168,7 +174,7 @@ impl GlobalSystem {
         let symbolic = SymbolicFactor::analyse(pattern.clone(), &candidates)?;
         drop(candidates);
         let order = symbolic.order();
-        let projection_rows = assembly::projection_operator_rows(local.blocks(), n, &free);
+        let projection_rows = ProjectionOperator::new(local.blocks(), &free, &free_index, threads);
         Ok(Self {
             pattern,
             damping_rows,

@@ -43,6 +43,7 @@ mod local;
 mod model;
 pub mod modes;
 mod phases;
+mod projection_scatter;
 mod settings;
 mod simulation;
 mod step;

@@ -206,6 +206,8 @@ impl Simulation {
             model.fixed(),
             model.rest_positions(),
             d.is_lagged(),
+            pool.as_ref()
+                .map_or_else(rayon::current_num_threads, |p| p.current_num_threads()),
         )?;
         if let Some(per_body) = damping.body_coefficients() {
             let bodies: Vec<_> = model.bodies().iter().map(|b| b.vertices()).collect();

@@ -86,15 +86,17 @@ pub(crate) struct GlobalStep {
 impl GlobalStep {
     /// Assembles the operators, analyses the pattern and, for a lagged
     /// damping model (`lagged`), the 3n system. Nothing is factorised yet:
-    /// [`GlobalStep::prepare`] does that.
+    /// [`GlobalStep::prepare`] does that. `threads` is the step's thread
+    /// count ([`GlobalSystem::new`]).
     pub fn new(
         local: &LocalStep,
         masses: &[f64],
         fixed: &[bool],
         rest: &[Point],
         lagged: bool,
+        threads: usize,
     ) -> Result<Self, SolverError> {
-        let system = GlobalSystem::new(local, masses, fixed, rest)?;
+        let system = GlobalSystem::new(local, masses, fixed, rest, threads)?;
         let matrix = if lagged {
             StepMatrix::Lagged(Box::new(LaggedSystem::new(&system, local.blocks())?))
         } else {
@@ -289,8 +291,9 @@ impl GlobalStep {
 
     /// The full right-hand side `constant + energy_factor B p` for the
     /// stacked projections `p`, one point per free vertex, into `out`
-    /// (row-parallel; each row is computed alone, so the result does not
-    /// depend on the thread count).
+    /// (scattered projection by projection on one thread, gathered
+    /// row-parallel on more, `projection_scatter.rs`; each row is summed in
+    /// one fixed order, so the result does not depend on the thread count).
     pub fn rhs_with_projections(
         &self,
         constant: &[Point],
@@ -298,10 +301,9 @@ impl GlobalStep {
         energy_factor: f64,
         out: &mut [Point],
     ) {
-        let rows = &self.system.projection_rows;
-        out.par_iter_mut().enumerate().for_each(|(f, out)| {
-            *out = constant[f] + rows.row_dot(f, projections) * energy_factor;
-        });
+        self.system
+            .projection_rows
+            .rhs(constant, projections, energy_factor, out);
     }
 
     /// Solves the step's system for `rhs` (one point per free vertex);
