@@ -199,6 +199,7 @@ impl BodyContact {
     /// pair, and stay exact while they cover the iterates
     /// (`candidates.rs`).
     pub fn begin_step(&mut self, x_n: &[Point]) {
+        self.candidates.begin_step(x_n, &self.on_surface);
         for (v, pair) in self.pairs.iter_mut().enumerate() {
             let Some(p) = pair.filter(Pair::active) else {
                 *pair = None;
@@ -234,6 +235,28 @@ impl BodyContact {
         thickness: f64,
         collider: impl Fn(usize) -> bool,
     ) {
+        if !self.detect_listed_fast(x_n, dx, thickness) {
+            self.detect_with_boxes(x_n, dx, thickness);
+        }
+        self.count.iter_mut().for_each(|c| *c = 0);
+        for (v, pair) in self.pairs.iter().enumerate() {
+            let Some(p) = pair else { continue };
+            self.count[v] += 1;
+            for (&i, &w) in self.faces[p.face].vertices.iter().zip(&p.weights) {
+                if w != 0.0 {
+                    self.count[i] += 1;
+                }
+            }
+        }
+        for (v, c) in self.count.iter_mut().enumerate() {
+            *c += u32::from(collider(v));
+        }
+    }
+
+    /// The detection of [`BodyContact::detect`] over this iteration's
+    /// triangle boxes: against the candidate lists (rebuilt if they do not
+    /// cover the iterate), or the grid if they cannot be built.
+    fn detect_with_boxes(&mut self, x_n: &[Point], dx: &[Point], thickness: f64) {
         self.sweep_boxes(x_n, dx, thickness);
         if self.candidates.covers(x_n, dx, &self.on_surface)
             || self.build_candidates(x_n, dx, thickness)
@@ -251,19 +274,6 @@ impl BodyContact {
                     self.pairs[v] = self.first_hit(v, x_n, dx, thickness);
                 }
             }
-        }
-        self.count.iter_mut().for_each(|c| *c = 0);
-        for (v, pair) in self.pairs.iter().enumerate() {
-            let Some(p) = pair else { continue };
-            self.count[v] += 1;
-            for (&i, &w) in self.faces[p.face].vertices.iter().zip(&p.weights) {
-                if w != 0.0 {
-                    self.count[i] += 1;
-                }
-            }
-        }
-        for (v, c) in self.count.iter_mut().enumerate() {
-            *c += u32::from(collider(v));
         }
     }
 

@@ -6,7 +6,7 @@
 use pd_mesh::Point;
 
 use super::super::candidates::Surface;
-use super::super::grid::{cell_index, query_end};
+use super::super::grid::{cell_index, cell_size, query_end};
 use super::{BodyContact, Pair};
 
 /// Whether two boxes `(min, max)` are apart (a strict gap on some axis):
@@ -151,5 +151,127 @@ impl BodyContact {
             }
         }
         best.map(|(_, _, p)| p)
+    }
+}
+
+/// Two candidates of one vertex hit at the same fraction (or at fractions
+/// that do not compare): the winner is the grid's visiting order, which
+/// only [`BodyContact::first_listed_hit`] knows.
+pub(super) struct Tie;
+
+/// The largest ratio of a coordinate's magnitude to the detection margin
+/// at which [`BodyContact::detect_listed_fast`] runs: below it, a
+/// coordinate divided by the grid's cell (at least twice the margin) is
+/// below `2^49`, where floats are spaced by at most 1/8, so a query box no
+/// wider than a cell never spans more than 3 cells (the grid's query looks
+/// up at most 4 per side).
+const FAST_MAGNITUDE: f64 = (1u64 << 50) as f64;
+
+impl BodyContact {
+    /// The listed detection of an iteration, without the per-iteration
+    /// grid arithmetic (docs/contact.md, "Contact's own cost"): returns
+    /// `false`, having changed no pair, when it cannot give the result of
+    /// [`BodyContact::first_listed_hit`] bit for bit (lists not valid or
+    /// not covering the iterate, non-finite or enormous coordinates); the
+    /// caller then runs that path.
+    ///
+    /// Why it is the same. (1) The segment boxes and the coverage test are
+    /// the expressions of [`BodyContact::sweep_boxes`] and
+    /// [`super::super::candidates::Candidates::covers`], fused in one pass;
+    /// a candidate's box is built from them on demand with the expressions
+    /// of `sweep_boxes`, so it has the same bounds. (2) The grid's cell
+    /// is at least the extent of every triangle box, which holds the
+    /// segment of each of its vertices widened by `thickness + reach`, so
+    /// a searching vertex's query box (its segment widened by `thickness`)
+    /// is no wider than a cell: the query is never clamped, and since
+    /// `floor(p / cell)` is monotone in `p`, a triangle whose box is not
+    /// apart from the query shares a cell with it: the cell test of
+    /// `first_listed_hit` never rejects. (3) Its cells only order ties:
+    /// when two candidates hit at the same fraction, the vertex is handed
+    /// to `first_listed_hit` ([`Tie`]).
+    pub(super) fn detect_listed_fast(
+        &mut self,
+        x_n: &[Point],
+        dx: &[Point],
+        thickness: f64,
+    ) -> bool {
+        let margin = thickness + self.reach;
+        let fast = self.candidates.valid
+            && self.candidates.start_covered
+            && margin > 0.0
+            && self.candidates.magnitude <= margin * FAST_MAGNITUDE;
+        if !fast {
+            return false;
+        }
+        let mut covered = true;
+        for &i in &self.on_surface {
+            let (a, b) = (x_n[i], x_n[i] + dx[i]);
+            let (lo, hi) = self.candidates.bounds(i);
+            // `Candidates::covers`' comparisons for the iterate (the start
+            // was checked at the step's start or at the build), combined
+            // without short-circuit (false for a NaN).
+            for k in 0..3 {
+                covered &= (lo[k] <= b[k]) & (b[k] <= hi[k]);
+            }
+            self.segments[i] = (a.inf(&b), a.sup(&b));
+        }
+        if !covered {
+            return false;
+        }
+        let mut cell = None;
+        for v in 0..x_n.len() {
+            if !self.searching(v) || self.candidates.of(v).is_empty() {
+                continue;
+            }
+            self.pairs[v] = match self.first_listed_hit_fast(v, x_n, dx, thickness) {
+                Ok(pair) => pair,
+                Err(Tie) => {
+                    let cell = *cell.get_or_insert_with(|| {
+                        self.sweep_boxes(x_n, dx, thickness);
+                        cell_size(&self.boxes)
+                    });
+                    self.first_listed_hit(v, x_n, dx, (thickness, cell))
+                }
+            };
+        }
+        true
+    }
+
+    /// [`BodyContact::first_listed_hit`] where no cell test rejects (see
+    /// [`BodyContact::detect_listed_fast`]): the earliest hit, or [`Tie`]
+    /// if two candidates hit at the same fraction.
+    fn first_listed_hit_fast(
+        &self,
+        v: usize,
+        x_n: &[Point],
+        dx: &[Point],
+        thickness: f64,
+    ) -> Result<Option<Pair>, Tie> {
+        let (a, b) = (x_n[v], x_n[v] + dx[v]);
+        let m = Point::repeat(thickness);
+        let query = (a.inf(&b) - m, a.sup(&b) + m);
+        let widen = Point::repeat(thickness + self.reach);
+        let mut best: Option<(f64, Pair)> = None;
+        for &f in self.candidates.of(v) {
+            let f = f as usize;
+            let face = self.faces[f];
+            let [i, j, k] = face.vertices;
+            let [p, q, r] = [self.segments[i], self.segments[j], self.segments[k]];
+            let (lo, hi) = (p.0.inf(&q.0).inf(&r.0), p.1.sup(&q.1).sup(&r.1));
+            if apart(&query, &(lo - widen, hi + widen)) {
+                continue;
+            }
+            let start = [x_n[i], x_n[j], x_n[k]];
+            let end = [x_n[i] + dx[i], x_n[j] + dx[j], x_n[k] + dx[k]];
+            let Some((s, pair)) = self.crossing(&face, (&start, &end), (&a, &b), thickness) else {
+                continue;
+            };
+            match best {
+                Some((t, _)) if s > t => {}
+                Some((t, _)) if !(s < t) => return Err(Tie),
+                _ => best = Some((s, Pair { face: f, ..pair })),
+            }
+        }
+        Ok(best.map(|(_, p)| p))
     }
 }

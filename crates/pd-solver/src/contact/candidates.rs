@@ -45,6 +45,14 @@ pub(super) struct Candidates {
     /// previous build, m: with the current one, sets the next build's
     /// inflation.
     pub last_motion: f64,
+    /// The largest magnitude of a surface vertex's stored bound, m (what
+    /// [`super::bodies::BodyContact`]'s fast detection checks its cell
+    /// arithmetic against).
+    pub magnitude: f64,
+    /// Whether every surface vertex's step start `x_n` lies in its stored
+    /// box (set by [`Candidates::build`] and [`Candidates::begin_step`]):
+    /// then an iteration only needs its iterates checked.
+    pub start_covered: bool,
     grid: Grid,
     boxes: Vec<(Point, Point)>,
 }
@@ -64,6 +72,27 @@ impl Candidates {
     /// Vertex `v`'s candidate triangles.
     pub fn of(&self, v: usize) -> &[u32] {
         &self.faces[self.start[v] as usize..self.start[v + 1] as usize]
+    }
+
+    /// Vertex `v`'s stored box `(x_n - delta, x_n + delta)`, m.
+    pub fn bounds(&self, v: usize) -> &(Point, Point) {
+        &self.bounds[v]
+    }
+
+    /// At a step's start `x_n`: records whether every surface vertex's
+    /// start lies in its stored box ([`Candidates::start_covered`]).
+    pub fn begin_step(&mut self, x_n: &[Point], on_surface: &[usize]) {
+        self.start_covered = self.valid && self.contains(x_n, on_surface);
+    }
+
+    /// Whether every vertex of `on_surface` has its point of `points` in
+    /// its stored box (false for NaN).
+    fn contains(&self, points: &[Point], on_surface: &[usize]) -> bool {
+        on_surface.iter().all(|&i| {
+            let (lo, hi) = &self.bounds[i];
+            let a = points[i];
+            (0..3).all(|k| lo[k] <= a[k] && a[k] <= hi[k])
+        })
     }
 
     /// Whether every vertex of `surface` (`on_surface`) has its start
@@ -95,6 +124,9 @@ impl Candidates {
         let d = Point::repeat(delta);
         self.bounds.clear();
         self.bounds.extend(x_n.iter().map(|x| (x - d, x + d)));
+        self.magnitude = (on_surface.iter())
+            .map(|&i| self.bounds[i].0.amax().max(self.bounds[i].1.amax()))
+            .fold(0.0, f64::max);
         let m = Point::repeat(margin);
         self.boxes.clear();
         for t in surface.faces {
@@ -145,6 +177,7 @@ impl Candidates {
         }
         self.start.push(self.faces.len() as u32);
         self.valid = true;
+        self.start_covered = self.contains(x_n, on_surface);
         self.covers(x_n, dx, on_surface)
     }
 }

@@ -281,6 +281,7 @@ impl ContactState {
                 Some(slot) => slot,
                 // With bodies, detection ran before (`detect_bodies`).
                 None if self.bodies.is_some() => continue,
+                None if self.misses_all(&x_n[v], &x) => continue,
                 None => match self.detect(v, &x_n[v], &x) {
                     Some(slot) => slot,
                     None => continue,
@@ -312,14 +313,31 @@ impl ContactState {
     /// every vertex's contacts (the Uzawa steps are shared by them).
     fn detect_bodies(&mut self, x_n: &[Point], dx: &[Point]) {
         for v in 0..x_n.len() {
-            if self.free_index[v] != usize::MAX && self.slots[v].is_none() {
-                self.slots[v] = self.detect(v, &x_n[v], &(x_n[v] + dx[v]));
+            if self.free_index[v] == usize::MAX || self.slots[v].is_some() {
+                continue;
+            }
+            let (a, b) = (x_n[v], x_n[v] + dx[v]);
+            // The slot is empty: written only when a contact is found.
+            if !self.misses_all(&a, &b) {
+                if let Some(slot) = self.detect(v, &a, &b) {
+                    self.slots[v] = Some(slot);
+                }
             }
         }
         let slots = &self.slots;
         if let Some(bodies) = &mut self.bodies {
             bodies.detect(x_n, dx, self.settings.thickness, |v| slots[v].is_some());
         }
+    }
+
+    /// Whether the segment `a -> b` surely hits no collider
+    /// ([`ColliderShape::misses`]): a cheap test run before
+    /// [`ContactState::detect`] (most vertices are far from every
+    /// collider), with the same verdict where it answers.
+    #[inline]
+    fn misses_all(&self, a: &Point, b: &Point) -> bool {
+        let thickness = self.settings.thickness;
+        (self.settings.colliders.iter()).all(|c| c.shape.misses(a, b, thickness))
     }
 
     /// The earliest hit of the segment `a -> b` among the colliders, as a
