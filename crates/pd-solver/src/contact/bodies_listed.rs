@@ -240,7 +240,7 @@ impl BodyContact {
     /// [`BodyContact::first_listed_hit`] where no cell test rejects (see
     /// [`BodyContact::detect_listed_fast`]): the earliest hit, or [`Tie`]
     /// if two candidates hit at the same fraction.
-    fn first_listed_hit_fast(
+    pub(super) fn first_listed_hit_fast(
         &self,
         v: usize,
         x_n: &[Point],
