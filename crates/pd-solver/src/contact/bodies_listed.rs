@@ -77,6 +77,7 @@ impl BodyContact {
             .fold(0.0_f64, f64::max);
         let delta = 2.0 * motion.max(self.candidates.last_motion);
         self.candidates.last_motion = motion;
+        self.start_planes_fresh = false;
         let mut candidates = std::mem::take(&mut self.candidates);
         let surface = Surface {
             faces: &self.triangles,
@@ -218,9 +219,15 @@ impl BodyContact {
         if !covered {
             return false;
         }
+        if !self.start_planes_fresh {
+            self.fill_start_planes(x_n, thickness);
+        }
         let mut cell = None;
-        for v in 0..x_n.len() {
-            if !self.searching(v) || self.candidates.of(v).is_empty() {
+        // A vertex with an empty list finds nothing; a listed one is on a
+        // surface and free, so it searches if it has no pair.
+        for k in 0..self.candidates.listed().len() {
+            let v = self.candidates.listed()[k];
+            if self.pairs[v].is_some() {
                 continue;
             }
             self.pairs[v] = match self.first_listed_hit_fast(v, x_n, dx, thickness) {
@@ -252,8 +259,11 @@ impl BodyContact {
         let query = (a.inf(&b) - m, a.sup(&b) + m);
         let widen = Point::repeat(thickness + self.reach);
         let mut best: Option<(f64, Pair)> = None;
-        for &f in self.candidates.of(v) {
-            let f = f as usize;
+        for e in self.candidates.entries(v) {
+            let Some(start_plane) = self.start_planes[e] else {
+                continue;
+            };
+            let f = self.candidates.face(e);
             let face = self.faces[f];
             let [i, j, k] = face.vertices;
             let [p, q, r] = [self.segments[i], self.segments[j], self.segments[k]];
@@ -263,7 +273,9 @@ impl BodyContact {
             }
             let start = [x_n[i], x_n[j], x_n[k]];
             let end = [x_n[i] + dx[i], x_n[j] + dx[j], x_n[k] + dx[k]];
-            let Some((s, pair)) = self.crossing(&face, (&start, &end), (&a, &b), thickness) else {
+            let Some((s, pair)) =
+                self.crossing_from(start_plane, (&start, &end), (&a, &b), thickness)
+            else {
                 continue;
             };
             match best {
@@ -273,5 +285,23 @@ impl BodyContact {
             }
         }
         Ok(best.map(|(_, p)| p))
+    }
+
+    /// Each candidate entry's start plane for this step
+    /// ([`BodyContact::start_plane`]: it depends on `x_n` only), for the
+    /// vertices with candidates.
+    fn fill_start_planes(&mut self, x_n: &[Point], thickness: f64) {
+        self.start_planes.clear();
+        self.start_planes
+            .resize(self.candidates.entry_count(), None);
+        for &v in self.candidates.listed() {
+            for e in self.candidates.entries(v) {
+                let face = self.faces[self.candidates.face(e)];
+                let [i, j, k] = face.vertices;
+                let start = [x_n[i], x_n[j], x_n[k]];
+                self.start_planes[e] = self.start_plane(&face, &start, &x_n[v], thickness);
+            }
+        }
+        self.start_planes_fresh = true;
     }
 }

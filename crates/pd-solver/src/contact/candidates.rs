@@ -53,6 +53,8 @@ pub(super) struct Candidates {
     /// box (set by [`Candidates::build`] and [`Candidates::begin_step`]):
     /// then an iteration only needs its iterates checked.
     pub start_covered: bool,
+    /// The vertices with at least one candidate, in increasing order.
+    nonempty: Vec<usize>,
     grid: Grid,
     boxes: Vec<(Point, Point)>,
 }
@@ -71,7 +73,28 @@ pub(super) struct Surface<'a> {
 impl Candidates {
     /// Vertex `v`'s candidate triangles.
     pub fn of(&self, v: usize) -> &[u32] {
-        &self.faces[self.start[v] as usize..self.start[v + 1] as usize]
+        &self.faces[self.entries(v)]
+    }
+
+    /// The entries of vertex `v`'s candidates (indices into the list of
+    /// all entries, `0..self.len()`).
+    pub fn entries(&self, v: usize) -> std::ops::Range<usize> {
+        self.start[v] as usize..self.start[v + 1] as usize
+    }
+
+    /// The candidate triangle of entry `e`.
+    pub fn face(&self, e: usize) -> usize {
+        self.faces[e] as usize
+    }
+
+    /// The number of entries of all lists.
+    pub fn entry_count(&self) -> usize {
+        self.faces.len()
+    }
+
+    /// The vertices with at least one candidate, in increasing order.
+    pub fn listed(&self) -> &[usize] {
+        &self.nonempty
     }
 
     /// Vertex `v`'s stored box `(x_n - delta, x_n + delta)`, m.
@@ -142,6 +165,7 @@ impl Candidates {
         let t = Point::repeat(thickness);
         self.start.clear();
         self.faces.clear();
+        self.nonempty.clear();
         for v in 0..x_n.len() {
             self.start.push(self.faces.len() as u32);
             if !(surface.listed)(v) {
@@ -171,6 +195,9 @@ impl Candidates {
                 }
             }
             self.faces.truncate(kept);
+            if kept > from {
+                self.nonempty.push(v);
+            }
             if self.faces.len() > u32::MAX as usize {
                 return false;
             }
