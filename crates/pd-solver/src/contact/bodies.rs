@@ -247,18 +247,15 @@ impl BodyContact {
         if !self.detect_listed_fast(x_n, dx, thickness) {
             self.detect_with_boxes(x_n, dx, thickness);
         }
-        self.count.iter_mut().for_each(|c| *c = 0);
+        for (v, c) in self.count.iter_mut().enumerate() {
+            *c = u32::from(collider(v));
+        }
         for (v, pair) in self.pairs.iter().enumerate() {
             let Some(p) = pair else { continue };
             self.count[v] += 1;
             for (&i, &w) in self.faces[p.face].vertices.iter().zip(&p.weights) {
-                if w != 0.0 {
-                    self.count[i] += 1;
-                }
+                self.count[i] += u32::from(w != 0.0);
             }
-        }
-        for (v, c) in self.count.iter_mut().enumerate() {
-            *c += u32::from(collider(v));
         }
     }
 

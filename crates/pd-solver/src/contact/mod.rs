@@ -271,16 +271,16 @@ impl ContactState {
         if self.bodies.is_some() {
             self.detect_bodies(x_n, dx);
         }
+        let with_bodies = self.bodies.is_some();
         for v in 0..x_n.len() {
             let f = self.free_index[v];
-            if f == usize::MAX {
+            // With bodies, detection ran before (`detect_bodies`).
+            if f == usize::MAX || (with_bodies && self.slots[v].is_none()) {
                 continue;
             }
             let x = x_n[v] + dx[v];
             let slot = match self.slots[v] {
                 Some(slot) => slot,
-                // With bodies, detection ran before (`detect_bodies`).
-                None if self.bodies.is_some() => continue,
                 None if self.misses_all(&x_n[v], &x) => continue,
                 None => match self.detect(v, &x_n[v], &x) {
                     Some(slot) => slot,
@@ -313,7 +313,7 @@ impl ContactState {
     /// every vertex's contacts (the Uzawa steps are shared by them).
     fn detect_bodies(&mut self, x_n: &[Point], dx: &[Point]) {
         for v in 0..x_n.len() {
-            if self.free_index[v] == usize::MAX || self.slots[v].is_some() {
+            if self.slots[v].is_some() || self.free_index[v] == usize::MAX {
                 continue;
             }
             let (a, b) = (x_n[v], x_n[v] + dx[v]);
