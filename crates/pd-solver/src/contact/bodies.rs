@@ -31,7 +31,7 @@ use pd_mesh::Point;
 
 use super::SurfacePairs;
 use super::candidates::Candidates;
-use super::grid::{Grid, cell_size};
+use super::grid::Grid;
 use super::neighbourhood::RestNeighbourhood;
 
 /// Barycentric slack of the inside test (a vertex on a shared edge or
@@ -255,30 +255,6 @@ impl BodyContact {
             self.count[v] += 1;
             for (&i, &w) in self.faces[p.face].vertices.iter().zip(&p.weights) {
                 self.count[i] += u32::from(w != 0.0);
-            }
-        }
-    }
-
-    /// The detection of [`BodyContact::detect`] over this iteration's
-    /// triangle boxes: against the candidate lists (rebuilt if they do not
-    /// cover the iterate), or the grid if they cannot be built.
-    fn detect_with_boxes(&mut self, x_n: &[Point], dx: &[Point], thickness: f64) {
-        self.sweep_boxes(x_n, dx, thickness);
-        if self.candidates.covers(x_n, dx, &self.on_surface)
-            || self.build_candidates(x_n, dx, thickness)
-        {
-            let cell = cell_size(&self.boxes);
-            for v in 0..x_n.len() {
-                if self.searching(v) {
-                    self.pairs[v] = self.first_listed_hit(v, x_n, dx, (thickness, cell));
-                }
-            }
-        } else {
-            self.grid.build(&self.boxes);
-            for v in 0..x_n.len() {
-                if self.searching(v) {
-                    self.pairs[v] = self.first_hit(v, x_n, dx, thickness);
-                }
             }
         }
     }

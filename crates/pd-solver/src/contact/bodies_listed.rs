@@ -1,7 +1,8 @@
 //! Detection against the per-step candidate lists (`candidates.rs`):
-//! building them for [`BodyContact`] and the listed counterpart of
-//! [`BodyContact::first_hit`]; a file of its own to keep `bodies.rs`
-//! within the size rule.
+//! building them for [`BodyContact`], the listed counterpart of
+//! [`BodyContact::first_hit`] and its fast path without the grid's
+//! arithmetic (docs/contact.md, "Contact's own cost"); a file of its own
+//! to keep `bodies.rs` within the size rule.
 
 use pd_mesh::Point;
 
@@ -24,6 +25,30 @@ pub(super) fn apart(a: &(Point, Point), b: &(Point, Point)) -> bool {
 }
 
 impl BodyContact {
+    /// The detection of [`BodyContact::detect`] over this iteration's
+    /// triangle boxes: against the candidate lists (rebuilt if they do not
+    /// cover the iterate), or the grid if they cannot be built.
+    pub(super) fn detect_with_boxes(&mut self, x_n: &[Point], dx: &[Point], thickness: f64) {
+        self.sweep_boxes(x_n, dx, thickness);
+        if self.candidates.covers(x_n, dx, &self.on_surface)
+            || self.build_candidates(x_n, dx, thickness)
+        {
+            let cell = cell_size(&self.boxes);
+            for v in 0..x_n.len() {
+                if self.searching(v) {
+                    self.pairs[v] = self.first_listed_hit(v, x_n, dx, (thickness, cell));
+                }
+            }
+        } else {
+            self.grid.build(&self.boxes);
+            for v in 0..x_n.len() {
+                if self.searching(v) {
+                    self.pairs[v] = self.first_hit(v, x_n, dx, thickness);
+                }
+            }
+        }
+    }
+
     /// Every triangle's box for this iterate: the hull of its vertices'
     /// segments `x_n -> x_n + dx`, widened by the thickness and the reach.
     /// Each surface vertex's segment box is taken once and a triangle's box
@@ -162,10 +187,11 @@ pub(super) struct Tie;
 
 /// The largest ratio of a coordinate's magnitude to the detection margin
 /// at which [`BodyContact::detect_listed_fast`] runs: below it, a
-/// coordinate divided by the grid's cell (at least twice the margin) is
-/// below `2^49`, where floats are spaced by at most 1/8, so a query box no
-/// wider than a cell never spans more than 3 cells (the grid's query looks
-/// up at most 4 per side).
+/// coordinate divided by the grid's cell (twice the margin plus the
+/// triangle's extent, at least about 1.5 margins after rounding) is below
+/// `2^50`, where floats are spaced by at most 1/8, so a query box no wider
+/// than a cell never spans more than 3 cells (the grid's query looks up at
+/// most 4 per side).
 const FAST_MAGNITUDE: f64 = (1u64 << 50) as f64;
 
 impl BodyContact {
@@ -178,9 +204,13 @@ impl BodyContact {
     ///
     /// Why it is the same. (1) The segment boxes and the coverage test are
     /// the expressions of [`BodyContact::sweep_boxes`] and
-    /// [`super::super::candidates::Candidates::covers`], fused in one pass;
-    /// a candidate's box is built from them on demand with the expressions
-    /// of `sweep_boxes`, so it has the same bounds. (2) The grid's cell
+    /// [`super::super::candidates::Candidates::covers`], fused in one pass
+    /// (the coverage of the step's start `x_n` is checked once per step and
+    /// at each build: `start_covered`); a candidate's box is built from the
+    /// segment boxes on demand with the expressions of `sweep_boxes`, so it
+    /// has the same bounds. A candidate's start plane depends on `x_n` only
+    /// and is taken once per step (`fill_start_planes`), and a vertex with
+    /// no candidate finds nothing, so only the listed ones are visited. (2) The grid's cell
     /// is at least the extent of every triangle box, which holds the
     /// segment of each of its vertices widened by `thickness + reach`, so
     /// a searching vertex's query box (its segment widened by `thickness`)

@@ -1,6 +1,7 @@
 //! The per-step candidate lists (`candidates.rs`) against the
 //! per-iteration grid: the same pair for every vertex, bit for bit.
 
+use super::super::grid::cell_size;
 use super::*;
 
 /// A square sheet of `n x n` vertices, spacing 0.1 m, at height `y`,
