@@ -425,7 +425,10 @@ impl BodyContact {
             for (&i, &w) in tri.iter().zip(&pair.weights) {
                 add(i, -pair.force * w);
             }
-            self.pairs[v] = Some(pair);
+            // Only the force changed.
+            if let Some(p) = &mut self.pairs[v] {
+                p.force = pair.force;
+            }
         }
     }
 

@@ -282,15 +282,19 @@ impl ContactState {
                 continue;
             }
             let x = x_n[v] + dx[v];
-            let slot = match self.slots[v] {
-                Some(slot) => slot,
-                None if self.misses_all(&x_n[v], &x) => continue,
-                None => match self.detect(v, &x_n[v], &x) {
-                    Some(slot) => slot,
-                    None => continue,
-                },
+            if self.slots[v].is_none() {
+                if self.misses_all(&x_n[v], &x) {
+                    continue;
+                }
+                let Some(slot) = self.detect(v, &x_n[v], &x) else {
+                    continue;
+                };
+                self.slots[v] = Some(slot);
+            }
+            // Updated in place (no copy of the slot in and out).
+            let Some(slot) = &mut self.slots[v] else {
+                continue;
             };
-            let mut slot = slot;
             // The first iterate is the inertial target, reached without the
             // warm-started force: that force is applied as is once, and
             // updated from the first solve on.
@@ -300,10 +304,9 @@ impl ContactState {
                     rho /= f64::from(bodies.count[v].max(1));
                 }
                 let collider = &self.settings.colliders[slot.collider];
-                slot.force = update_force(&slot, collider, &x, rho, h);
+                slot.force = update_force(slot, collider, &x, rho, h);
             }
             rhs[f] += slot.force;
-            self.slots[v] = Some(slot);
         }
         if let Some(bodies) = &mut self.bodies {
             let settings = (h, RELAXATION, self.settings.thickness);
