@@ -10,7 +10,9 @@
 //! - `MODE` = `alternate R`: builds both scenes, runs 20 warm-up steps of
 //!   each, then `R` rounds of 10 steps with contact and 10 without, and
 //!   prints the total time of each and their ratio (both see the same
-//!   machine load).
+//!   machine load), then the ratio of the medians and of the minima of
+//!   the rounds' times (on a loaded machine the minimum is the round least
+//!   disturbed by other processes: the least noisy of the three).
 
 use std::path::Path;
 use std::time::Instant;
@@ -54,18 +56,34 @@ fn main() -> Result<(), String> {
         "alternate" => {
             let mut with = build(cells, stack, true)?;
             let mut without = build(cells, stack, false)?;
-            let (mut a, mut b) = (0.0, 0.0);
+            let (mut a, mut b) = (Vec::new(), Vec::new());
             for _ in 0..n {
-                a += timed(&mut with, 10)?;
-                b += timed(&mut without, 10)?;
+                a.push(timed(&mut with, 10)?);
+                b.push(timed(&mut without, 10)?);
             }
             let steps = (10 * n).max(1) as f64;
+            let (sum_a, sum_b) = (a.iter().sum::<f64>(), b.iter().sum::<f64>());
             println!(
                 "with {:.4} ms, without {:.4} ms per step, ratio {:.3}",
-                a * 1e3 / steps,
-                b * 1e3 / steps,
-                a / b
+                sum_a * 1e3 / steps,
+                sum_b * 1e3 / steps,
+                sum_a / sum_b
             );
+            a.sort_by(f64::total_cmp);
+            b.sort_by(f64::total_cmp);
+            if let (Some(&min_a), Some(&min_b)) = (a.first(), b.first()) {
+                let (med_a, med_b) = (a[a.len() / 2], b[b.len() / 2]);
+                println!(
+                    "rounds of 10 steps: median {:.4} / {:.4} ms per step (ratio {:.3}), \
+                     minimum {:.4} / {:.4} ms (ratio {:.3})",
+                    med_a * 1e2,
+                    med_b * 1e2,
+                    med_a / med_b,
+                    min_a * 1e2,
+                    min_b * 1e2,
+                    min_a / min_b
+                );
+            }
         }
         _ => return Err(format!("unknown mode {mode:?}")),
     }

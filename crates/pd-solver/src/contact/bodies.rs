@@ -31,7 +31,7 @@ use pd_mesh::Point;
 
 use super::SurfacePairs;
 use super::candidates::Candidates;
-use super::grid::{Grid, cell_size};
+use super::grid::Grid;
 use super::neighbourhood::RestNeighbourhood;
 
 /// Barycentric slack of the inside test (a vertex on a shared edge or
@@ -40,7 +40,7 @@ const INSIDE_SLACK: f64 = 1e-9;
 
 /// One surface triangle of a body.
 #[derive(Debug, Clone, Copy)]
-struct Face {
+pub(super) struct Face {
     vertices: [usize; 3],
     body: usize,
     /// Cloth: either side is outside (the side the vertex comes from).
@@ -100,6 +100,11 @@ pub(crate) struct BodyContact {
     candidates: Candidates,
     /// Each triangle's vertices (for the candidate lists).
     triangles: Vec<[usize; 3]>,
+    /// Per candidate-list entry, its start plane
+    /// ([`BodyContact::start_plane`]) for this step, valid while
+    /// `start_planes_fresh` (cleared at a step's start and by a build).
+    start_planes: Vec<Option<(Point, f64)>>,
+    start_planes_fresh: bool,
 }
 
 /// A body's surface for [`BodyContact::new`]: its triangles in global
@@ -165,6 +170,8 @@ impl BodyContact {
             grid: Grid::default(),
             boxes: Vec::new(),
             segments: vec![(Point::zeros(), Point::zeros()); rest.len()],
+            start_planes: Vec::new(),
+            start_planes_fresh: false,
         }
     }
 
@@ -179,6 +186,7 @@ impl BodyContact {
     pub fn load(&mut self, saved: &[super::saved::SavedContact]) {
         self.pairs.iter_mut().for_each(|p| *p = None);
         self.candidates.valid = false;
+        self.start_planes_fresh = false;
         for c in saved {
             self.pairs[c.vertex] = Some(Pair {
                 face: c.other,
@@ -199,6 +207,8 @@ impl BodyContact {
     /// pair, and stay exact while they cover the iterates
     /// (`candidates.rs`).
     pub fn begin_step(&mut self, x_n: &[Point]) {
+        self.candidates.begin_step(x_n, &self.on_surface);
+        self.start_planes_fresh = false;
         for (v, pair) in self.pairs.iter_mut().enumerate() {
             let Some(p) = pair.filter(Pair::active) else {
                 *pair = None;
@@ -234,36 +244,18 @@ impl BodyContact {
         thickness: f64,
         collider: impl Fn(usize) -> bool,
     ) {
-        self.sweep_boxes(x_n, dx, thickness);
-        if self.candidates.covers(x_n, dx, &self.on_surface)
-            || self.build_candidates(x_n, dx, thickness)
-        {
-            let cell = cell_size(&self.boxes);
-            for v in 0..x_n.len() {
-                if self.searching(v) {
-                    self.pairs[v] = self.first_listed_hit(v, x_n, dx, (thickness, cell));
-                }
-            }
-        } else {
-            self.grid.build(&self.boxes);
-            for v in 0..x_n.len() {
-                if self.searching(v) {
-                    self.pairs[v] = self.first_hit(v, x_n, dx, thickness);
-                }
-            }
+        if !self.detect_listed_fast(x_n, dx, thickness) {
+            self.detect_with_boxes(x_n, dx, thickness);
         }
-        self.count.iter_mut().for_each(|c| *c = 0);
+        for (v, c) in self.count.iter_mut().enumerate() {
+            *c = u32::from(collider(v));
+        }
         for (v, pair) in self.pairs.iter().enumerate() {
             let Some(p) = pair else { continue };
             self.count[v] += 1;
             for (&i, &w) in self.faces[p.face].vertices.iter().zip(&p.weights) {
-                if w != 0.0 {
-                    self.count[i] += 1;
-                }
+                self.count[i] += u32::from(w != 0.0);
             }
-        }
-        for (v, c) in self.count.iter_mut().enumerate() {
-            *c += u32::from(collider(v));
         }
     }
 
@@ -325,6 +317,22 @@ impl BodyContact {
         (a, b): (&Point, &Point),
         thickness: f64,
     ) -> Option<(f64, Pair)> {
+        let start_plane = self.start_plane(face, start, a, thickness)?;
+        self.crossing_from(start_plane, (start, end), (a, b), thickness)
+    }
+
+    /// The part of [`BodyContact::crossing`] that depends only on the
+    /// step's start: the triangle's unit normal at `start` turned towards
+    /// the side the vertex `a` is on (for a two-sided triangle) and the
+    /// signed distance along it; `None` if the triangle is degenerate or
+    /// the vertex is more than `thickness + reach` behind it.
+    pub(super) fn start_plane(
+        &self,
+        face: &Face,
+        start: &[Point; 3],
+        a: &Point,
+        thickness: f64,
+    ) -> Option<(Point, f64)> {
         // Each rejection as soon as its values are known (the same
         // values, so the same result as testing them all at the end).
         let (n0, d0) = plane_of(start, a)?;
@@ -337,6 +345,18 @@ impl BodyContact {
         if d0 < -(thickness + self.reach) {
             return None;
         }
+        Some((n0, d0))
+    }
+
+    /// The rest of [`BodyContact::crossing`], from the start plane
+    /// `(n0, d0)` of [`BodyContact::start_plane`].
+    pub(super) fn crossing_from(
+        &self,
+        (n0, d0): (Point, f64),
+        (start, end): (&[Point; 3], &[Point; 3]),
+        (a, b): (&Point, &Point),
+        thickness: f64,
+    ) -> Option<(f64, Pair)> {
         let (n1, _) = plane_of(end, b)?;
         let n1 = if n1.dot(&n0) >= 0.0 { n1 } else { -n1 };
         let d1 = n1.dot(&(b - end[0]));
@@ -405,7 +425,10 @@ impl BodyContact {
             for (&i, &w) in tri.iter().zip(&pair.weights) {
                 add(i, -pair.force * w);
             }
-            self.pairs[v] = Some(pair);
+            // Only the force changed.
+            if let Some(p) = &mut self.pairs[v] {
+                p.force = pair.force;
+            }
         }
     }
 

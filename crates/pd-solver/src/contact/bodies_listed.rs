@@ -1,12 +1,13 @@
 //! Detection against the per-step candidate lists (`candidates.rs`):
-//! building them for [`BodyContact`] and the listed counterpart of
-//! [`BodyContact::first_hit`]; a file of its own to keep `bodies.rs`
-//! within the size rule.
+//! building them for [`BodyContact`], the listed counterpart of
+//! [`BodyContact::first_hit`] and its fast path without the grid's
+//! arithmetic (docs/contact.md, "Contact's own cost"); a file of its own
+//! to keep `bodies.rs` within the size rule.
 
 use pd_mesh::Point;
 
 use super::super::candidates::Surface;
-use super::super::grid::{cell_index, query_end};
+use super::super::grid::{cell_index, cell_size, query_end};
 use super::{BodyContact, Pair};
 
 /// Whether two boxes `(min, max)` are apart (a strict gap on some axis):
@@ -24,6 +25,30 @@ pub(super) fn apart(a: &(Point, Point), b: &(Point, Point)) -> bool {
 }
 
 impl BodyContact {
+    /// The detection of [`BodyContact::detect`] over this iteration's
+    /// triangle boxes: against the candidate lists (rebuilt if they do not
+    /// cover the iterate), or the grid if they cannot be built.
+    pub(super) fn detect_with_boxes(&mut self, x_n: &[Point], dx: &[Point], thickness: f64) {
+        self.sweep_boxes(x_n, dx, thickness);
+        if self.candidates.covers(x_n, dx, &self.on_surface)
+            || self.build_candidates(x_n, dx, thickness)
+        {
+            let cell = cell_size(&self.boxes);
+            for v in 0..x_n.len() {
+                if self.searching(v) {
+                    self.pairs[v] = self.first_listed_hit(v, x_n, dx, (thickness, cell));
+                }
+            }
+        } else {
+            self.grid.build(&self.boxes);
+            for v in 0..x_n.len() {
+                if self.searching(v) {
+                    self.pairs[v] = self.first_hit(v, x_n, dx, thickness);
+                }
+            }
+        }
+    }
+
     /// Every triangle's box for this iterate: the hull of its vertices'
     /// segments `x_n -> x_n + dx`, widened by the thickness and the reach.
     /// Each surface vertex's segment box is taken once and a triangle's box
@@ -77,6 +102,7 @@ impl BodyContact {
             .fold(0.0_f64, f64::max);
         let delta = 2.0 * motion.max(self.candidates.last_motion);
         self.candidates.last_motion = motion;
+        self.start_planes_fresh = false;
         let mut candidates = std::mem::take(&mut self.candidates);
         let surface = Surface {
             faces: &self.triangles,
@@ -151,5 +177,161 @@ impl BodyContact {
             }
         }
         best.map(|(_, _, p)| p)
+    }
+}
+
+/// Two candidates of one vertex hit at the same fraction (or at fractions
+/// that do not compare): the winner is the grid's visiting order, which
+/// only [`BodyContact::first_listed_hit`] knows.
+pub(super) struct Tie;
+
+/// The largest ratio of a coordinate's magnitude to the detection margin
+/// at which [`BodyContact::detect_listed_fast`] runs: below it, a
+/// coordinate divided by the grid's cell (twice the margin plus the
+/// triangle's extent, at least about 1.5 margins after rounding) is below
+/// `2^50`, where floats are spaced by at most 1/8, so a query box no wider
+/// than a cell never spans more than 3 cells (the grid's query looks up at
+/// most 4 per side).
+const FAST_MAGNITUDE: f64 = (1u64 << 50) as f64;
+
+impl BodyContact {
+    /// The listed detection of an iteration, without the per-iteration
+    /// grid arithmetic (docs/contact.md, "Contact's own cost"): returns
+    /// `false`, having changed no pair, when it cannot give the result of
+    /// [`BodyContact::first_listed_hit`] bit for bit (lists not valid or
+    /// not covering the iterate, non-finite or enormous coordinates); the
+    /// caller then runs that path.
+    ///
+    /// Why it is the same. (1) The segment boxes and the coverage test are
+    /// the expressions of [`BodyContact::sweep_boxes`] and
+    /// [`super::super::candidates::Candidates::covers`], fused in one pass
+    /// (the coverage of the step's start `x_n` is checked once per step and
+    /// at each build: `start_covered`); a candidate's box is built from the
+    /// segment boxes on demand with the expressions of `sweep_boxes`, so it
+    /// has the same bounds. A candidate's start plane depends on `x_n` only
+    /// and is taken once per step (`fill_start_planes`), and a vertex with
+    /// no candidate finds nothing, so only the listed ones are visited. (2) The grid's cell
+    /// is at least the extent of every triangle box, which holds the
+    /// segment of each of its vertices widened by `thickness + reach`, so
+    /// a searching vertex's query box (its segment widened by `thickness`)
+    /// is no wider than a cell: the query is never clamped, and since
+    /// `floor(p / cell)` is monotone in `p`, a triangle whose box is not
+    /// apart from the query shares a cell with it: the cell test of
+    /// `first_listed_hit` never rejects. (3) Its cells only order ties:
+    /// when two candidates hit at the same fraction, the vertex is handed
+    /// to `first_listed_hit` ([`Tie`]).
+    pub(super) fn detect_listed_fast(
+        &mut self,
+        x_n: &[Point],
+        dx: &[Point],
+        thickness: f64,
+    ) -> bool {
+        let margin = thickness + self.reach;
+        let fast = self.candidates.valid
+            && self.candidates.start_covered
+            && margin > 0.0
+            && self.candidates.magnitude <= margin * FAST_MAGNITUDE;
+        if !fast {
+            return false;
+        }
+        let mut covered = true;
+        for &i in &self.on_surface {
+            let (a, b) = (x_n[i], x_n[i] + dx[i]);
+            let (lo, hi) = self.candidates.bounds(i);
+            // `Candidates::covers`' comparisons for the iterate (the start
+            // was checked at the step's start or at the build), combined
+            // without short-circuit (false for a NaN).
+            for k in 0..3 {
+                covered &= (lo[k] <= b[k]) & (b[k] <= hi[k]);
+            }
+            self.segments[i] = (a.inf(&b), a.sup(&b));
+        }
+        if !covered {
+            return false;
+        }
+        if !self.start_planes_fresh {
+            self.fill_start_planes(x_n, thickness);
+        }
+        let mut cell = None;
+        // A vertex with an empty list finds nothing; a listed one is on a
+        // surface and free, so it searches if it has no pair.
+        for k in 0..self.candidates.listed().len() {
+            let v = self.candidates.listed()[k];
+            if self.pairs[v].is_some() {
+                continue;
+            }
+            self.pairs[v] = match self.first_listed_hit_fast(v, x_n, dx, thickness) {
+                Ok(pair) => pair,
+                Err(Tie) => {
+                    let cell = *cell.get_or_insert_with(|| {
+                        self.sweep_boxes(x_n, dx, thickness);
+                        cell_size(&self.boxes)
+                    });
+                    self.first_listed_hit(v, x_n, dx, (thickness, cell))
+                }
+            };
+        }
+        true
+    }
+
+    /// [`BodyContact::first_listed_hit`] where no cell test rejects (see
+    /// [`BodyContact::detect_listed_fast`]): the earliest hit, or [`Tie`]
+    /// if two candidates hit at the same fraction.
+    pub(super) fn first_listed_hit_fast(
+        &self,
+        v: usize,
+        x_n: &[Point],
+        dx: &[Point],
+        thickness: f64,
+    ) -> Result<Option<Pair>, Tie> {
+        let (a, b) = (x_n[v], x_n[v] + dx[v]);
+        let m = Point::repeat(thickness);
+        let query = (a.inf(&b) - m, a.sup(&b) + m);
+        let widen = Point::repeat(thickness + self.reach);
+        let mut best: Option<(f64, Pair)> = None;
+        for e in self.candidates.entries(v) {
+            let Some(start_plane) = self.start_planes[e] else {
+                continue;
+            };
+            let f = self.candidates.face(e);
+            let face = self.faces[f];
+            let [i, j, k] = face.vertices;
+            let [p, q, r] = [self.segments[i], self.segments[j], self.segments[k]];
+            let (lo, hi) = (p.0.inf(&q.0).inf(&r.0), p.1.sup(&q.1).sup(&r.1));
+            if apart(&query, &(lo - widen, hi + widen)) {
+                continue;
+            }
+            let start = [x_n[i], x_n[j], x_n[k]];
+            let end = [x_n[i] + dx[i], x_n[j] + dx[j], x_n[k] + dx[k]];
+            let Some((s, pair)) =
+                self.crossing_from(start_plane, (&start, &end), (&a, &b), thickness)
+            else {
+                continue;
+            };
+            match best {
+                Some((t, _)) if s > t => {}
+                Some((t, _)) if !(s < t) => return Err(Tie),
+                _ => best = Some((s, Pair { face: f, ..pair })),
+            }
+        }
+        Ok(best.map(|(_, p)| p))
+    }
+
+    /// Each candidate entry's start plane for this step
+    /// ([`BodyContact::start_plane`]: it depends on `x_n` only), for the
+    /// vertices with candidates.
+    fn fill_start_planes(&mut self, x_n: &[Point], thickness: f64) {
+        self.start_planes.clear();
+        self.start_planes
+            .resize(self.candidates.entry_count(), None);
+        for &v in self.candidates.listed() {
+            for e in self.candidates.entries(v) {
+                let face = self.faces[self.candidates.face(e)];
+                let [i, j, k] = face.vertices;
+                let start = [x_n[i], x_n[j], x_n[k]];
+                self.start_planes[e] = self.start_plane(&face, &start, &x_n[v], thickness);
+            }
+        }
+        self.start_planes_fresh = true;
     }
 }

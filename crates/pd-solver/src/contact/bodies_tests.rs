@@ -1,6 +1,7 @@
 //! The per-step candidate lists (`candidates.rs`) against the
 //! per-iteration grid: the same pair for every vertex, bit for bit.
 
+use super::super::grid::cell_size;
 use super::*;
 
 /// A square sheet of `n x n` vertices, spacing 0.1 m, at height `y`,
@@ -215,4 +216,98 @@ fn lists_kept_across_steps_give_the_grid_detection_bit_for_bit() {
     assert!(hits > 20, "{hits} hits");
     assert!(reused > 10, "{reused} steps reused the lists");
     assert!(rebuilt > 3, "{rebuilt} builds");
+}
+
+/// The fast listed detection of an iteration (`detect_listed_fast`: no
+/// triangle boxes swept, no cells, ties handed to `first_listed_hit`)
+/// gives every searching vertex the grid's pair bit for bit, over steps
+/// that reuse and rebuild the lists, aligned sheets (vertices over shared
+/// corners: ties) and shifted ones, with and without self-contact.
+#[test]
+fn fast_listed_detection_is_the_grid_detection_bit_for_bit() {
+    let (n, thickness) = (6, 0.01);
+    let mut rng = Lcg(13);
+    let (mut fast_runs, mut slow_runs, mut ties, mut hits) = (0, 0, 0, 0);
+    for trial in 0..8 {
+        let shift = if trial % 2 == 0 { 0.0 } else { 0.037 };
+        let (mut rest, lower) = sheet(n, 0.0, 0.0, 0);
+        let (upper_points, upper) = sheet(n, 0.03, shift, n * n);
+        rest.extend(upper_points);
+        let surfaces = [lower, upper].map(|triangles| BodySurface {
+            triangles,
+            two_sided: true,
+        });
+        let masses = vec![1.0; rest.len()];
+        let fixed = vec![false; rest.len()];
+        let which = SurfacePairs {
+            between_bodies: true,
+            self_contact: trial % 4 >= 2,
+        };
+        let mut bodies = BodyContact::new(
+            surfaces.into(),
+            &rest,
+            (&masses, &fixed),
+            (0.3, thickness),
+            which,
+        );
+        let mut x_n = rest.clone();
+        for step in 0..30 {
+            bodies.begin_step(&x_n);
+            // Aligned sheets sink straight down (exact ties over corners),
+            // shifted ones with jitter; every seventh step jumps.
+            let jump = if step % 7 == 6 { 20.0 } else { 1.0 };
+            let jitter = if shift == 0.0 { 0.0 } else { 0.2 };
+            let motion: Vec<Point> = (0..rest.len())
+                .map(|v| {
+                    let down = if v >= n * n { -1.0 } else { 0.0 };
+                    let r = Point::new(rng.next(), rng.next(), rng.next()) * jitter;
+                    (Point::new(0.0, down, 0.0) + r) * (0.001 * jump)
+                })
+                .collect();
+            for scale in [1.0, 0.5, 3.0] {
+                let dx: Vec<Point> = motion.iter().map(|d| d * scale).collect();
+                // The reference: the per-iteration grid.
+                let mut grid = bodies.clone();
+                grid.sweep_boxes(&x_n, &dx, thickness);
+                grid.grid.build(&grid.boxes);
+                let expected: Vec<Option<Option<Pair>>> = (0..x_n.len())
+                    .map(|v| (grid.searching(v)).then(|| grid.first_hit(v, &x_n, &dx, thickness)))
+                    .collect();
+                if bodies.detect_listed_fast(&x_n, &dx, thickness) {
+                    fast_runs += 1;
+                    // The vertices whose candidates tied (the segments and
+                    // lists are this iteration's; the pairs do not matter).
+                    for v in (0..x_n.len()).filter(|&v| expected[v].is_some()) {
+                        let tie = bodies.first_listed_hit_fast(v, &x_n, &dx, thickness);
+                        ties += usize::from(tie.is_err());
+                    }
+                } else {
+                    slow_runs += 1;
+                    bodies.detect_with_boxes(&x_n, &dx, thickness);
+                }
+                for (v, expected) in expected.iter().enumerate() {
+                    let Some(expected) = expected else { continue };
+                    assert_eq!(
+                        format!("{:?}", bodies.pairs[v]),
+                        format!("{expected:?}"),
+                        "trial {trial}, step {step}, scale {scale}, vertex {v}"
+                    );
+                    hits += usize::from(expected.is_some());
+                }
+                // Forces on every other pair, so that some are kept into
+                // the next step and the others search again.
+                for (v, pair) in bodies.pairs.iter_mut().enumerate() {
+                    if let Some(p) = pair {
+                        p.force = p.normal * f64::from(u8::from(v % 2 == 0));
+                    }
+                }
+            }
+            x_n = x_n.iter().zip(&motion).map(|(x, d)| x + d).collect();
+        }
+    }
+    // Not vacuous: both paths ran, ties were handed over, pairs found.
+    println!("{fast_runs} fast, {slow_runs} slow, {ties} ties, {hits} hits");
+    assert!(fast_runs > 100, "{fast_runs} fast iterations");
+    assert!(slow_runs > 10, "{slow_runs} slow iterations");
+    assert!(ties > 0 && hits > 50, "{ties} ties, {hits} hits");
 }

@@ -45,6 +45,16 @@ pub(super) struct Candidates {
     /// previous build, m: with the current one, sets the next build's
     /// inflation.
     pub last_motion: f64,
+    /// The largest magnitude of a surface vertex's stored bound, m (what
+    /// [`super::bodies::BodyContact`]'s fast detection checks its cell
+    /// arithmetic against).
+    pub magnitude: f64,
+    /// Whether every surface vertex's step start `x_n` lies in its stored
+    /// box (set by [`Candidates::build`] and [`Candidates::begin_step`]):
+    /// then an iteration only needs its iterates checked.
+    pub start_covered: bool,
+    /// The vertices with at least one candidate, in increasing order.
+    nonempty: Vec<usize>,
     grid: Grid,
     boxes: Vec<(Point, Point)>,
 }
@@ -63,7 +73,49 @@ pub(super) struct Surface<'a> {
 impl Candidates {
     /// Vertex `v`'s candidate triangles.
     pub fn of(&self, v: usize) -> &[u32] {
-        &self.faces[self.start[v] as usize..self.start[v + 1] as usize]
+        &self.faces[self.entries(v)]
+    }
+
+    /// The entries of vertex `v`'s candidates (indices into the list of
+    /// all entries, `0..self.len()`).
+    pub fn entries(&self, v: usize) -> std::ops::Range<usize> {
+        self.start[v] as usize..self.start[v + 1] as usize
+    }
+
+    /// The candidate triangle of entry `e`.
+    pub fn face(&self, e: usize) -> usize {
+        self.faces[e] as usize
+    }
+
+    /// The number of entries of all lists.
+    pub fn entry_count(&self) -> usize {
+        self.faces.len()
+    }
+
+    /// The vertices with at least one candidate, in increasing order.
+    pub fn listed(&self) -> &[usize] {
+        &self.nonempty
+    }
+
+    /// Vertex `v`'s stored box `(x_n - delta, x_n + delta)`, m.
+    pub fn bounds(&self, v: usize) -> &(Point, Point) {
+        &self.bounds[v]
+    }
+
+    /// At a step's start `x_n`: records whether every surface vertex's
+    /// start lies in its stored box ([`Candidates::start_covered`]).
+    pub fn begin_step(&mut self, x_n: &[Point], on_surface: &[usize]) {
+        self.start_covered = self.valid && self.contains(x_n, on_surface);
+    }
+
+    /// Whether every vertex of `on_surface` has its point of `points` in
+    /// its stored box (false for NaN).
+    fn contains(&self, points: &[Point], on_surface: &[usize]) -> bool {
+        on_surface.iter().all(|&i| {
+            let (lo, hi) = &self.bounds[i];
+            let a = points[i];
+            (0..3).all(|k| lo[k] <= a[k] && a[k] <= hi[k])
+        })
     }
 
     /// Whether every vertex of `surface` (`on_surface`) has its start
@@ -95,6 +147,9 @@ impl Candidates {
         let d = Point::repeat(delta);
         self.bounds.clear();
         self.bounds.extend(x_n.iter().map(|x| (x - d, x + d)));
+        self.magnitude = (on_surface.iter())
+            .map(|&i| self.bounds[i].0.amax().max(self.bounds[i].1.amax()))
+            .fold(0.0, f64::max);
         let m = Point::repeat(margin);
         self.boxes.clear();
         for t in surface.faces {
@@ -110,6 +165,7 @@ impl Candidates {
         let t = Point::repeat(thickness);
         self.start.clear();
         self.faces.clear();
+        self.nonempty.clear();
         for v in 0..x_n.len() {
             self.start.push(self.faces.len() as u32);
             if !(surface.listed)(v) {
@@ -139,12 +195,16 @@ impl Candidates {
                 }
             }
             self.faces.truncate(kept);
+            if kept > from {
+                self.nonempty.push(v);
+            }
             if self.faces.len() > u32::MAX as usize {
                 return false;
             }
         }
         self.start.push(self.faces.len() as u32);
         self.valid = true;
+        self.start_covered = self.contains(x_n, on_surface);
         self.covers(x_n, dx, on_surface)
     }
 }

@@ -65,6 +65,22 @@ impl ColliderShape {
         }
     }
 
+    /// Whether [`ColliderShape::first_hit`] surely returns `None` for the
+    /// segment `a -> b`, from a test cheaper than it: for a plane, both
+    /// ends outside the thickened half-space (the same expressions as
+    /// `first_hit`, so the same verdict); `false` (not known) for the
+    /// other shapes.
+    #[inline]
+    pub(crate) fn misses(&self, a: &Point, b: &Point, thickness: f64) -> bool {
+        match self {
+            Self::Plane { point, normal } => {
+                let gap = |p: &Point| normal.dot(&(p - point)) - thickness;
+                !(gap(a) <= 0.0) && gap(b) > 0.0
+            }
+            _ => false,
+        }
+    }
+
     /// The first point of the segment `a -> b` on or inside the thickened
     /// surface. A segment that starts inside hits at `t = 0`, at the
     /// closest point of the thickened surface to `a`.

@@ -264,6 +264,9 @@ impl ContactState {
     /// solve: detects new contacts on the segments `x_n -> x_n + dx`,
     /// updates every contact force and adds it to `rhs` (one point per free
     /// vertex).
+    // Not inlined: inlined into the iteration, it slowed the contact-free
+    // step (measured: 0.674 -> 0.746 ms per step without any contact).
+    #[inline(never)]
     pub fn apply(&mut self, x_n: &[Point], masses: &[f64], dx: &[Point], rhs: &mut [Point]) {
         let first = self.iteration == 0;
         self.iteration += 1;
@@ -271,22 +274,27 @@ impl ContactState {
         if self.bodies.is_some() {
             self.detect_bodies(x_n, dx);
         }
+        let with_bodies = self.bodies.is_some();
         for v in 0..x_n.len() {
             let f = self.free_index[v];
-            if f == usize::MAX {
+            // With bodies, detection ran before (`detect_bodies`).
+            if f == usize::MAX || (with_bodies && self.slots[v].is_none()) {
                 continue;
             }
             let x = x_n[v] + dx[v];
-            let slot = match self.slots[v] {
-                Some(slot) => slot,
-                // With bodies, detection ran before (`detect_bodies`).
-                None if self.bodies.is_some() => continue,
-                None => match self.detect(v, &x_n[v], &x) {
-                    Some(slot) => slot,
-                    None => continue,
-                },
+            if self.slots[v].is_none() {
+                if self.misses_all(&x_n[v], &x) {
+                    continue;
+                }
+                let Some(slot) = self.detect(v, &x_n[v], &x) else {
+                    continue;
+                };
+                self.slots[v] = Some(slot);
+            }
+            // Updated in place (no copy of the slot in and out).
+            let Some(slot) = &mut self.slots[v] else {
+                continue;
             };
-            let mut slot = slot;
             // The first iterate is the inertial target, reached without the
             // warm-started force: that force is applied as is once, and
             // updated from the first solve on.
@@ -296,10 +304,9 @@ impl ContactState {
                     rho /= f64::from(bodies.count[v].max(1));
                 }
                 let collider = &self.settings.colliders[slot.collider];
-                slot.force = update_force(&slot, collider, &x, rho, h);
+                slot.force = update_force(slot, collider, &x, rho, h);
             }
             rhs[f] += slot.force;
-            self.slots[v] = Some(slot);
         }
         if let Some(bodies) = &mut self.bodies {
             let settings = (h, RELAXATION, self.settings.thickness);
@@ -312,14 +319,31 @@ impl ContactState {
     /// every vertex's contacts (the Uzawa steps are shared by them).
     fn detect_bodies(&mut self, x_n: &[Point], dx: &[Point]) {
         for v in 0..x_n.len() {
-            if self.free_index[v] != usize::MAX && self.slots[v].is_none() {
-                self.slots[v] = self.detect(v, &x_n[v], &(x_n[v] + dx[v]));
+            if self.slots[v].is_some() || self.free_index[v] == usize::MAX {
+                continue;
+            }
+            let (a, b) = (x_n[v], x_n[v] + dx[v]);
+            // The slot is empty: written only when a contact is found.
+            if !self.misses_all(&a, &b) {
+                if let Some(slot) = self.detect(v, &a, &b) {
+                    self.slots[v] = Some(slot);
+                }
             }
         }
         let slots = &self.slots;
         if let Some(bodies) = &mut self.bodies {
             bodies.detect(x_n, dx, self.settings.thickness, |v| slots[v].is_some());
         }
+    }
+
+    /// Whether the segment `a -> b` surely hits no collider
+    /// ([`ColliderShape::misses`]): a cheap test run before
+    /// [`ContactState::detect`] (most vertices are far from every
+    /// collider), with the same verdict where it answers.
+    #[inline]
+    fn misses_all(&self, a: &Point, b: &Point) -> bool {
+        let thickness = self.settings.thickness;
+        (self.settings.colliders.iter()).all(|c| c.shape.misses(a, b, thickness))
     }
 
     /// The earliest hit of the segment `a -> b` among the colliders, as a
