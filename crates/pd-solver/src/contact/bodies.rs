@@ -96,6 +96,9 @@ pub(crate) struct BodyContact {
     segments: Vec<(Point, Point)>,
     /// The vertices on a surface, in increasing order.
     on_surface: Vec<usize>,
+    /// The vertices of the candidates of the step's searching vertices
+    /// (`fill_start_planes`): the fast path's segments are taken for them.
+    needed: Vec<usize>,
     /// The per-step broad phase (`candidates.rs`).
     candidates: Candidates,
     /// Each triangle's vertices (for the candidate lists).
@@ -157,6 +160,7 @@ impl BodyContact {
             faces,
             body_of,
             on_surface,
+            needed: Vec::new(),
             candidates: Candidates::default(),
             triangles,
             masses: masses.to_vec(),

@@ -187,6 +187,9 @@ pub(crate) struct ContactState {
     iteration: usize,
     /// Contact between bodies, when asked for (`bodies.rs`).
     bodies: Option<bodies::BodyContact>,
+    /// With bodies: the free vertices holding a collider contact after this
+    /// iteration's detection (`detect_bodies`), in increasing order.
+    occupied: Vec<usize>,
 }
 
 /// What the contacts of a finished step measured.
@@ -213,6 +216,7 @@ impl ContactState {
             rest_speed: 0.0,
             iteration: 0,
             bodies: None,
+            occupied: Vec::new(),
         }
     }
 
@@ -271,14 +275,22 @@ impl ContactState {
         let first = self.iteration == 0;
         self.iteration += 1;
         let h = self.h;
-        if self.bodies.is_some() {
+        let with_bodies = self.bodies.is_some();
+        if with_bodies {
             self.detect_bodies(x_n, dx);
         }
-        let with_bodies = self.bodies.is_some();
-        for v in 0..x_n.len() {
+        // With bodies, detection ran before (`detect_bodies`) and only the
+        // vertices it left with a contact are visited (each adds to its own
+        // entry of `rhs`: the order does not change a bit).
+        let count = if with_bodies {
+            self.occupied.len()
+        } else {
+            x_n.len()
+        };
+        for k in 0..count {
+            let v = if with_bodies { self.occupied[k] } else { k };
             let f = self.free_index[v];
-            // With bodies, detection ran before (`detect_bodies`).
-            if f == usize::MAX || (with_bodies && self.slots[v].is_none()) {
+            if f == usize::MAX {
                 continue;
             }
             let x = x_n[v] + dx[v];
@@ -318,8 +330,13 @@ impl ContactState {
     /// every free vertex, then the new vertex-triangle pairs, and counts
     /// every vertex's contacts (the Uzawa steps are shared by them).
     fn detect_bodies(&mut self, x_n: &[Point], dx: &[Point]) {
+        self.occupied.clear();
         for v in 0..x_n.len() {
-            if self.slots[v].is_some() || self.free_index[v] == usize::MAX {
+            if self.free_index[v] == usize::MAX {
+                continue;
+            }
+            if self.slots[v].is_some() {
+                self.occupied.push(v);
                 continue;
             }
             let (a, b) = (x_n[v], x_n[v] + dx[v]);
@@ -327,6 +344,7 @@ impl ContactState {
             if !self.misses_all(&a, &b) {
                 if let Some(slot) = self.detect(v, &a, &b) {
                     self.slots[v] = Some(slot);
+                    self.occupied.push(v);
                 }
             }
         }
