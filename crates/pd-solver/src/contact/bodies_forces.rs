@@ -48,4 +48,22 @@ impl BodyContact {
         }
         n * normal_force + tangential
     }
+
+    /// Every pair's force as it is into `rhs` at the free vertices
+    /// (`free_index`): `f` at the vertex, `-w_i f` at the triangle's.
+    pub(in super::super) fn add_forces(&self, free_index: &[usize], rhs: &mut [Point]) {
+        for (v, pair) in self.pairs.iter().enumerate() {
+            let Some(pair) = pair else { continue };
+            let tri = self.faces[pair.face].vertices;
+            let mut add = |i: usize, f: Point| {
+                if free_index[i] != usize::MAX {
+                    rhs[free_index[i]] += f;
+                }
+            };
+            add(v, pair.force);
+            for (&i, &w) in tri.iter().zip(&pair.weights) {
+                add(i, -pair.force * w);
+            }
+        }
+    }
 }
