@@ -97,8 +97,10 @@ pub(crate) struct BodyContact {
     /// The vertices on a surface, in increasing order.
     on_surface: Vec<usize>,
     /// The vertices of the candidates of the step's searching vertices
-    /// (`fill_start_planes`): the fast path's segments are taken for them.
+    /// (`fill_start_planes`): the fast path's segments are taken for them;
+    /// `in_needed` marks them while the list is made (false otherwise).
     needed: Vec<usize>,
+    in_needed: Vec<bool>,
     /// The per-step broad phase (`candidates.rs`).
     candidates: Candidates,
     /// Per vertex, its pair's shared compliance and the counts it was taken
@@ -164,6 +166,7 @@ impl BodyContact {
             body_of,
             on_surface,
             needed: Vec::new(),
+            in_needed: vec![false; rest.len()],
             candidates: Candidates::default(),
             triangles,
             masses: masses.to_vec(),

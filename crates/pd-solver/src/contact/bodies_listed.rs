@@ -342,11 +342,17 @@ impl BodyContact {
                 let [i, j, k] = face.vertices;
                 let start = [x_n[i], x_n[j], x_n[k]];
                 self.start_planes[e] = self.start_plane(&face, &start, &x_n[v], thickness);
-                self.needed.extend_from_slice(&face.vertices);
+                for i in face.vertices {
+                    if !self.in_needed[i] {
+                        self.in_needed[i] = true;
+                        self.needed.push(i);
+                    }
+                }
             }
         }
-        self.needed.sort_unstable();
-        self.needed.dedup();
+        for &i in &self.needed {
+            self.in_needed[i] = false;
+        }
         self.start_planes_fresh = true;
     }
 }
