@@ -13,6 +13,19 @@
 //!   machine load), then the ratio of the medians and of the minima of
 //!   the rounds' times (on a loaded machine the minimum is the round least
 //!   disturbed by other processes: the least noisy of the three).
+//! - `MODE` = `settled N` or `frozen N`: the scene with contact run
+//!   [`SETTLE`] steps to rest, then `N` steps with contact (`settled`) or
+//!   with its contact forces frozen (`frozen`,
+//!   `Simulation::freeze_contact_forces`: the same deformation and
+//!   iterations, contact's forces as a constant load, none of its work);
+//!   prints the mean step time. For callgrind, as `with`.
+//! - `MODE` = `matched R`: the deformation-matched comparison of
+//!   docs/contact.md: settled, frozen and contact-free (20 warm-up steps)
+//!   scenes, `R` rounds of 10 steps of each in turn, the ratios of the
+//!   minimum and median rounds, and how far the frozen run drifted from
+//!   the settled one in the last round (largest vertex distance, m). The
+//!   settled and frozen rounds all start from the state after [`SETTLE`]
+//!   steps (a checkpoint) and one more step with contact.
 
 use std::path::Path;
 use std::time::Instant;
@@ -30,6 +43,78 @@ fn build(cells: usize, stack: bool, contact: bool) -> Result<Simulation, String>
     Ok(sim)
 }
 
+/// Steps the contact scene runs to come to rest before `settled`,
+/// `frozen` and `matched` measure (as `pd-probe contact --steps 200`).
+const SETTLE: usize = 200;
+
+/// The contact scene after [`SETTLE`] steps, its forces frozen if asked.
+fn settled(cells: usize, stack: bool, frozen: bool) -> Result<Simulation, String> {
+    let mut sim = build(cells, stack, true)?;
+    sim.run(SETTLE - 20).map_err(|e| e.to_string())?;
+    if frozen && !sim.freeze_contact_forces(true) {
+        return Err("contact is off".into());
+    }
+    Ok(sim)
+}
+
+/// The minimum and median of `times` (s), sorted in place.
+fn min_median(times: &mut [f64]) -> (f64, f64) {
+    times.sort_by(f64::total_cmp);
+    (times[0], times[times.len() / 2])
+}
+
+/// `matched R`: settled, frozen and contact-free rounds in turn.
+fn matched(rounds: usize, cells: usize, stack: bool) -> Result<(), String> {
+    let mut sims = [
+        settled(cells, stack, false)?,
+        settled(cells, stack, true)?,
+        build(cells, stack, false)?,
+    ];
+    // Every round of the settled and frozen scenes starts from the same
+    // rested state and one untimed step with contact (frozen forces do not
+    // balance the weight exactly: the frozen stack drifts, 0.3 mm in 10
+    // steps, 17 mm in 60; and a restore needs a step's start).
+    let rest = sims[0].checkpoint();
+    let mut times = [vec![], vec![], vec![]];
+    for _ in 0..rounds.max(1) {
+        for (k, (sim, t)) in sims.iter_mut().zip(times.iter_mut()).enumerate() {
+            if k < 2 {
+                sim.restore(&rest).map_err(|e| e.to_string())?;
+                sim.freeze_contact_forces(false);
+                sim.run(1).map_err(|e| e.to_string())?;
+                sim.freeze_contact_forces(k == 1);
+            }
+            t.push(timed(sim, 10)?);
+        }
+    }
+    let drift = (sims[0].state().positions.iter())
+        .zip(&sims[1].state().positions)
+        .map(|(p, q)| (p - q).norm())
+        .fold(0.0, f64::max);
+    let [a, b, c] = times.map(|mut t| min_median(&mut t));
+    println!(
+        "per step, minimum (median) of rounds of 10: settled {:.4} ({:.4}) ms, \
+         frozen {:.4} ({:.4}) ms, without {:.4} ({:.4}) ms",
+        a.0 * 1e2,
+        a.1 * 1e2,
+        b.0 * 1e2,
+        b.1 * 1e2,
+        c.0 * 1e2,
+        c.1 * 1e2
+    );
+    println!(
+        "ratios of minima (medians): settled/without {:.3} ({:.3}), frozen/without {:.3} \
+         ({:.3}), settled/frozen {:.3} ({:.3}); frozen drifted {drift:.3e} m",
+        a.0 / c.0,
+        a.1 / c.1,
+        b.0 / c.0,
+        b.1 / c.1,
+        a.0 / b.0,
+        a.1 / b.1
+    );
+    Ok(())
+}
+
 /// Seconds taken by `steps` steps of `sim`.
 fn timed(sim: &mut Simulation, steps: usize) -> Result<f64, String> {
     let t = Instant::now();
@@ -40,7 +125,10 @@ fn timed(sim: &mut Simulation, steps: usize) -> Result<f64, String> {
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let [mode, n, cells, stack] = args.as_slice() else {
-        return Err("usage: contact_case with|without|alternate N CELLS STACK(0|1)".into());
+        return Err(
+            "usage: contact_case with|without|settled|frozen|alternate|matched N CELLS STACK(0|1)"
+                .into(),
+        );
     };
     let parse = |s: &str| {
         s.parse::<usize>()
@@ -53,6 +141,12 @@ fn main() -> Result<(), String> {
             let seconds = timed(&mut sim, n)?;
             println!("{mode}: {:.4} ms per step", seconds * 1e3 / n.max(1) as f64);
         }
+        "settled" | "frozen" => {
+            let mut sim = settled(cells, stack, mode == "frozen")?;
+            let seconds = timed(&mut sim, n)?;
+            println!("{mode}: {:.4} ms per step", seconds * 1e3 / n.max(1) as f64);
+        }
+        "matched" => matched(n, cells, stack)?,
         "alternate" => {
             let mut with = build(cells, stack, true)?;
             let mut without = build(cells, stack, false)?;

@@ -96,8 +96,16 @@ pub(crate) struct BodyContact {
     segments: Vec<(Point, Point)>,
     /// The vertices on a surface, in increasing order.
     on_surface: Vec<usize>,
+    /// The vertices of the candidates of the step's searching vertices
+    /// (`fill_start_planes`): the fast path's segments are taken for them;
+    /// `in_needed` marks them while the list is made (false otherwise).
+    needed: Vec<usize>,
+    in_needed: Vec<bool>,
     /// The per-step broad phase (`candidates.rs`).
     candidates: Candidates,
+    /// Per vertex, its pair's shared compliance and the counts it was taken
+    /// with (`bodies_forces.rs`); cleared with the pairs' weights.
+    compliances: Vec<Option<([u32; 4], f64)>>,
     /// Each triangle's vertices (for the candidate lists).
     triangles: Vec<[usize; 3]>,
     /// Per candidate-list entry, its start plane
@@ -157,6 +165,8 @@ impl BodyContact {
             faces,
             body_of,
             on_surface,
+            needed: Vec::new(),
+            in_needed: vec![false; rest.len()],
             candidates: Candidates::default(),
             triangles,
             masses: masses.to_vec(),
@@ -166,6 +176,7 @@ impl BodyContact {
             between: which.between_bodies,
             neighbourhood,
             pairs: vec![None; rest.len()],
+            compliances: vec![None; rest.len()],
             count: vec![0; rest.len()],
             grid: Grid::default(),
             boxes: Vec::new(),
@@ -185,6 +196,7 @@ impl BodyContact {
     /// side and the force.
     pub fn load(&mut self, saved: &[super::saved::SavedContact]) {
         self.pairs.iter_mut().for_each(|p| *p = None);
+        self.compliances.iter_mut().for_each(|c| *c = None);
         self.candidates.valid = false;
         self.start_planes_fresh = false;
         for c in saved {
@@ -209,6 +221,7 @@ impl BodyContact {
     pub fn begin_step(&mut self, x_n: &[Point]) {
         self.candidates.begin_step(x_n, &self.on_surface);
         self.start_planes_fresh = false;
+        self.compliances.iter_mut().for_each(|c| *c = None);
         for (v, pair) in self.pairs.iter_mut().enumerate() {
             let Some(p) = pair.filter(Pair::active) else {
                 *pair = None;
@@ -409,7 +422,7 @@ impl BodyContact {
             };
             let tri = self.faces[pair.face].vertices;
             if !(first && pair.warm) {
-                let compliance = h * h * self.compliance(v, &tri, &pair.weights, true);
+                let compliance = h * h * self.shared_compliance(v, &tri, &pair.weights);
                 if compliance > 0.0 {
                     let x = |i: usize| x_n[i] + dx[i];
                     let r = x(v) - (0..3).map(|k| x(tri[k]) * pair.weights[k]).sum::<Point>();
@@ -434,7 +447,13 @@ impl BodyContact {
 
     /// `sum_i share_i w_i^2 / m_i` over the free vertices of a pair, with
     /// `share_i` the contact count (`shared`) or 1.
-    fn compliance(&self, v: usize, tri: &[usize; 3], weights: &[f64; 3], shared: bool) -> f64 {
+    pub(super) fn compliance(
+        &self,
+        v: usize,
+        tri: &[usize; 3],
+        weights: &[f64; 3],
+        shared: bool,
+    ) -> f64 {
         let term = |i: usize, w: f64| {
             if self.fixed[i] {
                 0.0
@@ -448,22 +467,6 @@ impl BodyContact {
             }
         };
         term(v, 1.0) + (0..3).map(|k| term(tri[k], weights[k])).sum::<f64>()
-    }
-
-    /// One projected Uzawa step of a pair's force at relative position `r`.
-    fn update_force(&self, pair: &Pair, r: &Point, rho: f64, thickness: f64) -> Point {
-        let n = pair.normal;
-        let normal_error = thickness - n.dot(r);
-        let tangential_error = -(r - n * n.dot(r));
-        let trial = pair.force + (tangential_error + n * normal_error) * rho;
-        let normal_force = trial.dot(&n).max(0.0);
-        let mut tangential = trial - n * trial.dot(&n);
-        let limit = self.friction * normal_force;
-        let norm = tangential.norm();
-        if norm > limit {
-            tangential *= if norm > 0.0 { limit / norm } else { 0.0 };
-        }
-        n * normal_force + tangential
     }
 
     /// After the iterations: separates every pair left closer than the
@@ -581,6 +584,8 @@ fn project_onto(t: &[Point; 3], p: &Point) -> Option<([f64; 3], Point, f64)> {
     Some(([1.0 - w1 - w2, w1, w2], normal, distance))
 }
 
+#[path = "bodies_forces.rs"]
+mod forces;
 #[path = "bodies_listed.rs"]
 mod listed;
 #[cfg(test)]

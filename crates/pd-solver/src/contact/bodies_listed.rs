@@ -236,7 +236,7 @@ impl BodyContact {
         }
         let mut covered = true;
         for &i in &self.on_surface {
-            let (a, b) = (x_n[i], x_n[i] + dx[i]);
+            let b = x_n[i] + dx[i];
             let (lo, hi) = self.candidates.bounds(i);
             // `Candidates::covers`' comparisons for the iterate (the start
             // was checked at the step's start or at the build), combined
@@ -244,13 +244,18 @@ impl BodyContact {
             for k in 0..3 {
                 covered &= (lo[k] <= b[k]) & (b[k] <= hi[k]);
             }
-            self.segments[i] = (a.inf(&b), a.sup(&b));
         }
         if !covered {
             return false;
         }
         if !self.start_planes_fresh {
             self.fill_start_planes(x_n, thickness);
+        }
+        // Only the candidates' vertices of the vertices still searching
+        // read a segment box (the same expressions as `sweep_boxes`).
+        for &i in &self.needed {
+            let (a, b) = (x_n[i], x_n[i] + dx[i]);
+            self.segments[i] = (a.inf(&b), a.sup(&b));
         }
         let mut cell = None;
         // A vertex with an empty list finds nothing; a listed one is on a
@@ -319,18 +324,34 @@ impl BodyContact {
 
     /// Each candidate entry's start plane for this step
     /// ([`BodyContact::start_plane`]: it depends on `x_n` only), for the
-    /// vertices with candidates.
+    /// vertices with candidates and without a pair (pairs are dropped only
+    /// at a step's start or a restore, which clear `start_planes_fresh`,
+    /// so no other vertex searches before the next fill), and the
+    /// vertices of their candidates (`needed`).
     fn fill_start_planes(&mut self, x_n: &[Point], thickness: f64) {
         self.start_planes.clear();
         self.start_planes
             .resize(self.candidates.entry_count(), None);
+        self.needed.clear();
         for &v in self.candidates.listed() {
+            if self.pairs[v].is_some() {
+                continue;
+            }
             for e in self.candidates.entries(v) {
                 let face = self.faces[self.candidates.face(e)];
                 let [i, j, k] = face.vertices;
                 let start = [x_n[i], x_n[j], x_n[k]];
                 self.start_planes[e] = self.start_plane(&face, &start, &x_n[v], thickness);
+                for i in face.vertices {
+                    if !self.in_needed[i] {
+                        self.in_needed[i] = true;
+                        self.needed.push(i);
+                    }
+                }
             }
+        }
+        for &i in &self.needed {
+            self.in_needed[i] = false;
         }
         self.start_planes_fresh = true;
     }

@@ -1,0 +1,69 @@
+//! The Uzawa step of a body-contact pair ([`BodyContact::apply`]'s
+//! force update) and its step size's compliance, kept while the contact
+//! counts it depends on do not change (docs/contact.md, "Contact's own
+//! cost"); a file of its own to keep `bodies.rs` within the size rule.
+
+use pd_mesh::Point;
+
+use super::{BodyContact, Pair};
+
+impl BodyContact {
+    /// [`BodyContact::compliance`] with the contact counts (`shared`) of
+    /// vertex `v`'s pair: taken again only when the count of one of its
+    /// four vertices changed since the last time in this step. Its other
+    /// inputs (masses, fixed vertices, the pair's triangle and weights)
+    /// are constant while the pair lives, and a pair is made only at a
+    /// step's start, a restore (both clear the stored values) or, for a
+    /// vertex that had none, by detection: so the value is the one
+    /// `compliance` would return, bit for bit, without its four divisions.
+    pub(super) fn shared_compliance(&mut self, v: usize, tri: &[usize; 3], w: &[f64; 3]) -> f64 {
+        let counts = [
+            self.count[v],
+            self.count[tri[0]],
+            self.count[tri[1]],
+            self.count[tri[2]],
+        ];
+        if let Some((stored, value)) = self.compliances[v] {
+            if stored == counts {
+                return value;
+            }
+        }
+        let value = self.compliance(v, tri, w, true);
+        self.compliances[v] = Some((counts, value));
+        value
+    }
+
+    /// One projected Uzawa step of a pair's force at relative position `r`.
+    pub(super) fn update_force(&self, pair: &Pair, r: &Point, rho: f64, thickness: f64) -> Point {
+        let n = pair.normal;
+        let normal_error = thickness - n.dot(r);
+        let tangential_error = -(r - n * n.dot(r));
+        let trial = pair.force + (tangential_error + n * normal_error) * rho;
+        let normal_force = trial.dot(&n).max(0.0);
+        let mut tangential = trial - n * trial.dot(&n);
+        let limit = self.friction * normal_force;
+        let norm = tangential.norm();
+        if norm > limit {
+            tangential *= if norm > 0.0 { limit / norm } else { 0.0 };
+        }
+        n * normal_force + tangential
+    }
+
+    /// Every pair's force as it is into `rhs` at the free vertices
+    /// (`free_index`): `f` at the vertex, `-w_i f` at the triangle's.
+    pub(in super::super) fn add_forces(&self, free_index: &[usize], rhs: &mut [Point]) {
+        for (v, pair) in self.pairs.iter().enumerate() {
+            let Some(pair) = pair else { continue };
+            let tri = self.faces[pair.face].vertices;
+            let mut add = |i: usize, f: Point| {
+                if free_index[i] != usize::MAX {
+                    rhs[free_index[i]] += f;
+                }
+            };
+            add(v, pair.force);
+            for (&i, &w) in tri.iter().zip(&pair.weights) {
+                add(i, -pair.force * w);
+            }
+        }
+    }
+}

@@ -1,0 +1,67 @@
+//! The forces of collider contacts: one projected Uzawa step
+//! ([`update_force`]) and the frozen-force mode of
+//! [`crate::Simulation::freeze_contact_forces`], a measurement aid
+//! (docs/contact.md, "Contact's own cost"); a file of its own to keep
+//! `mod.rs` within the size rule.
+
+use pd_mesh::Point;
+
+use super::{Collider, ContactState, Slot};
+
+impl ContactState {
+    /// With frozen forces: every contact's force, as it is, into `rhs` (one
+    /// point per free vertex).
+    pub(super) fn add_frozen_forces(&self, rhs: &mut [Point]) {
+        for (slot, &f) in self.slots.iter().zip(&self.free_index) {
+            if let (Some(slot), true) = (slot, f != usize::MAX) {
+                rhs[f] += slot.force;
+            }
+        }
+        if let Some(bodies) = &self.bodies {
+            bodies.add_forces(&self.free_index, rhs);
+        }
+    }
+}
+
+/// One projected Uzawa step of a contact force at the iterate `x`.
+pub(super) fn update_force(slot: &Slot, collider: &Collider, x: &Point, rho: f64, h: f64) -> Point {
+    let n = slot.hit.normal;
+    let anchor = slot.hit.point + collider.velocity(&slot.hit.point) * h;
+    let to_anchor = anchor - x;
+    let normal_error = slot.lift - n.dot(&(x - slot.hit.point));
+    let tangential_error = to_anchor - n * n.dot(&to_anchor);
+    let trial = slot.force + (tangential_error + n * normal_error) * rho;
+    let normal_force = trial.dot(&n).max(0.0);
+    let mut tangential = trial - n * trial.dot(&n);
+    let limit = collider.friction * normal_force;
+    let norm = tangential.norm();
+    if norm > limit {
+        tangential *= if norm > 0.0 { limit / norm } else { 0.0 };
+    }
+    n * normal_force + tangential
+}
+
+impl crate::Simulation {
+    /// A measurement aid (docs/contact.md, "Contact's own cost"): with
+    /// `frozen`, from the next step on every contact keeps its current
+    /// force (N times `c1 c2`, the global step's right-hand-side units),
+    /// added to every iteration as a constant load, and contact does
+    /// nothing else (no start of step, detection, force update,
+    /// projection or velocity filter; steps report no contacts). On a body
+    /// resting in contact this is a baseline with the same deformation and
+    /// iterations, without contact's work; the forces do not balance the
+    /// load exactly, so it drifts (0.3 mm in 10 steps on the stacked cubes
+    /// of `benches/examples/contact_case.rs`). Freeze after a step, not
+    /// after a restore (a restore leaves pairs to be re-anchored by the
+    /// next step's start). Without `frozen`, contact runs again. Returns
+    /// `false` (and does nothing) if contact is off.
+    pub fn freeze_contact_forces(&mut self, frozen: bool) -> bool {
+        match &mut self.contact {
+            Some(contact) => {
+                contact.frozen = frozen;
+                true
+            }
+            None => false,
+        }
+    }
+}
