@@ -29,6 +29,12 @@ use pd_mesh::Point;
 use super::solve_kernels::{Below, vectorized};
 use super::solve_tree::{TOP, TreeSplit};
 
+/// The narrowest diagonal block whose forward solve runs on coordinate
+/// arrays ([`Below::solve_diagonal`]; narrower ones stay on points, where
+/// the copies would cost more than they save). Either way gives the same
+/// bits.
+const WIDE_DIAGONAL: usize = 8;
+
 /// The supernodal structure of a factor: a view of faer's symbolic
 /// analysis (not a copy: its row indices alone are a tenth of the factor's
 /// size), read by both halves of a split solve.
@@ -109,7 +115,10 @@ impl SupernodalSolve {
         }
         let split = structure.tree_split();
         let n = symbolic.nrows();
-        let width = 3 * structure.row_len.iter().copied().max().unwrap_or(0);
+        // A supernode's rows below its diagonal block, or its columns (the
+        // forward step's diagonal solve uses the same scratch first).
+        let widest = (0..n_supernodes).map(|s| end[s] - begin[s]).max();
+        let width = 3 * structure.row_len.iter().copied().chain(widest).max().unwrap_or(0);
         let lane = |columns: &[usize]| Lane {
             x: vec![Point::zeros(); columns.len()],
             below: vec![0.0; width],
@@ -410,12 +419,16 @@ impl Structure<'_> {
         let ld = c + rows.len();
         let block = &values[self.value_ptr[s]..self.value_ptr[s] + ld * c];
         let top = &mut x[first..first + c];
-        for j in 0..c {
-            let column = &block[j * ld..(j + 1) * ld];
-            let xj = top[j] / column[j];
-            top[j] = xj;
-            for (i, &l) in column[j + 1..c].iter().enumerate() {
-                top[j + 1 + i] -= xj * l;
+        if c >= WIDE_DIAGONAL {
+            below.solve_diagonal(block, ld, top);
+        } else {
+            for j in 0..c {
+                let column = &block[j * ld..(j + 1) * ld];
+                let xj = top[j] / column[j];
+                top[j] = xj;
+                for (i, &l) in column[j + 1..c].iter().enumerate() {
+                    top[j + 1 + i] -= xj * l;
+                }
             }
         }
         below.update(block, ld, c, top, rows.len());
