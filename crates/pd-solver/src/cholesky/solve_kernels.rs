@@ -161,6 +161,23 @@ impl<'a> Below<'a> {
         r: usize,
     ) {
         let (bx, by, bz) = (&self.x[..r], &self.y[..r], &self.z[..r]);
+        #[cfg(target_arch = "x86_64")]
+        if let Some(s) = self.simd {
+            let column = |j: usize| &block[j * ld + c..(j + 1) * ld][..r];
+            let mut pairs = top.chunks_exact_mut(2);
+            for (j, pair) in (0..).step_by(2).zip(&mut pairs) {
+                let (la, lb) = (column(j), column(j + 1));
+                let [a, b] = wide_lanes(s, [la, lb], bx, by, bz);
+                pair[0] -= a.finish(la, bx, by, bz);
+                pair[1] -= b.finish(lb, bx, by, bz);
+            }
+            if let [p] = pairs.into_remainder() {
+                let l = column(c - 1);
+                let [a] = wide_lanes(s, [l], bx, by, bz);
+                *p -= a.finish(l, bx, by, bz);
+            }
+            return;
+        }
         let x4 = quads(bx);
         let y4 = quads(by);
         let z4 = quads(bz);
@@ -192,6 +209,42 @@ impl<'a> Below<'a> {
             *p -= a.finish(l, bx, by, bz);
         }
     }
+}
+
+/// [`Lanes`] of each of the columns `l` (as many rows as `x`, `y`, `z`)
+/// with explicit 4-wide multiplies and adds whose sums stay in registers
+/// across the rows: each lane takes the same additions in the same order as
+/// [`Lanes::add`] (LLVM rebuilt [`Lanes`]' arrays from scalars at every
+/// group of four rows).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn wide_lanes<const N: usize>(
+    s: Simd,
+    l: [&[f64]; N],
+    x: &[f64],
+    y: &[f64],
+    z: &[f64],
+) -> [Lanes; N] {
+    let load = |a: &[f64]| -> pulp::f64x4 {
+        let a: [f64; 4] = a.try_into().expect("a group of four");
+        pulp::cast(a)
+    };
+    let zero = s.splat_f64x4(0.0);
+    let mut sums = [[zero; 3]; N];
+    for (q, ((x, y), z)) in quads(x).zip(quads(y)).zip(quads(z)).enumerate() {
+        let (x, y, z) = (load(x), load(y), load(z));
+        for (sum, l) in sums.iter_mut().zip(&l) {
+            let l = load(&l[4 * q..4 * q + 4]);
+            sum[0] = s.add_f64x4(sum[0], s.mul_f64x4(l, x));
+            sum[1] = s.add_f64x4(sum[1], s.mul_f64x4(l, y));
+            sum[2] = s.add_f64x4(sum[2], s.mul_f64x4(l, z));
+        }
+    }
+    sums.map(|[x, y, z]| Lanes {
+        x: pulp::cast(x),
+        y: pulp::cast(y),
+        z: pulp::cast(z),
+    })
 }
 
 /// `v`'s whole groups of four (the rows past the last multiple of four are
