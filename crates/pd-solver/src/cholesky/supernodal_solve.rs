@@ -431,9 +431,11 @@ impl Structure<'_> {
                 }
             }
         }
-        below.update(block, ld, c, top, rows.len());
-        for (k, &row) in rows.iter().enumerate() {
-            let update = Point::new(below.x[k], below.y[k], below.z[k]);
+        let r = rows.len();
+        below.update(block, ld, c, top, r);
+        let updates = below.x[..r].iter().zip(&below.y[..r]).zip(&below.z[..r]);
+        for (&row, ((&ux, &uy), &uz)) in rows.iter().zip(updates) {
+            let update = Point::new(ux, uy, uz);
             match locate(row) {
                 Some(i) => x[i] -= update,
                 None => outside(row, update),
@@ -460,15 +462,17 @@ impl Structure<'_> {
         let rows = &self.row_idx[self.row_ptr[s]..self.row_ptr[s] + self.row_len[s]];
         let ld = c + rows.len();
         let block = &values[self.value_ptr[s]..self.value_ptr[s] + ld * c];
-        for (k, &row) in rows.iter().enumerate() {
+        let r = rows.len();
+        let gathered = below.x[..r].iter_mut().zip(&mut below.y[..r]).zip(&mut below.z[..r]);
+        for (&row, ((bx, by), bz)) in rows.iter().zip(gathered) {
             let p = match locate(row) {
                 Some(i) => x[i],
                 None => outside(row),
             };
-            (below.x[k], below.y[k], below.z[k]) = (p.x, p.y, p.z);
+            (*bx, *by, *bz) = (p.x, p.y, p.z);
         }
         let top = &mut x[first..first + c];
-        below.subtract_products(block, ld, c, top, rows.len());
+        below.subtract_products(block, ld, c, top, r);
         for j in (0..c).rev() {
             let column = &block[j * ld..(j + 1) * ld];
             let mut sum = top[j];
