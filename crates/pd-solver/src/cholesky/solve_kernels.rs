@@ -46,6 +46,7 @@ pub(super) struct Below<'a> {
     pub x: &'a mut [f64],
     pub y: &'a mut [f64],
     pub z: &'a mut [f64],
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     simd: Option<Simd>,
 }
 
@@ -150,7 +151,8 @@ impl<'a> Below<'a> {
     /// four fixed lanes per coordinate (deterministic order), two columns
     /// per pass so that they share the loads of `below` and keep six
     /// independent sums in flight (each column's sums are the same
-    /// operations in the same order as one column at a time).
+    /// operations in the same order as one column at a time); with AVX2,
+    /// [`wide_lanes`] does the same additions on explicit 4-wide vectors.
     #[inline(always)]
     pub fn subtract_products(
         &self,
@@ -192,8 +194,8 @@ impl<'a> Below<'a> {
             for ((((la, lb), x), y), z) in
                 a4.zip(b4).zip(x4.clone()).zip(y4.clone()).zip(z4.clone())
             {
-                a.add(self.simd, la, x, y, z);
-                b.add(self.simd, lb, x, y, z);
+                a.add(la, x, y, z);
+                b.add(lb, x, y, z);
             }
             pair[0] -= a.finish(la, bx, by, bz);
             pair[1] -= b.finish(lb, bx, by, bz);
@@ -204,7 +206,7 @@ impl<'a> Below<'a> {
             let l4 = quads(l);
             let mut a = Lanes::default();
             for (((l, x), y), z) in l4.zip(x4).zip(y4).zip(z4) {
-                a.add(self.simd, l, x, y, z);
+                a.add(l, x, y, z);
             }
             *p -= a.finish(l, bx, by, bz);
         }
@@ -264,23 +266,10 @@ struct Lanes {
 }
 
 impl Lanes {
-    /// Adds four rows' products (groups of four from [`quads`]; with one
-    /// 4-wide multiply and add per coordinate where `simd` is given: the
-    /// same bits).
+    /// Adds four rows' products (groups of four from [`quads`]), the plain
+    /// path of [`wide_lanes`].
     #[inline(always)]
-    fn add(&mut self, simd: Option<Simd>, l: &[f64], x: &[f64], y: &[f64], z: &[f64]) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(s) = simd {
-            let wide = |a: &[f64]| pulp::f64x4(a[0], a[1], a[2], a[3]);
-            let narrow = |a: pulp::f64x4| [a.0, a.1, a.2, a.3];
-            let l = wide(l);
-            self.x = narrow(s.add_f64x4(wide(&self.x), s.mul_f64x4(l, wide(x))));
-            self.y = narrow(s.add_f64x4(wide(&self.y), s.mul_f64x4(l, wide(y))));
-            self.z = narrow(s.add_f64x4(wide(&self.z), s.mul_f64x4(l, wide(z))));
-            return;
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = simd;
+    fn add(&mut self, l: &[f64], x: &[f64], y: &[f64], z: &[f64]) {
         for lane in 0..4 {
             self.x[lane] += l[lane] * x[lane];
             self.y[lane] += l[lane] * y[lane];

@@ -118,7 +118,13 @@ impl SupernodalSolve {
         // A supernode's rows below its diagonal block, or its columns (the
         // forward step's diagonal solve uses the same scratch first).
         let widest = (0..n_supernodes).map(|s| end[s] - begin[s]).max();
-        let width = 3 * structure.row_len.iter().copied().chain(widest).max().unwrap_or(0);
+        let width = 3 * structure
+            .row_len
+            .iter()
+            .copied()
+            .chain(widest)
+            .max()
+            .unwrap_or(0);
         let lane = |columns: &[usize]| Lane {
             x: vec![Point::zeros(); columns.len()],
             below: vec![0.0; width],
@@ -463,7 +469,10 @@ impl Structure<'_> {
         let ld = c + rows.len();
         let block = &values[self.value_ptr[s]..self.value_ptr[s] + ld * c];
         let r = rows.len();
-        let gathered = below.x[..r].iter_mut().zip(&mut below.y[..r]).zip(&mut below.z[..r]);
+        let gathered = below.x[..r]
+            .iter_mut()
+            .zip(&mut below.y[..r])
+            .zip(&mut below.z[..r]);
         for (&row, ((bx, by), bz)) in rows.iter().zip(gathered) {
             let p = match locate(row) {
                 Some(i) => x[i],
