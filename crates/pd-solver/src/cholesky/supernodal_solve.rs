@@ -32,8 +32,8 @@ use super::solve_tree::{TOP, TreeSplit};
 /// The narrowest diagonal block whose forward solve runs on coordinate
 /// arrays ([`Below::solve_diagonal`]; narrower ones stay on points, where
 /// the copies would cost more than they save: 16 executed fewer
-/// instructions than 8 on both the beam and the armadillo, callgrind). Either way gives the same
-/// bits.
+/// instructions than 8 on both the beam and the armadillo, callgrind).
+/// Either way gives the same bits.
 const WIDE_DIAGONAL: usize = 16;
 
 /// The supernodal structure of a factor: a view of faer's symbolic
