@@ -46,6 +46,7 @@ pub(super) struct Below<'a> {
     pub x: &'a mut [f64],
     pub y: &'a mut [f64],
     pub z: &'a mut [f64],
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     simd: Option<Simd>,
 }
 
@@ -58,17 +59,75 @@ impl<'a> Below<'a> {
         Self { x, y, z, simd }
     }
 
+    /// `top <- L_diag^-1 top`: the forward step's triangular solve with the
+    /// supernode's diagonal block, on a copy of `top` in the three arrays
+    /// (this scratch is free until [`Self::update`]), so that each column's
+    /// update of the rows under the diagonal runs four rows per
+    /// instruction. Every row takes the same operations in the same order
+    /// as on points: its value divided by the diagonal once its earlier
+    /// columns have been subtracted, column by column.
+    #[inline(always)]
+    pub fn solve_diagonal(&mut self, block: &[f64], ld: usize, top: &mut [Point]) {
+        let c = top.len();
+        let (tx, ty, tz) = (&mut self.x[..c], &mut self.y[..c], &mut self.z[..c]);
+        for (k, p) in top.iter().enumerate() {
+            (tx[k], ty[k], tz[k]) = (p.x, p.y, p.z);
+        }
+        for j in 0..c {
+            let column = &block[j * ld..j * ld + c];
+            let d = column[j];
+            let (xj, yj, zj) = (tx[j] / d, ty[j] / d, tz[j] / d);
+            (tx[j], ty[j], tz[j]) = (xj, yj, zj);
+            let l = &column[j + 1..];
+            for (t, &l) in tx[j + 1..].iter_mut().zip(l) {
+                *t -= xj * l;
+            }
+            for (t, &l) in ty[j + 1..].iter_mut().zip(l) {
+                *t -= yj * l;
+            }
+            for (t, &l) in tz[j + 1..].iter_mut().zip(l) {
+                *t -= zj * l;
+            }
+        }
+        for (k, p) in top.iter_mut().enumerate() {
+            *p = Point::new(tx[k], ty[k], tz[k]);
+        }
+    }
+
     /// `below[..r] = L_below x_top`: the forward step's update of the rows
-    /// below the supernode, four columns at a time.
+    /// below the supernode, eight columns per pass over the rows, then four,
+    /// then one. Each row's sums are those of four columns at a time: a row
+    /// starts at zero and adds each group of four columns' products, summed
+    /// left to right, in column order; a pass of eight adds its two groups
+    /// one after the other (loading and storing the row's sums once instead
+    /// of twice, with the same bits).
     #[inline(always)]
     pub fn update(&mut self, block: &[f64], ld: usize, c: usize, top: &[Point], r: usize) {
         let (bx, by, bz) = (&mut self.x[..r], &mut self.y[..r], &mut self.z[..r]);
         bx.fill(0.0);
         by.fill(0.0);
         bz.fill(0.0);
-        let column = |j: usize| &block[j * ld + c..(j + 1) * ld];
+        let column = |j: usize| &block[j * ld + c..(j + 1) * ld][..r];
         let mut j = 0;
-        while j + 4 <= c {
+        while j + 8 <= c {
+            let l: [&[f64]; 8] = std::array::from_fn(|i| column(j + i));
+            let p: [Point; 8] = std::array::from_fn(|i| top[j + i]);
+            for k in 0..r {
+                let group = |q: &[Point], l: &[&[f64]], coordinate: fn(&Point) -> f64| {
+                    coordinate(&q[0]) * l[0][k]
+                        + coordinate(&q[1]) * l[1][k]
+                        + coordinate(&q[2]) * l[2][k]
+                        + coordinate(&q[3]) * l[3][k]
+                };
+                let (q0, q1) = p.split_at(4);
+                let (l0, l1) = l.split_at(4);
+                bx[k] = (bx[k] + group(q0, l0, |p| p.x)) + group(q1, l1, |p| p.x);
+                by[k] = (by[k] + group(q0, l0, |p| p.y)) + group(q1, l1, |p| p.y);
+                bz[k] = (bz[k] + group(q0, l0, |p| p.z)) + group(q1, l1, |p| p.z);
+            }
+            j += 8;
+        }
+        if j + 4 <= c {
             let (l0, l1, l2, l3) = (column(j), column(j + 1), column(j + 2), column(j + 3));
             let (p0, p1, p2, p3) = (top[j], top[j + 1], top[j + 2], top[j + 3]);
             for k in 0..r {
@@ -92,7 +151,8 @@ impl<'a> Below<'a> {
     /// four fixed lanes per coordinate (deterministic order), two columns
     /// per pass so that they share the loads of `below` and keep six
     /// independent sums in flight (each column's sums are the same
-    /// operations in the same order as one column at a time).
+    /// operations in the same order as one column at a time); with AVX2,
+    /// [`wide_lanes`] does the same additions on explicit 4-wide vectors.
     #[inline(always)]
     pub fn subtract_products(
         &self,
@@ -103,6 +163,23 @@ impl<'a> Below<'a> {
         r: usize,
     ) {
         let (bx, by, bz) = (&self.x[..r], &self.y[..r], &self.z[..r]);
+        #[cfg(target_arch = "x86_64")]
+        if let Some(s) = self.simd {
+            let column = |j: usize| &block[j * ld + c..(j + 1) * ld][..r];
+            let mut pairs = top.chunks_exact_mut(2);
+            for (j, pair) in (0..).step_by(2).zip(&mut pairs) {
+                let (la, lb) = (column(j), column(j + 1));
+                let [a, b] = wide_lanes(s, [la, lb], bx, by, bz);
+                pair[0] -= a.finish(la, bx, by, bz);
+                pair[1] -= b.finish(lb, bx, by, bz);
+            }
+            if let [p] = pairs.into_remainder() {
+                let l = column(c - 1);
+                let [a] = wide_lanes(s, [l], bx, by, bz);
+                *p -= a.finish(l, bx, by, bz);
+            }
+            return;
+        }
         let x4 = quads(bx);
         let y4 = quads(by);
         let z4 = quads(bz);
@@ -117,8 +194,8 @@ impl<'a> Below<'a> {
             for ((((la, lb), x), y), z) in
                 a4.zip(b4).zip(x4.clone()).zip(y4.clone()).zip(z4.clone())
             {
-                a.add(self.simd, la, x, y, z);
-                b.add(self.simd, lb, x, y, z);
+                a.add(la, x, y, z);
+                b.add(lb, x, y, z);
             }
             pair[0] -= a.finish(la, bx, by, bz);
             pair[1] -= b.finish(lb, bx, by, bz);
@@ -129,11 +206,47 @@ impl<'a> Below<'a> {
             let l4 = quads(l);
             let mut a = Lanes::default();
             for (((l, x), y), z) in l4.zip(x4).zip(y4).zip(z4) {
-                a.add(self.simd, l, x, y, z);
+                a.add(l, x, y, z);
             }
             *p -= a.finish(l, bx, by, bz);
         }
     }
+}
+
+/// [`Lanes`] of each of the columns `l` (as many rows as `x`, `y`, `z`)
+/// with explicit 4-wide multiplies and adds whose sums stay in registers
+/// across the rows: each lane takes the same additions in the same order as
+/// [`Lanes::add`] (LLVM rebuilt [`Lanes`]' arrays from scalars at every
+/// group of four rows).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn wide_lanes<const N: usize>(
+    s: Simd,
+    l: [&[f64]; N],
+    x: &[f64],
+    y: &[f64],
+    z: &[f64],
+) -> [Lanes; N] {
+    let load = |a: &[f64]| -> pulp::f64x4 {
+        let a: [f64; 4] = a.try_into().expect("a group of four");
+        pulp::cast(a)
+    };
+    let zero = s.splat_f64x4(0.0);
+    let mut sums = [[zero; 3]; N];
+    for (q, ((x, y), z)) in quads(x).zip(quads(y)).zip(quads(z)).enumerate() {
+        let (x, y, z) = (load(x), load(y), load(z));
+        for (sum, l) in sums.iter_mut().zip(&l) {
+            let l = load(&l[4 * q..4 * q + 4]);
+            sum[0] = s.add_f64x4(sum[0], s.mul_f64x4(l, x));
+            sum[1] = s.add_f64x4(sum[1], s.mul_f64x4(l, y));
+            sum[2] = s.add_f64x4(sum[2], s.mul_f64x4(l, z));
+        }
+    }
+    sums.map(|[x, y, z]| Lanes {
+        x: pulp::cast(x),
+        y: pulp::cast(y),
+        z: pulp::cast(z),
+    })
 }
 
 /// `v`'s whole groups of four (the rows past the last multiple of four are
@@ -153,23 +266,10 @@ struct Lanes {
 }
 
 impl Lanes {
-    /// Adds four rows' products (groups of four from [`quads`]; with one
-    /// 4-wide multiply and add per coordinate where `simd` is given: the
-    /// same bits).
+    /// Adds four rows' products (groups of four from [`quads`]), the plain
+    /// path of [`wide_lanes`].
     #[inline(always)]
-    fn add(&mut self, simd: Option<Simd>, l: &[f64], x: &[f64], y: &[f64], z: &[f64]) {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(s) = simd {
-            let wide = |a: &[f64]| pulp::f64x4(a[0], a[1], a[2], a[3]);
-            let narrow = |a: pulp::f64x4| [a.0, a.1, a.2, a.3];
-            let l = wide(l);
-            self.x = narrow(s.add_f64x4(wide(&self.x), s.mul_f64x4(l, wide(x))));
-            self.y = narrow(s.add_f64x4(wide(&self.y), s.mul_f64x4(l, wide(y))));
-            self.z = narrow(s.add_f64x4(wide(&self.z), s.mul_f64x4(l, wide(z))));
-            return;
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = simd;
+    fn add(&mut self, l: &[f64], x: &[f64], y: &[f64], z: &[f64]) {
         for lane in 0..4 {
             self.x[lane] += l[lane] * x[lane];
             self.y[lane] += l[lane] * y[lane];

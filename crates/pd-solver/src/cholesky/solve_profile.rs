@@ -10,7 +10,9 @@
 //! class (how many, the values of their diagonal blocks' lower triangles and
 //! below them) and the minimum and median wall time (one thread) of the solve's four parts: the
 //! permutation in, the forward and backward substitutions, the permutation
-//! out (docs/performance.md, "Where the global step's time goes").
+//! out (docs/performance.md, "Where the global step's time goes"), and a
+//! hash of one solve's bits (a kernel change that keeps the summation
+//! order keeps it).
 
 use super::calibration::{laplacian_values, tet_pattern};
 use super::supernodal_solve::SupernodalSolve;
@@ -37,6 +39,10 @@ fn profile(label: &str, mesh: &pd_mesh::Mesh) {
         .map(|i| pd_mesh::Point::new((i % 13) as f64, (i % 7) as f64, (i % 5) as f64))
         .collect();
     let mut solve = factor.fast_solve.take().expect("a supernodal factor");
+    // The bits of one solve, to compare kernels that must not change them.
+    let mut once = rhs.clone();
+    solve.solve(&factor.symbolic, &numeric.values, &mut once);
+    println!("  solution bits: {:016x}", bits_hash(&once));
     let rounds = 41;
     let mut parts: [Vec<f64>; 4] = Default::default();
     // One thread (the bins run one after the other); wall time against a
@@ -64,6 +70,17 @@ fn profile(label: &str, mesh: &pd_mesh::Mesh) {
          backward {:.3} / {:.3}, permute out {:.3} / {:.3}",
         a.0, a.1, b.0, b.1, c.0, c.1, d.0, d.1
     );
+}
+
+/// FNV-1a over the bits of every coordinate.
+fn bits_hash(points: &[pd_mesh::Point]) -> u64 {
+    let mut hash = 0xcbf2_9ce4_8422_2325_u64;
+    for v in points.iter().flat_map(|p| [p.x, p.y, p.z]) {
+        for byte in v.to_bits().to_le_bytes() {
+            hash = (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+    hash
 }
 
 #[test]
