@@ -10,7 +10,7 @@
 
 use pd_benches::Beam;
 use pd_io::recorder::median;
-use pd_solver::{Predictor, Simulation, SolverMethod, SolverSpec};
+use pd_solver::{Predictor, SolverMethod, SolverSpec};
 
 fn value<'a>(args: &'a [String], name: &str) -> Option<&'a str> {
     args.iter()
@@ -23,19 +23,6 @@ fn parse<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> Resul
     value(args, name).map_or(Ok(default), |t| {
         t.parse().map_err(|_| format!("{name}: cannot parse {t:?}"))
     })
-}
-
-fn hash(sim: &Simulation) -> u64 {
-    let state = sim.state();
-    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
-    for p in state.positions.iter().chain(&state.velocities) {
-        for c in p.iter() {
-            for byte in c.to_bits().to_le_bytes() {
-                hash = (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
-            }
-        }
-    }
-    hash
 }
 
 fn main() -> Result<(), String> {
@@ -89,7 +76,7 @@ fn main() -> Result<(), String> {
         predictor.name(),
         median(&times),
         times.iter().sum::<f64>() / n,
-        hash(&sim)
+        pd_benches::state_hash(sim.state())
     );
     Ok(())
 }

@@ -18,15 +18,7 @@ fn main() -> Result<(), String> {
     let scene = Scene::parse(&text, Syntax::Toml, Path::new(path)).map_err(|e| e.to_string())?;
     let mut sim = scene.build().map_err(|e| e.to_string())?;
     sim.run(steps).map_err(|e| e.to_string())?;
-    let state = sim.state();
-    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
-    for p in state.positions.iter().chain(&state.velocities) {
-        for c in p.iter() {
-            for byte in c.to_bits().to_le_bytes() {
-                hash = (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
-            }
-        }
-    }
+    let hash = pd_benches::state_hash(sim.state());
     println!("{path} {steps} steps: {hash:016x}");
     Ok(())
 }

@@ -23,6 +23,21 @@ use pd_solver::{Model, Settings, Simulation};
 pub mod contact;
 pub mod methods;
 
+/// FNV-1a over the bits of every position and velocity of `state`: two
+/// runs with the same hash ended in the same state bit for bit (how a change
+/// that must not move results is checked).
+pub fn state_hash(state: &pd_solver::State) -> u64 {
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    for p in state.positions.iter().chain(&state.velocities) {
+        for c in p.iter() {
+            for byte in c.to_bits().to_le_bytes() {
+                hash = (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
+            }
+        }
+    }
+    hash
+}
+
 /// The damping models every benchmark runs: the main preset of each model
 /// of `pd_damping::registry`, by name, in registry order (the undamped
 /// baseline, [`registry::UNDAMPED`], first).

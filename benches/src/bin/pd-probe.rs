@@ -237,15 +237,7 @@ fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
 /// with the same hash ended in the same state bit for bit (how a change
 /// that must not move results is checked, e.g. a memory saving).
 fn state_hash(state: &pd_solver::State) -> String {
-    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
-    for p in state.positions.iter().chain(&state.velocities) {
-        for c in p.iter() {
-            for byte in c.to_bits().to_le_bytes() {
-                hash = (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
-            }
-        }
-    }
-    format!("{hash:016x}")
+    format!("{:016x}", pd_benches::state_hash(state))
 }
 
 /// Every damping model stepped from one common state, the models' steps

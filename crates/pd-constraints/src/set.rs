@@ -17,6 +17,20 @@ pub const MAX_ROWS: usize = 4;
 /// four SIMD lanes, small enough for the stack (16 x 4 points).
 const ENERGY_BATCH: usize = 16;
 
+/// Merges the energies of constraints `first, first + 1, ...` into `bound`
+/// one by one, in order (the same bits as merging them singly); returns
+/// the index after the last.
+fn merge_in_order(bound: &mut EnergyBound, first: usize, energies: &[f64]) -> usize {
+    for (index, &energy) in (first..).zip(energies) {
+        bound.merge(&EnergyBound {
+            total: energy,
+            worst: index,
+            worst_energy: energy,
+        });
+    }
+    first + energies.len()
+}
+
 /// Many constraints of one kind `C`, stored contiguously so that the loops
 /// over them are monomorphic. The storage is shared: a clone (a model's
 /// blocks handed to a simulation) costs a reference count, not a copy of
@@ -300,14 +314,7 @@ impl<C: Constraint> ConstraintBlock for ConstraintSet<C> {
         {
             let energies = &mut energies[..batch.len()];
             C::project_many_with_energies(batch, q, rows, energies);
-            for &energy in energies.iter() {
-                bound.merge(&EnergyBound {
-                    total: energy,
-                    worst: index,
-                    worst_energy: energy,
-                });
-                index += 1;
-            }
+            index = merge_in_order(&mut bound, index, energies);
         }
         bound
     }
@@ -325,14 +332,7 @@ impl<C: Constraint> ConstraintBlock for ConstraintSet<C> {
         {
             let energies = &mut energies[..batch.len()];
             C::energies_many(batch, q, p, energies);
-            for &energy in energies.iter() {
-                bound.merge(&EnergyBound {
-                    total: energy,
-                    worst: index,
-                    worst_energy: energy,
-                });
-                index += 1;
-            }
+            index = merge_in_order(&mut bound, index, energies);
         }
         bound
     }

@@ -3,10 +3,12 @@
 //! body up as a constant load, contact reports nothing while frozen, and
 //! runs again once unfrozen.
 
+mod common;
+
 use pd_damping::NoDamping;
 use pd_integrators::BackwardEuler;
 use pd_mesh::{Point, generators};
-use pd_solver::contact::{Collider, ColliderShape, ContactSettings};
+use pd_solver::contact::ContactSettings;
 use pd_solver::{Model, Settings, Simulation};
 
 const DT: f64 = 0.01;
@@ -15,12 +17,10 @@ const G: f64 = 9.81;
 /// A 0.1 m cube, 2 cells per side, 1000 kg/m^3, 1e5 Pa, resting on a
 /// frictional floor after 150 steps (backward Euler damps it to rest).
 fn resting_cube() -> Simulation {
-    let mesh = generators::box_tets([0.1; 3], [2; 3]).unwrap();
-    let mesh = mesh.translated(Point::new(0.0, 0.002, 0.0));
-    let masses = mesh.lumped_masses(1000.0).unwrap();
+    // The generated box spans [0, 0.1]^3: its lowest face is centred at
+    // (0.05, 0, 0.05), so this lifts it by 2 mm and nothing else.
     let mut model = Model::new();
-    let body = model.add_body(mesh, masses).unwrap();
-    model.add_tet_strain(body, 1e5, None).unwrap();
+    common::add_cube(&mut model, 0.1, 2, 1e5, Point::new(0.05, 0.002, 0.05));
     let settings = Settings {
         dt: DT,
         iterations: 20,
@@ -35,14 +35,7 @@ fn resting_cube() -> Simulation {
     )
     .unwrap();
     sim.set_contact(ContactSettings {
-        colliders: vec![Collider {
-            shape: ColliderShape::Plane {
-                point: Point::zeros(),
-                normal: Point::y(),
-            },
-            friction: 0.5,
-            restitution: 0.0,
-        }],
+        colliders: vec![common::floor(0.5)],
         thickness: 0.001,
     })
     .unwrap();

@@ -77,6 +77,25 @@ fn cpu_seconds() -> f64 {
         )
 }
 
+/// The symbolic analysis of `pattern` in the elimination order `order`
+/// (old indices in pivot order), whatever AMD would cost, and the order's
+/// inverse (`inverse[old] = new`).
+fn forced(pattern: &LowerPattern, order: &[usize]) -> (Vec<usize>, SymbolicCholesky<usize>) {
+    let mut inverse = vec![0; order.len()];
+    for (new, &old) in order.iter().enumerate() {
+        inverse[old] = new;
+    }
+    let perm = faer::perm::PermRef::new_checked(order, &inverse, pattern.n);
+    let symbolic = factorize_symbolic_cholesky(
+        pattern.symbolic(),
+        Side::Lower,
+        SymmetricOrdering::Custom(perm),
+        CholeskySymbolicParams::default(),
+    )
+    .unwrap();
+    (inverse, symbolic)
+}
+
 /// Prints one ordering's line: structure, modelled cost, measured times.
 fn measure(name: &str, mut factor: SymbolicFactor) {
     let values = laplacian_values(factor.pattern());
@@ -143,18 +162,7 @@ fn solve_cost_calibration() {
         );
         for (name, order) in names.iter().zip(&candidates) {
             // Forced: the candidate alone, even where AMD is cheaper.
-            let mut inverse = vec![0; order.len()];
-            for (new, &old) in order.iter().enumerate() {
-                inverse[old] = new;
-            }
-            let perm = faer::perm::PermRef::new_checked(order, &inverse, pattern.n);
-            let symbolic = factorize_symbolic_cholesky(
-                pattern.symbolic(),
-                Side::Lower,
-                SymmetricOrdering::Custom(perm),
-                CholeskySymbolicParams::default(),
-            )
-            .unwrap();
+            let (_, symbolic) = forced(&pattern, order);
             let factor = SymbolicFactor::with_symbolic(pattern.clone().into(), symbolic);
             measure(name, factor);
         }
@@ -192,19 +200,8 @@ fn metis_option_fill() {
         let start_time = std::time::Instant::now();
         let order = super::metis::node_nd_with(&start, &neighbours, &overrides).unwrap();
         let seconds = start_time.elapsed().as_secs_f64();
-        let mut inverse = vec![0; order.len()];
-        for (new, &old) in order.iter().enumerate() {
-            inverse[old] = new;
-        }
+        let (inverse, symbolic) = forced(&pattern, &order);
         let nnz = exact_factor_nnz(&pattern, &inverse);
-        let perm = faer::perm::PermRef::new_checked(&order, &inverse, pattern.n);
-        let symbolic = factorize_symbolic_cholesky(
-            pattern.symbolic(),
-            Side::Lower,
-            SymmetricOrdering::Custom(perm),
-            CholeskySymbolicParams::default(),
-        )
-        .unwrap();
         println!(
             "{name:<10} nnz {nnz:>10} stored {:>10} supernodes {:>6} cost {:>10} metis {seconds:.3} s",
             symbolic.len_val(),
