@@ -73,20 +73,7 @@ impl LocalStep {
                 });
             first_chunk += chunks;
         }
-        // Summed as `energy_bound` sums: chunks in order within a block,
-        // then the blocks in order.
-        let mut total = EnergyBound::default();
-        let mut first_chunk = 0;
-        for block in &self.blocks {
-            let chunks = block.len().div_ceil(CHUNK);
-            let mut bound = EnergyBound::default();
-            for partial in &partials[first_chunk..first_chunk + chunks] {
-                bound.merge(partial);
-            }
-            total.merge(&bound);
-            first_chunk += chunks;
-        }
-        total.total
+        self.merge_partials(partials).0.total
     }
 
     /// Number of parallel tasks of a pass over every constraint: the length
@@ -121,6 +108,13 @@ impl LocalStep {
                 });
             first_chunk += chunks;
         }
+        self.merge_partials(partials)
+    }
+
+    /// The per-chunk `partials` of a pass over every constraint summed in a
+    /// fixed order (chunks in order within a block, then the blocks in
+    /// order), and the block holding the largest term.
+    fn merge_partials(&self, partials: &[EnergyBound]) -> (EnergyBound, usize) {
         let mut total = EnergyBound::default();
         let mut worst_block = 0;
         let mut first_chunk = 0;
