@@ -18,6 +18,7 @@ use pd_integrators::{StepCoefficients, StepTargets};
 use pd_mesh::Point;
 use rayon::prelude::*;
 
+use super::ray::RayCheck;
 use crate::local::LocalStep;
 use crate::system::GlobalStep;
 use crate::{Settings, SolverError, StepStats};
@@ -74,12 +75,31 @@ impl PositionSolver for LocalGlobal {
 
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {
         step.record_objective();
+        let mut converged = false;
         for _ in 0..step.iterations() {
             let change = step.local_global_iteration();
             step.record_objective();
             if step.converged(change) {
+                converged = true;
                 break;
             }
+        }
+        // A predicted start can lie past the step objective's line minimum
+        // in slow modes, and plain iterations from it stay past it: with
+        // implicit midpoint the energy then grows (docs/solver.md, "A better
+        // start"), as after an accelerated method's overshoot. Steps from
+        // `y` are plain PD's and are never checked.
+        if step.predicted && !converged && RayCheck::applies(step) {
+            let mut ray = std::mem::take(&mut step.buffers.ray);
+            let mut partials = std::mem::take(&mut step.buffers.partials);
+            let chunks = step.local_chunks();
+            if partials.len() != chunks {
+                partials = vec![pd_constraints::EnergyBound::default(); chunks];
+            }
+            ray.finish(step, &mut partials);
+            step.buffers.ray = ray;
+            step.buffers.partials = partials;
+            step.record_objective();
         }
         Ok(())
     }
@@ -119,6 +139,9 @@ pub(crate) struct IterationBuffers {
     /// Per-chunk scratch of the objective's energy sum (the predictor's
     /// safeguard); empty until first used.
     pub partials: Vec<pd_constraints::EnergyBound>,
+    /// Implicit midpoint's end-of-step check of plain PD's predicted steps
+    /// (step/ray.rs); empty until first used.
+    pub ray: RayCheck,
 }
 
 impl IterationBuffers {
@@ -132,6 +155,7 @@ impl IterationBuffers {
             scratch: std::array::from_fn(|_| vec![Point::zeros(); vertices]),
             spare_projections: Vec::new(),
             partials: Vec::new(),
+            ray: RayCheck::default(),
         }
     }
 }
@@ -156,9 +180,10 @@ pub struct StepProblem<'a> {
     pub(crate) trace: Option<&'a mut Vec<f64>>,
     pub(crate) contact: Option<&'a mut crate::contact::ContactState>,
     /// Whether the displacement starts from a predicted point rather than
-    /// the inertial target (step/predictor.rs): the accelerated methods
-    /// then run implicit midpoint's end-of-step check (step/ray.rs) even
-    /// when they took no accelerated iterate.
+    /// the inertial target (step/predictor.rs): every method but Chebyshev
+    /// and Newton then runs implicit midpoint's end-of-step check
+    /// (step/ray.rs), plain local-global PD included, and the accelerated
+    /// ones even when they took no accelerated iterate.
     pub(crate) predicted: bool,
     /// `Some(g)` when the step's projections are those at the current
     /// displacement and `g` is the step objective there, summed from them
