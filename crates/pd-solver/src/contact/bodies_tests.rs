@@ -1,6 +1,7 @@
 //! The per-step candidate lists (`candidates.rs`) against the
 //! per-iteration grid: the same pair for every vertex, bit for bit.
 
+use super::super::clearance::largest_motion;
 use super::super::grid::cell_size;
 use super::*;
 
@@ -273,7 +274,7 @@ fn fast_listed_detection_is_the_grid_detection_bit_for_bit() {
                 let expected: Vec<Option<Option<Pair>>> = (0..x_n.len())
                     .map(|v| (grid.searching(v)).then(|| grid.first_hit(v, &x_n, &dx, thickness)))
                     .collect();
-                if bodies.detect_listed_fast(&x_n, &dx, thickness) {
+                if bodies.detect_listed_fast(&x_n, &dx, (thickness, largest_motion(&dx))) {
                     fast_runs += 1;
                     // The vertices whose candidates tied (the segments and
                     // lists are this iteration's; the pairs do not matter).
