@@ -145,3 +145,89 @@ pub(super) fn largest_motion(dx: &[Point]) -> f64 {
         f64::INFINITY
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::contact::Collider;
+
+    /// A skipped vertex is one the full test misses, over random planes,
+    /// start points near them and motions up to and past the bound (the
+    /// bound is tight: some vertices just past it do hit).
+    #[test]
+    fn a_skipped_vertex_misses_every_plane() {
+        let mut seed = 7_u64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            (seed >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        };
+        let (mut skipped, mut near_hits) = (0, 0);
+        for _ in 0..400 {
+            let plane = |next: &mut dyn FnMut() -> f64| {
+                let normal = Point::new(next(), next(), next()).normalize();
+                let point = Point::new(next(), next(), next()) * 0.5;
+                Collider {
+                    shape: ColliderShape::Plane { point, normal },
+                    friction: 0.0,
+                    restitution: 0.0,
+                }
+            };
+            let settings = ContactSettings {
+                colliders: vec![plane(&mut next), plane(&mut next)],
+                thickness: 0.01 * (1.0 + next()),
+            };
+            let x_n: Vec<Point> = (0..50)
+                .map(|_| Point::new(next(), next(), next()))
+                .collect();
+            let free_index: Vec<usize> = (0..50).collect();
+            let mut clearance = Clearance::default();
+            clearance.take(&settings, &x_n, &free_index, &vec![None; 50]);
+            let motion = 0.2 * (1.0 + next());
+            let dx: Vec<Point> = (0..50)
+                .map(|_| Point::new(next(), next(), next()) * motion)
+                .collect();
+            let threshold = clearance.threshold(largest_motion(&dx));
+            for v in 0..50 {
+                let (a, b) = (x_n[v], x_n[v] + dx[v]);
+                let misses =
+                    (settings.colliders.iter()).all(|c| c.shape.misses(&a, &b, settings.thickness));
+                if clearance.skips(v, threshold) {
+                    skipped += 1;
+                    assert!(misses, "vertex {v} skipped but hits");
+                } else if !misses && clearance.gap[v] > 0.5 * threshold {
+                    near_hits += 1;
+                }
+            }
+        }
+        println!("{skipped} skipped, {near_hits} near hits");
+        assert!(
+            skipped > 1000 && near_hits > 10,
+            "{skipped} skipped, {near_hits}"
+        );
+    }
+
+    /// Non-finite motion skips nothing; a fixed vertex is skipped.
+    #[test]
+    fn nan_motion_skips_nothing() {
+        let settings = ContactSettings {
+            colliders: vec![Collider {
+                shape: ColliderShape::Plane {
+                    point: Point::zeros(),
+                    normal: Point::y(),
+                },
+                friction: 0.0,
+                restitution: 0.0,
+            }],
+            thickness: 0.0,
+        };
+        let x_n = vec![Point::new(0.0, 1.0, 0.0); 2];
+        let mut clearance = Clearance::default();
+        clearance.take(&settings, &x_n, &[0, usize::MAX], &[None, None]);
+        let dx = vec![Point::zeros(), Point::new(0.0, f64::NAN, 0.0)];
+        assert_eq!(largest_motion(&dx), f64::INFINITY);
+        assert!(!clearance.skips(0, clearance.threshold(largest_motion(&dx))));
+        assert!(clearance.skips(0, clearance.threshold(0.5)));
+        assert!(!clearance.skips(0, clearance.threshold(1.5)));
+        assert!(clearance.skips(1, clearance.threshold(0.5)));
+    }
+}
