@@ -17,10 +17,11 @@ use super::{BodyContact, Pair, inside, plane_of, project_onto};
 /// numerator `d0 - thickness` is not positive, the other branch is `0`),
 /// so the crossing point is `a + (b - a) s` and the triangle `start + (end
 /// - start) s`: with finite differences (the fast path's coverage bounds
-/// every coordinate) the products are zeros, and adding a zero to a
-/// non-zero float returns it exactly, so when no coordinate of `a` and of
-/// the start triangle is zero these are `a` and `start` bit for bit. The
-/// projection is then the one of the step's start, taken once.
+/// every coordinate) the products are zeros, and adding a zero of either
+/// sign to a float returns it exactly unless it is `-0` (`-0 + +0 = +0`),
+/// so when no coordinate of `a` and of the start triangle is `-0` these
+/// are `a` and `start` bit for bit. The projection is then the one of the
+/// step's start, taken once.
 #[derive(Debug, Clone, Copy)]
 pub(super) enum StartHit {
     /// Not known: the full crossing runs.
@@ -441,8 +442,8 @@ impl BodyContact {
 /// What the start plane `(n0, d0)` of the triangle `start` and the vertex
 /// at `a` tells of the step's crossings ([`StartHit`]).
 fn start_hit((n0, d0): (Point, f64), start: &[Point; 3], a: &Point, thickness: f64) -> StartHit {
-    let nonzero = |p: &Point| p.iter().all(|&c| c != 0.0);
-    if !(d0 <= thickness && nonzero(a) && start.iter().all(nonzero)) {
+    let kept = |p: &Point| p.iter().all(|&c| c.to_bits() != (-0.0_f64).to_bits());
+    if !(d0 <= thickness && kept(a) && start.iter().all(kept)) {
         return StartHit::Unknown;
     }
     let Some((weights, normal, _)) = project_onto(start, a) else {

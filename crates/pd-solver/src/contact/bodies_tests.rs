@@ -324,14 +324,22 @@ fn start_plane_verdicts_are_the_grid_detection_bit_for_bit() {
     let (n, thickness) = (6, 0.01);
     let mut rng = Lcg(29);
     let (mut fast_runs, mut hits, mut inside, mut never, mut quick) = (0, 0, 0, 0, 0);
-    for trial in 0..4 {
+    // Trials 4-7: a still lower sheet at the origin, so that coordinates
+    // stay `+0` (kept: `+0 + -0 = +0`) or, with 6 and 7, `-0` (not kept).
+    for trial in 0..8 {
         let shift = if trial % 2 == 0 { 0.2 } else { 0.237 };
-        let (mut rest, lower) = sheet(n, 0.3, 0.2, 0);
-        let (upper_points, upper) = sheet(n, 0.306, shift, n * n);
+        let (base, offset) = if trial < 4 { (0.3, 0.2) } else { (0.0, 0.0) };
+        let (mut rest, lower) = sheet(n, base, offset, 0);
+        let (upper_points, upper) = sheet(n, base + 0.006, shift, n * n);
+        if trial >= 6 {
+            rest.iter_mut()
+                .flat_map(|p| p.iter_mut())
+                .for_each(|c| *c = -*c);
+        }
         rest.extend(upper_points);
         let surfaces = [lower, upper].map(|triangles| BodySurface {
             triangles,
-            two_sided: trial >= 2,
+            two_sided: trial % 4 >= 2,
         });
         let masses = vec![1.0; rest.len()];
         let fixed = vec![false; rest.len()];
@@ -353,6 +361,9 @@ fn start_plane_verdicts_are_the_grid_detection_bit_for_bit() {
                 .map(|v| {
                     let down = if v >= n * n { -0.1 } else { 0.0 };
                     let r = Point::new(rng.next(), rng.next(), rng.next()) * 0.3;
+                    if v < n * n && trial >= 4 {
+                        return Point::zeros();
+                    }
                     (Point::new(0.0, down, 0.0) + r) * 0.001
                 })
                 .collect();
