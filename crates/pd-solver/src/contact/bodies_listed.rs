@@ -15,13 +15,13 @@ use super::{BodyContact, Pair, inside, plane_of, project_onto};
 /// starts within the thickness of the triangle's plane (`d0 <= thickness`),
 /// a crossing's fraction `s` is `+0` or `-0` whatever the iterate (the
 /// numerator `d0 - thickness` is not positive, the other branch is `0`),
-/// so the crossing point is `a + (b - a) s` and the triangle `start + (end
-/// - start) s`: with finite differences (the fast path's coverage bounds
-/// every coordinate) the products are zeros, and adding a zero of either
-/// sign to a float returns it exactly unless it is `-0` (`-0 + +0 = +0`),
-/// so when no coordinate of `a` and of the start triangle is `-0` these
-/// are `a` and `start` bit for bit. The projection is then the one of the
-/// step's start, taken once.
+/// so the crossing point is `a + (b - a) s` and the triangle's corners
+/// `start + (end - start) s`: with finite differences (the fast path's
+/// coverage bounds every coordinate) the products are zeros, and adding a
+/// zero of either sign to a float returns it exactly unless it is `-0`
+/// (`-0 + +0 = +0`), so when no coordinate of `a` and of the start
+/// triangle is `-0` these are `a` and `start` bit for bit. The projection
+/// is then the one of the step's start, taken once.
 #[derive(Debug, Clone, Copy)]
 pub(super) enum StartHit {
     /// Not known: the full crossing runs.

@@ -1,7 +1,9 @@
 //! A per-step bound that lets the per-iteration collider test skip the
 //! vertices far from every plane collider (docs/contact.md, "Fifth
 //! round"), with the verdict of [`super::geometry::ColliderShape::misses`]
-//! bit for bit; a file of its own to keep `mod.rs` within the size rule.
+//! bit for bit, and the collider pass of an iteration with body contact
+//! ([`ContactState::detect_bodies`]); a file of its own to keep `mod.rs`
+//! within the size rule.
 //!
 //! Why it is the same. At the step's start each free vertex without a
 //! contact gets its clearance: the least, over the colliders, of the plane
@@ -24,7 +26,7 @@
 
 use pd_mesh::Point;
 
-use super::{ColliderShape, ContactSettings, Slot};
+use super::{ColliderShape, ContactSettings, ContactState, Slot};
 
 /// Relative slack for rounding (see the module's header).
 const ROUNDING: f64 = 1e-12;
@@ -143,6 +145,46 @@ pub(super) fn largest_motion(dx: &[Point]) -> f64 {
         largest
     } else {
         f64::INFINITY
+    }
+}
+
+impl ContactState {
+    /// With contact between bodies: detects the new collider contacts of
+    /// every free vertex, then the new vertex-triangle pairs, and counts
+    /// every vertex's contacts (the Uzawa steps are shared by them).
+    /// `threshold` is the clearance above which a vertex surely misses
+    /// ([`Clearance::threshold`] of `motion`, the largest
+    /// `|dx|_inf`, m).
+    pub(super) fn detect_bodies(
+        &mut self,
+        x_n: &[Point],
+        dx: &[Point],
+        (motion, threshold): (f64, f64),
+    ) {
+        self.occupied.clear();
+        for v in 0..x_n.len() {
+            if self.clearance.skips(v, threshold) || self.free_index[v] == usize::MAX {
+                continue;
+            }
+            if self.slots[v].is_some() {
+                self.occupied.push(v);
+                continue;
+            }
+            let (a, b) = (x_n[v], x_n[v] + dx[v]);
+            // The slot is empty: written only when a contact is found.
+            if !self.misses_all(&a, &b) {
+                if let Some(slot) = self.detect(v, &a, &b) {
+                    self.slots[v] = Some(slot);
+                    self.clearance.hold(v);
+                    self.occupied.push(v);
+                }
+            }
+        }
+        let slots = &self.slots;
+        if let Some(bodies) = &mut self.bodies {
+            let thickness = self.settings.thickness;
+            bodies.detect(x_n, dx, (thickness, motion), |v| slots[v].is_some());
+        }
     }
 }
 

@@ -351,39 +351,6 @@ impl ContactState {
         }
     }
 
-    /// With contact between bodies: detects the new collider contacts of
-    /// every free vertex, then the new vertex-triangle pairs, and counts
-    /// every vertex's contacts (the Uzawa steps are shared by them).
-    /// `threshold` is the clearance above which a vertex surely misses
-    /// ([`clearance::Clearance::threshold`] of `motion`, the largest
-    /// `|dx|_inf`, m).
-    fn detect_bodies(&mut self, x_n: &[Point], dx: &[Point], (motion, threshold): (f64, f64)) {
-        self.occupied.clear();
-        for v in 0..x_n.len() {
-            if self.clearance.skips(v, threshold) || self.free_index[v] == usize::MAX {
-                continue;
-            }
-            if self.slots[v].is_some() {
-                self.occupied.push(v);
-                continue;
-            }
-            let (a, b) = (x_n[v], x_n[v] + dx[v]);
-            // The slot is empty: written only when a contact is found.
-            if !self.misses_all(&a, &b) {
-                if let Some(slot) = self.detect(v, &a, &b) {
-                    self.slots[v] = Some(slot);
-                    self.clearance.hold(v);
-                    self.occupied.push(v);
-                }
-            }
-        }
-        let slots = &self.slots;
-        if let Some(bodies) = &mut self.bodies {
-            let thickness = self.settings.thickness;
-            bodies.detect(x_n, dx, (thickness, motion), |v| slots[v].is_some());
-        }
-    }
-
     /// Whether the segment `a -> b` surely hits no collider
     /// ([`ColliderShape::misses`]): a cheap test run before
     /// [`ContactState::detect`] (most vertices are far from every
