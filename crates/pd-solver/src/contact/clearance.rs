@@ -132,17 +132,22 @@ fn least_gap(settings: &ContactSettings, x: &Point, thickness: f64) -> f64 {
 
 /// The largest `|dx|_inf` over all vertices, m; infinite if a value is not
 /// finite or the sum of the magnitudes overflows.
+///
+/// One accumulator per axis, and a plain comparison rather than `f64::max`
+/// (whose NaN rule costs a branch per value): a NaN is caught by the sum,
+/// and any order of the sum is conservative (finite only if every value
+/// is).
 pub(super) fn largest_motion(dx: &[Point]) -> f64 {
-    let (mut largest, mut sum) = (0.0_f64, 0.0_f64);
+    let (mut largest, mut sum) = ([0.0_f64; 3], [0.0_f64; 3]);
     for d in dx {
         for k in 0..3 {
             let a = d[k].abs();
-            largest = largest.max(a);
-            sum += a;
+            largest[k] = if a > largest[k] { a } else { largest[k] };
+            sum[k] += a;
         }
     }
-    if sum.is_finite() {
-        largest
+    if (sum[0] + sum[1] + sum[2]).is_finite() {
+        largest[0].max(largest[1]).max(largest[2])
     } else {
         f64::INFINITY
     }
