@@ -112,6 +112,9 @@ pub(crate) struct BodyContact {
     /// ([`BodyContact::start_plane`]) for this step, valid while
     /// `start_planes_fresh` (cleared at a step's start and by a build).
     start_planes: Vec<Option<(Point, f64)>>,
+    /// Per entry, what its start plane tells of every crossing in the
+    /// step ([`listed::StartHit`]), filled with `start_planes`.
+    start_hits: Vec<listed::StartHit>,
     start_planes_fresh: bool,
 }
 
@@ -182,6 +185,7 @@ impl BodyContact {
             boxes: Vec::new(),
             segments: vec![(Point::zeros(), Point::zeros()); rest.len()],
             start_planes: Vec::new(),
+            start_hits: Vec::new(),
             start_planes_fresh: false,
         }
     }
@@ -249,15 +253,15 @@ impl BodyContact {
     /// Detects new pairs for the free surface vertices without one (the
     /// linearised swept test of [`BodyContact::first_hit`]), then counts
     /// every vertex's contacts; `collider` says which vertices hold a
-    /// collider contact.
+    /// collider contact; `motion` is the largest `|dx|_inf` (m).
     pub fn detect(
         &mut self,
         x_n: &[Point],
         dx: &[Point],
-        thickness: f64,
+        (thickness, motion): (f64, f64),
         collider: impl Fn(usize) -> bool,
     ) {
-        if !self.detect_listed_fast(x_n, dx, thickness) {
+        if !self.detect_listed_fast(x_n, dx, (thickness, motion)) {
             self.detect_with_boxes(x_n, dx, thickness);
         }
         for (v, c) in self.count.iter_mut().enumerate() {
@@ -370,17 +374,7 @@ impl BodyContact {
         (a, b): (&Point, &Point),
         thickness: f64,
     ) -> Option<(f64, Pair)> {
-        let (n1, _) = plane_of(end, b)?;
-        let n1 = if n1.dot(&n0) >= 0.0 { n1 } else { -n1 };
-        let d1 = n1.dot(&(b - end[0]));
-        if d1 >= thickness {
-            return None;
-        }
-        let s = if d0 > d1 {
-            ((d0 - thickness) / (d0 - d1)).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
+        let s = self.end_fraction((n0, d0), end, b, thickness)?;
         let lerp = |p: &Point, q: &Point| p + (q - p) * s;
         let tri = [0, 1, 2].map(|k| lerp(&start[k], &end[k]));
         let (weights, normal, _) = project_onto(&tri, &lerp(a, b))?;

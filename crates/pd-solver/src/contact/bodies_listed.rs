@@ -8,7 +8,31 @@ use pd_mesh::Point;
 
 use super::super::candidates::Surface;
 use super::super::grid::{cell_index, cell_size, query_end};
-use super::{BodyContact, Pair};
+use super::{BodyContact, Pair, inside, plane_of, project_onto};
+
+/// What a candidate entry's start plane tells of its crossings in every
+/// iteration of a step (docs/contact.md, "Fifth round"). When the vertex
+/// starts within the thickness of the triangle's plane (`d0 <= thickness`),
+/// a crossing's fraction `s` is `+0` or `-0` whatever the iterate (the
+/// numerator `d0 - thickness` is not positive, the other branch is `0`),
+/// so the crossing point is `a + (b - a) s` and the triangle's corners
+/// `start + (end - start) s`: with finite differences (the fast path's
+/// coverage bounds every coordinate) the products are zeros, and adding a
+/// zero of either sign to a float returns it exactly unless it is `-0`
+/// (`-0 + +0 = +0`), so when no coordinate of `a` and of the start
+/// triangle is `-0` these are `a` and `start` bit for bit. The projection
+/// is then the one of the step's start, taken once.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum StartHit {
+    /// Not known: the full crossing runs.
+    Unknown,
+    /// Every crossing of the step is `None`: the start projection is not
+    /// inside the triangle.
+    Never,
+    /// A crossing that passes the end-plane test is a pair with these
+    /// weights and normal (turned to the start normal's side).
+    Inside([f64; 3], Point),
+}
 
 /// Whether two boxes `(min, max)` are apart (a strict gap on some axis):
 /// all six comparisons, combined without short-circuit, so that the test
@@ -224,7 +248,7 @@ impl BodyContact {
         &mut self,
         x_n: &[Point],
         dx: &[Point],
-        thickness: f64,
+        (thickness, motion): (f64, f64),
     ) -> bool {
         let margin = thickness + self.reach;
         let fast = self.candidates.valid
@@ -234,8 +258,11 @@ impl BodyContact {
         if !fast {
             return false;
         }
+        // The full test only when the motion bound cannot tell.
+        let on_surface = &self.on_surface;
+        let quick = (self.candidates).covers_motion(x_n, on_surface, motion);
         let mut covered = true;
-        for &i in &self.on_surface {
+        for &i in if quick { &[][..] } else { &on_surface[..] } {
             let b = x_n[i] + dx[i];
             let (lo, hi) = self.candidates.bounds(i);
             // `Candidates::covers`' comparisons for the iterate (the start
@@ -298,6 +325,10 @@ impl BodyContact {
             let Some(start_plane) = self.start_planes[e] else {
                 continue;
             };
+            let known = self.start_hits[e];
+            if let StartHit::Never = known {
+                continue;
+            }
             let f = self.candidates.face(e);
             let face = self.faces[f];
             let [i, j, k] = face.vertices;
@@ -308,9 +339,23 @@ impl BodyContact {
             }
             let start = [x_n[i], x_n[j], x_n[k]];
             let end = [x_n[i] + dx[i], x_n[j] + dx[j], x_n[k] + dx[k]];
-            let Some((s, pair)) =
-                self.crossing_from(start_plane, (&start, &end), (&a, &b), thickness)
-            else {
+            let crossing = match known {
+                StartHit::Inside(weights, normal) => {
+                    (self.end_fraction(start_plane, &end, &b, thickness)).map(|s| {
+                        let pair = Pair {
+                            face: f,
+                            weights,
+                            normal,
+                            force: Point::zeros(),
+                            projected: false,
+                            warm: false,
+                        };
+                        (s, pair)
+                    })
+                }
+                _ => self.crossing_from(start_plane, (&start, &end), (&a, &b), thickness),
+            };
+            let Some((s, pair)) = crossing else {
                 continue;
             };
             match best {
@@ -332,6 +377,8 @@ impl BodyContact {
         self.start_planes.clear();
         self.start_planes
             .resize(self.candidates.entry_count(), None);
+        self.start_hits.clear();
+        (self.start_hits).resize(self.candidates.entry_count(), StartHit::Unknown);
         self.needed.clear();
         for &v in self.candidates.listed() {
             if self.pairs[v].is_some() {
@@ -341,7 +388,15 @@ impl BodyContact {
                 let face = self.faces[self.candidates.face(e)];
                 let [i, j, k] = face.vertices;
                 let start = [x_n[i], x_n[j], x_n[k]];
-                self.start_planes[e] = self.start_plane(&face, &start, &x_n[v], thickness);
+                let plane = self.start_plane(&face, &start, &x_n[v], thickness);
+                self.start_planes[e] = plane;
+                let Some(plane) = plane else { continue };
+                // An entry without a start plane or never hit reads no
+                // segment box.
+                self.start_hits[e] = start_hit(plane, &start, &x_n[v], thickness);
+                if let StartHit::Never = self.start_hits[e] {
+                    continue;
+                }
                 for i in face.vertices {
                     if !self.in_needed[i] {
                         self.in_needed[i] = true;
@@ -354,5 +409,54 @@ impl BodyContact {
             self.in_needed[i] = false;
         }
         self.start_planes_fresh = true;
+    }
+}
+
+impl BodyContact {
+    /// The second half of [`BodyContact::crossing_from`]'s start: the end
+    /// plane of the triangle at `end` (its normal turned to `n0`'s side),
+    /// the vertex's signed distance `d1` to it at `b`, and the fraction `s`
+    /// at which the vertex comes within `thickness`; `None` if the end
+    /// triangle is degenerate or `d1 >= thickness`.
+    pub(super) fn end_fraction(
+        &self,
+        (n0, d0): (Point, f64),
+        end: &[Point; 3],
+        b: &Point,
+        thickness: f64,
+    ) -> Option<f64> {
+        let (n1, _) = plane_of(end, b)?;
+        let n1 = if n1.dot(&n0) >= 0.0 { n1 } else { -n1 };
+        let d1 = n1.dot(&(b - end[0]));
+        if d1 >= thickness {
+            return None;
+        }
+        Some(if d0 > d1 {
+            ((d0 - thickness) / (d0 - d1)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        })
+    }
+}
+
+/// What the start plane `(n0, d0)` of the triangle `start` and the vertex
+/// at `a` tells of the step's crossings ([`StartHit`]).
+fn start_hit((n0, d0): (Point, f64), start: &[Point; 3], a: &Point, thickness: f64) -> StartHit {
+    let kept = |p: &Point| p.iter().all(|&c| c.to_bits() != (-0.0_f64).to_bits());
+    if !(d0 <= thickness && kept(a) && start.iter().all(kept)) {
+        return StartHit::Unknown;
+    }
+    let Some((weights, normal, _)) = project_onto(start, a) else {
+        return StartHit::Never;
+    };
+    let normal = if normal.dot(&n0) >= 0.0 {
+        normal
+    } else {
+        -normal
+    };
+    if inside(&weights) {
+        StartHit::Inside(weights, normal)
+    } else {
+        StartHit::Never
     }
 }

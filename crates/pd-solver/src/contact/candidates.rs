@@ -53,6 +53,10 @@ pub(super) struct Candidates {
     /// box (set by [`Candidates::build`] and [`Candidates::begin_step`]):
     /// then an iteration only needs its iterates checked.
     pub start_covered: bool,
+    /// The least room between a surface vertex's step start `x_n` and its
+    /// stored box, over the vertices and axes, m ([`Candidates::room`]);
+    /// `None` until taken after a step's start or a build.
+    room: Option<f64>,
     /// The vertices with at least one candidate, in increasing order.
     nonempty: Vec<usize>,
     grid: Grid,
@@ -106,6 +110,29 @@ impl Candidates {
     /// start lies in its stored box ([`Candidates::start_covered`]).
     pub fn begin_step(&mut self, x_n: &[Point], on_surface: &[usize]) {
         self.start_covered = self.valid && self.contains(x_n, on_surface);
+        self.room = None;
+    }
+
+    /// Whether every surface vertex's iterate `x_n + dx` surely lies in its
+    /// stored box, from `motion`, the largest `|dx|_inf` (m), alone: the
+    /// verdict of [`Candidates::covers`] where it answers yes. Only with
+    /// [`Candidates::start_covered`]. Why: with `r` the least computed
+    /// room `x_n - lo` (or `hi - x_n`), the exact room is at least `r (1 -
+    /// u)`; if `|dx_k| <= motion <= r (1 - 1e-12)`, the exact `x_n + dx`
+    /// lies in `[lo, hi]`, and since `lo` and `hi` are floats and rounding
+    /// is monotone, so does the computed one. A NaN or infinite motion
+    /// never passes.
+    pub fn covers_motion(&mut self, x_n: &[Point], on_surface: &[usize], motion: f64) -> bool {
+        let room = *self.room.get_or_insert_with(|| {
+            let mut least = f64::INFINITY;
+            for &i in on_surface {
+                let (lo, hi) = &self.bounds[i];
+                let room = (x_n[i] - lo).inf(&(hi - x_n[i]));
+                least = least.min(room.min());
+            }
+            least
+        });
+        motion <= room * (1.0 - 1e-12)
     }
 
     /// Whether every vertex of `on_surface` has its point of `points` in
@@ -141,6 +168,7 @@ impl Candidates {
         (delta, margin, thickness): (f64, f64, f64),
     ) -> bool {
         self.valid = false;
+        self.room = None;
         if !delta.is_finite() {
             return false;
         }

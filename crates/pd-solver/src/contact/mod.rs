@@ -21,6 +21,7 @@
 
 mod bodies;
 mod candidates;
+mod clearance;
 mod forces;
 mod geometry;
 mod grid;
@@ -194,6 +195,8 @@ pub(crate) struct ContactState {
     /// Forces frozen ([`crate::Simulation::freeze_contact_forces`]): the
     /// contacts' forces are added as they are, and nothing else runs.
     frozen: bool,
+    /// The step's collider clearances (`clearance.rs`).
+    clearance: clearance::Clearance,
 }
 
 /// What the contacts of a finished step measured.
@@ -222,6 +225,7 @@ impl ContactState {
             bodies: None,
             occupied: Vec::new(),
             frozen: false,
+            clearance: clearance::Clearance::default(),
         }
     }
 
@@ -285,11 +289,16 @@ impl ContactState {
             return;
         }
         let first = self.iteration == 0;
+        if first {
+            (self.clearance).take(&self.settings, x_n, &self.free_index, &self.slots);
+        }
         self.iteration += 1;
         let h = self.h;
         let with_bodies = self.bodies.is_some();
+        let motion = clearance::largest_motion(dx);
+        let threshold = self.clearance.threshold(motion);
         if with_bodies {
-            self.detect_bodies(x_n, dx);
+            self.detect_bodies(x_n, dx, (motion, threshold));
         }
         // With bodies, detection ran before (`detect_bodies`) and only the
         // vertices it left with a contact are visited (each adds to its own
@@ -301,6 +310,9 @@ impl ContactState {
         };
         for k in 0..count {
             let v = if with_bodies { self.occupied[k] } else { k };
+            if !with_bodies && self.clearance.skips(v, threshold) {
+                continue;
+            }
             let f = self.free_index[v];
             if f == usize::MAX {
                 continue;
@@ -314,6 +326,7 @@ impl ContactState {
                     continue;
                 };
                 self.slots[v] = Some(slot);
+                self.clearance.hold(v);
             }
             // Updated in place (no copy of the slot in and out).
             let Some(slot) = &mut self.slots[v] else {
@@ -335,34 +348,6 @@ impl ContactState {
         if let Some(bodies) = &mut self.bodies {
             let settings = (h, RELAXATION, self.settings.thickness);
             bodies.apply(x_n, dx, settings, first, &self.free_index, rhs);
-        }
-    }
-
-    /// With contact between bodies: detects the new collider contacts of
-    /// every free vertex, then the new vertex-triangle pairs, and counts
-    /// every vertex's contacts (the Uzawa steps are shared by them).
-    fn detect_bodies(&mut self, x_n: &[Point], dx: &[Point]) {
-        self.occupied.clear();
-        for v in 0..x_n.len() {
-            if self.free_index[v] == usize::MAX {
-                continue;
-            }
-            if self.slots[v].is_some() {
-                self.occupied.push(v);
-                continue;
-            }
-            let (a, b) = (x_n[v], x_n[v] + dx[v]);
-            // The slot is empty: written only when a contact is found.
-            if !self.misses_all(&a, &b) {
-                if let Some(slot) = self.detect(v, &a, &b) {
-                    self.slots[v] = Some(slot);
-                    self.occupied.push(v);
-                }
-            }
-        }
-        let slots = &self.slots;
-        if let Some(bodies) = &mut self.bodies {
-            bodies.detect(x_n, dx, self.settings.thickness, |v| slots[v].is_some());
         }
     }
 
