@@ -31,7 +31,7 @@ use rayon::prelude::*;
 
 use crate::cholesky::vectorized;
 use crate::global::FIXED;
-use kernels::{Acc, Group, Scratch, add_group};
+use kernels::{Acc, Group, Scratch, Tet, add_group, add_tet};
 use ranges::Ranges;
 
 /// More threads scatter into their own ranges of outputs only while the
@@ -58,6 +58,10 @@ struct Groups {
     /// weight), group after group, within a group output by output and for
     /// each output projection by projection.
     values: Vec<f64>,
+    /// The maximal runs `a..b` of consecutive groups of a tet's shape
+    /// (three projections on four outputs), scattered by a loop that knows
+    /// their lengths.
+    tet_runs: Vec<(u32, u32)>,
 }
 
 /// The projection operator `B` over the free vertices, stored for the
@@ -287,11 +291,22 @@ impl Groups {
             counts[c] += 1;
         });
         let (sources, target_start) = group(&columns, &starts, &mut targets, &mut values);
+        let mut tet_runs: Vec<(u32, u32)> = Vec::new();
+        for (g, (&(from, to), ends)) in sources.iter().zip(target_start.windows(2)).enumerate() {
+            if to - from == 3 && ends[1] - ends[0] == 4 {
+                let g = g as u32;
+                match tet_runs.last_mut() {
+                    Some(run) if run.1 == g => run.1 = g + 1,
+                    _ => tet_runs.push((g, g + 1)),
+                }
+            }
+        }
         Self {
             sources,
             target_start,
             targets,
             values,
+            tet_runs,
         }
     }
 
@@ -316,16 +331,41 @@ impl Groups {
     }
 
     /// Adds every group's terms into `acc` (one accumulator per output),
-    /// group by group in order.
+    /// group by group in order: the runs of tets through a loop of fixed
+    /// lengths, the groups between them one by one.
     fn scatter(&self, projections: &[Point], acc: &mut [Acc]) {
+        let end = self.sources.len() as u32;
         vectorized(
             #[inline(always)]
             |simd| {
-                let mut value_start = 0;
-                for g in 0..self.sources.len() {
-                    let group = self.group(g, value_start, projections);
-                    value_start += group.values.len();
-                    add_group::<false>(simd, &group, 0, acc);
+                let (mut g, mut value_start) = (0, 0);
+                for &(a, b) in self.tet_runs.iter().chain([(end, end)].iter()) {
+                    for g in g..a as usize {
+                        let group = self.group(g, value_start, projections);
+                        value_start += group.values.len();
+                        add_group::<false>(simd, &group, 0, acc);
+                    }
+                    let (a, b) = (a as usize, b as usize);
+                    let from = self.target_start[a] as usize;
+                    let targets = self.targets[from..from + 4 * (b - a)].as_chunks().0;
+                    let values = self.values[value_start..value_start + 12 * (b - a)]
+                        .as_chunks()
+                        .0;
+                    for ((&(first, _), targets), values) in
+                        self.sources[a..b].iter().zip(targets).zip(values)
+                    {
+                        let first = first as usize;
+                        let tet = Tet {
+                            projections: projections[first..first + 3]
+                                .try_into()
+                                .expect("three projections"),
+                            targets,
+                            values,
+                        };
+                        add_tet::<false>(simd, &tet, 0, acc);
+                    }
+                    value_start += 12 * (b - a);
+                    g = b;
                 }
             },
         );

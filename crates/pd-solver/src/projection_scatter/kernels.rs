@@ -65,6 +65,26 @@ pub(super) struct Group<'a> {
     pub values: &'a [f64],
 }
 
+impl<'a> Group<'a> {
+    /// The group as a tet's: three projections on four outputs.
+    #[inline(always)]
+    fn as_tet(&self) -> Option<Tet<'a>> {
+        Some(Tet {
+            projections: self.projections.try_into().ok()?,
+            targets: self.targets.try_into().ok()?,
+            values: self.values.try_into().ok()?,
+        })
+    }
+}
+
+/// A group of a tet's shape (three projections on four outputs), with
+/// lengths the compiler knows: its loops unroll, without bounds checks.
+pub(super) struct Tet<'a> {
+    pub projections: &'a [Point; 3],
+    pub targets: &'a [u32; 4],
+    pub values: &'a [f64; 12],
+}
+
 /// The accumulator of output `t` in `acc`, whose first slot is output
 /// `first`. With `CHECK`, `None` for an output outside `acc` (a group that
 /// straddles two threads' outputs); without, every output must be inside.
@@ -89,6 +109,9 @@ pub(super) fn add_group<const CHECK: bool>(
     first: u32,
     acc: &mut [Acc],
 ) {
+    if let Some(tet) = group.as_tet() {
+        return add_tet::<CHECK>(simd, &tet, first, acc);
+    }
     #[cfg(target_arch = "x86_64")]
     if let Some(simd) = simd {
         return add_group_wide::<CHECK>(simd, group, first, acc);
@@ -96,6 +119,55 @@ pub(super) fn add_group<const CHECK: bool>(
     #[cfg(not(target_arch = "x86_64"))]
     let _ = simd;
     add_group_plain::<CHECK>(group, first, acc);
+}
+
+/// [`add_group`] for a group of a tet's shape.
+#[inline(always)]
+pub(super) fn add_tet<const CHECK: bool>(
+    simd: Option<Simd>,
+    tet: &Tet<'_>,
+    first: u32,
+    acc: &mut [Acc],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(s) = simd {
+        use pulp::cast;
+        let [p0, p1, p2] = tet.projections.each_ref().map(lanes);
+        for (k, &t) in tet.targets.iter().enumerate() {
+            if let Some(a) = slot::<CHECK>(acc, t, first) {
+                let v = &tet.values[3 * k..3 * k + 3];
+                let o = term(s, cast(*a), p0, v[0]);
+                let o = term(s, o, p1, v[1]);
+                *a = cast(term(s, o, p2, v[2]));
+            }
+        }
+        return;
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = simd;
+    let [p0, p1, p2] = tet.projections;
+    for (k, &t) in tet.targets.iter().enumerate() {
+        if let Some(a) = slot::<CHECK>(acc, t, first) {
+            let v = &tet.values[3 * k..3 * k + 3];
+            for lane in 0..3 {
+                a[lane] = a[lane] + p0[lane] * v[0] + p1[lane] * v[1] + p2[lane] * v[2];
+            }
+        }
+    }
+}
+
+/// A point's coordinates in the first three of four lanes.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn lanes(q: &Point) -> pulp::f64x4 {
+    pulp::cast([q.x, q.y, q.z, 0.0])
+}
+
+/// `o + q v` lane by lane: a multiply, then an add.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn term(s: Simd, o: pulp::f64x4, q: pulp::f64x4, v: f64) -> pulp::f64x4 {
+    s.add_f64x4(o, s.mul_f64x4(q, s.splat_f64x4(v)))
 }
 
 /// [`add_group`] one lane at a time.
@@ -143,9 +215,7 @@ fn add_group_wide<const CHECK: bool>(s: Simd, group: &Group<'_>, first: u32, acc
         targets,
         values,
     } = *group;
-    let lanes = |q: &Point| -> f64x4 { cast([q.x, q.y, q.z, 0.0]) };
-    // `o + q v` lane by lane: a multiply, then an add.
-    let term = |o: f64x4, q: f64x4, v: f64| s.add_f64x4(o, s.mul_f64x4(q, s.splat_f64x4(v)));
+    let term = |o: f64x4, q: f64x4, v: f64| term(s, o, q, v);
     match p {
         [p0, p1, p2] => {
             let (p0, p1, p2) = (lanes(p0), lanes(p1), lanes(p2));

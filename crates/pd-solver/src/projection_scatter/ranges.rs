@@ -249,7 +249,10 @@ mod tests {
     #[test]
     fn the_ranges_are_kept_only_when_few_groups_straddle() {
         let b = banded(400);
-        let split = ProjectionScatter::new(&b).unwrap().split(2).unwrap();
+        let one = ProjectionScatter::new(&b).unwrap();
+        // Every element is a tet's shape: one run of the fixed-length loop.
+        assert_eq!(one.groups.tet_runs, [(0, 397)]);
+        let split = one.split(2).unwrap();
         let ranges = split.ranges.as_ref().unwrap();
         // Exactly the three elements across the border are read twice.
         assert_eq!(ranges.duplication(), (397.0 + 3.0) / 397.0);
