@@ -2,7 +2,7 @@
 //! added into its outputs' accumulators.
 //!
 //! An accumulator ([`Acc`]) holds an output's x, y and z in the first
-//! three of four lanes, so that with AVX2 one 4-wide load, three 4-wide
+//! three of four lanes (the fourth is scratch that nothing reads), so that with AVX2 one 4-wide load, three 4-wide
 //! multiplies and adds and one 4-wide store update an output for a tet's
 //! three projections (the projections' lanes are loaded once per group).
 //! Each lane takes exactly the plain path's operations in the same order:
@@ -156,11 +156,13 @@ pub(super) fn add_tet<const CHECK: bool>(
     }
 }
 
-/// A point's coordinates in the first three of four lanes.
+/// A point's coordinates in the first three of four lanes (the fourth, a
+/// copy of z, feeds the accumulators' unread lane: one blend fewer than a
+/// zero).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn lanes(q: &Point) -> pulp::f64x4 {
-    pulp::cast([q.x, q.y, q.z, 0.0])
+    pulp::cast([q.x, q.y, q.z, q.z])
 }
 
 /// `o + q v` lane by lane: a multiply, then an add.
