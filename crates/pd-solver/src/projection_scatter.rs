@@ -347,20 +347,21 @@ impl Groups {
                     }
                     let (a, b) = (a as usize, b as usize);
                     let from = self.target_start[a] as usize;
-                    let targets = self.targets[from..from + 4 * (b - a)].as_chunks().0;
-                    let values = self.values[value_start..value_start + 12 * (b - a)]
-                        .as_chunks()
-                        .0;
-                    for ((&(first, _), targets), values) in
-                        self.sources[a..b].iter().zip(targets).zip(values)
+                    let targets = self.targets[from..from + 4 * (b - a)].chunks_exact(4);
+                    let values = &self.values[value_start..value_start + 12 * (b - a)];
+                    for ((&(first, _), targets), values) in self.sources[a..b]
+                        .iter()
+                        .zip(targets)
+                        .zip(values.chunks_exact(12))
                     {
                         let first = first as usize;
+                        // The lengths are the run's: the conversions cannot fail.
                         let tet = Tet {
                             projections: projections[first..first + 3]
                                 .try_into()
                                 .expect("three projections"),
-                            targets,
-                            values,
+                            targets: targets.try_into().expect("four targets"),
+                            values: values.try_into().expect("twelve values"),
                         };
                         add_tet::<false>(simd, &tet, 0, acc);
                     }
