@@ -175,7 +175,13 @@ impl GlobalSystem {
         let symbolic = SymbolicFactor::analyse(pattern.clone(), &candidates)?;
         drop(candidates);
         let order = symbolic.order();
-        let projection_rows = ProjectionOperator::new(local.blocks(), &free, &free_index, threads);
+        let projection_rows = ProjectionOperator::new(
+            local.blocks(),
+            &free,
+            &free_index,
+            threads,
+            order.as_deref(),
+        );
         Ok(Self {
             pattern,
             damping_rows,
