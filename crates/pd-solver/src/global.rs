@@ -175,13 +175,7 @@ impl GlobalSystem {
         let symbolic = SymbolicFactor::analyse(pattern.clone(), &candidates)?;
         drop(candidates);
         let order = symbolic.order();
-        let projection_rows = ProjectionOperator::new(
-            local.blocks(),
-            &free,
-            &free_index,
-            threads,
-            order.as_deref(),
-        );
+        let projection_rows = ProjectionOperator::new(local.blocks(), &free, &free_index, threads);
         Ok(Self {
             pattern,
             damping_rows,

@@ -75,10 +75,6 @@ pub(crate) struct ProjectionScatter {
     ranges: Option<Ranges>,
     /// One accumulator per output, reused by every call.
     scratch: Scratch,
-    /// With ranges cut in the factor's elimination order: each output's
-    /// accumulator (its position in that order; the groups' targets are
-    /// stored as these positions).
-    position: Option<Vec<u32>>,
 }
 
 /// `B` for the right-hand side: scattered on one thread; on more, scattered
@@ -98,21 +94,18 @@ pub(crate) enum ProjectionOperator {
 impl ProjectionOperator {
     /// `B`'s rows for the free vertices (`free`, with `free_index` mapping
     /// a vertex to its position there or to [`FIXED`]) in the form that
-    /// suits a step on `threads` threads; `order` (free indices in the
-    /// factor's elimination order), when given, is where the ranges of
-    /// more threads are cut.
+    /// suits a step on `threads` threads.
     pub fn new(
         blocks: &[Box<dyn ConstraintBlock>],
         free: &[usize],
         free_index: &[usize],
         threads: usize,
-        order: Option<&[usize]>,
     ) -> Self {
         if let Some(scatter) = ProjectionScatter::from_blocks(blocks, free, free_index) {
             if threads <= 1 {
                 return Self::Scatter(scatter);
             }
-            if let Some(split) = scatter.split(threads, order) {
+            if let Some(split) = scatter.split(threads) {
                 return Self::Scatter(split);
             }
             // The scatter is dropped before `B` is assembled (peak memory).
@@ -224,30 +217,13 @@ impl ProjectionScatter {
             groups,
             ranges: None,
             scratch: Scratch::new(outputs),
-            position: None,
         })
     }
 
     /// This operator cut into `threads` ranges of outputs, one per thread
-    /// ([`Ranges`]), in the outputs' order or, given, in `order` (a
-    /// permutation of the outputs: a nested-dissection order makes a range
-    /// a region of the mesh, whatever its numbering); `None` when that would
-    /// read the groups more than [`MAX_DUPLICATION`] times on average (or
-    /// cannot be cut).
-    fn split(mut self, threads: usize, order: Option<&[usize]>) -> Option<Self> {
-        if let Some(order) = order.filter(|o| o.len() == self.outputs) {
-            let mut position = vec![u32::MAX; self.outputs];
-            for (k, &f) in order.iter().enumerate() {
-                *position.get_mut(f)? = k as u32;
-            }
-            if position.contains(&u32::MAX) {
-                return None;
-            }
-            for t in &mut self.groups.targets {
-                *t = position[*t as usize];
-            }
-            self.position = Some(position);
-        }
+    /// ([`Ranges`]); `None` when that would read the groups more than
+    /// [`MAX_DUPLICATION`] times on average (or cannot be cut).
+    fn split(self, threads: usize) -> Option<Self> {
         let ranges = Ranges::new(&self.groups, self.outputs, threads)?;
         (ranges.duplication() <= MAX_DUPLICATION).then_some(Self {
             ranges: Some(ranges),
@@ -274,16 +250,9 @@ impl ProjectionScatter {
                 self.groups.scatter(projections, acc);
                 finish(acc, constant, energy_factor, out);
             }
-            Some(ranges) => match &self.position {
-                None => ranges.rhs(&self.groups, projections, energy_factor, acc, constant, out),
-                Some(position) => {
-                    ranges.scatter(&self.groups, projections, acc);
-                    for ((o, &c), &k) in out.iter_mut().zip(constant).zip(position) {
-                        let a = acc[k as usize];
-                        *o = c + Point::new(a[0], a[1], a[2]) * energy_factor;
-                    }
-                }
-            },
+            Some(ranges) => {
+                ranges.rhs(&self.groups, projections, energy_factor, acc, constant, out);
+            }
         });
     }
 }
@@ -612,12 +581,12 @@ mod tests {
         let constant = vec![Point::new(0.5, -0.25, 2.0); free.len()];
         for threads in [1, 2] {
             let ProjectionOperator::Scatter(streamed) =
-                ProjectionOperator::new(&blocks, &free, &free_index, 1, None)
+                ProjectionOperator::new(&blocks, &free, &free_index, 1)
             else {
                 panic!("one thread scatters");
             };
             let assembled = ProjectionScatter::new(&rows).unwrap();
-            let operator = ProjectionOperator::new(&blocks, &free, &free_index, threads, None);
+            let operator = ProjectionOperator::new(&blocks, &free, &free_index, threads);
             let mut a = vec![Point::zeros(); free.len()];
             let mut b = vec![Point::zeros(); free.len()];
             let mut c = vec![Point::zeros(); free.len()];

@@ -127,20 +127,6 @@ impl Ranges {
     }
 }
 
-impl Ranges {
-    /// `acc = B p` (accumulators in the ranges' order), each range on its
-    /// own thread; the caller finishes the outputs.
-    pub fn scatter(&self, groups: &Groups, projections: &[Point], acc: &mut [Acc]) {
-        let job = Job {
-            ranges: self,
-            groups,
-            projections,
-            energy_factor: 1.0,
-        };
-        job.run_scatter(0..self.lists.len(), acc);
-    }
-}
-
 /// What every range's thread reads.
 struct Job<'a> {
     ranges: &'a Ranges,
@@ -167,28 +153,8 @@ impl Job<'_> {
         );
     }
 
-    /// As [`Self::run`], without the outputs' last pass.
-    fn run_scatter(&self, r: Range<usize>, acc: &mut [Acc]) {
-        if r.len() == 1 {
-            return self.scatter_range(r.start, acc);
-        }
-        let mid = r.start + r.len() / 2;
-        let at = (self.ranges.bounds[mid] - self.ranges.bounds[r.start]) as usize;
-        let (acc_a, acc_b) = acc.split_at_mut(at);
-        rayon::join(
-            || self.run_scatter(r.start..mid, acc_a),
-            || self.run_scatter(mid..r.end, acc_b),
-        );
-    }
-
     /// Range `r`: its groups into its outputs.
     fn range(&self, r: usize, acc: &mut [Acc], constant: &[Point], out: &mut [Point]) {
-        self.scatter_range(r, acc);
-        super::finish(acc, constant, self.energy_factor, out);
-    }
-
-    /// Range `r`'s groups into its accumulators.
-    fn scatter_range(&self, r: usize, acc: &mut [Acc]) {
         let Self { ranges, groups, .. } = *self;
         let first = ranges.bounds[r];
         acc.fill([0.0; 4]);
@@ -206,6 +172,7 @@ impl Job<'_> {
                 }
             },
         );
+        super::finish(acc, constant, self.energy_factor, out);
     }
 }
 
@@ -285,7 +252,7 @@ mod tests {
         let one = ProjectionScatter::new(&b).unwrap();
         // Every element is a tet's shape: one run of the fixed-length loop.
         assert_eq!(one.groups.tet_runs, [(0, 397)]);
-        let split = one.split(2, None).unwrap();
+        let split = one.split(2).unwrap();
         let ranges = split.ranges.as_ref().unwrap();
         // Exactly the three elements across the border are read twice.
         assert_eq!(ranges.duplication(), (397.0 + 3.0) / 397.0);
@@ -305,38 +272,7 @@ mod tests {
         let one = ProjectionScatter::new(&shuffled).unwrap();
         let duplication = Ranges::new(&one.groups, 300, 2).unwrap().duplication();
         assert!(duplication > MAX_DUPLICATION, "{duplication}");
-        assert!(one.split(2, None).is_none());
-    }
-
-    #[test]
-    fn ranges_cut_in_a_given_order_give_the_same_bits() {
-        // The band with its rows renumbered (r -> 163 r mod 400): in the
-        // outputs' order almost every element straddles, in the band's
-        // order (`order[k]`: the output at band position k) few do.
-        let n = 400;
-        let renumber = |r: usize| (163 * r) % n;
-        let b = banded(n);
-        let mut triplets = Vec::new();
-        for f in 0..n {
-            for (c, v) in b.row(f) {
-                triplets.push(Triplet::new(renumber(f), c, v));
-            }
-        }
-        let scrambled = CsrMatrix::from_triplets(n, b.ncols(), &triplets);
-        let order: Vec<usize> = (0..n).map(renumber).collect();
-        let one = ProjectionScatter::new(&scrambled).unwrap();
-        assert!(one.clone().split(2, None).is_none());
-        let split = one.clone().split(3, Some(&order)).unwrap();
-        assert!(split.ranges.as_ref().unwrap().duplication() < 1.1);
-        let (projections, constant) = inputs(n, b.ncols());
-        let (mut a, mut c) = (vec![Point::zeros(); n], vec![Point::zeros(); n]);
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(2)
-            .build()
-            .unwrap();
-        pool.install(|| split.rhs(&constant, &projections, 1.1, &mut a));
-        one.rhs(&constant, &projections, 1.1, &mut c);
-        assert_eq!(bits(&a), bits(&c));
+        assert!(one.split(2).is_none());
     }
 
     #[test]
