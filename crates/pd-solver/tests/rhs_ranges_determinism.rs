@@ -3,8 +3,8 @@
 //! per thread (`projection_scatter/ranges.rs`): a box numbered x fastest
 //! with 12 cells along z, so that a cut between ranges crosses one or two of
 //! the 12 layers of cells and few elements straddle two ranges (the
-//! thread_determinism test's beam is too short for that and takes the row
-//! gather).
+//! thread_determinism test's beam has 3 cells across, so a cut there
+//! crosses a large share of its elements).
 
 mod common;
 
