@@ -25,6 +25,7 @@ mod calibration;
 #[cfg(feature = "metis")]
 mod metis;
 mod solve_kernels;
+pub(crate) use solve_kernels::{Simd, vectorized};
 #[cfg(test)]
 mod solve_profile;
 mod solve_tree;

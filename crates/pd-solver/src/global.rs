@@ -56,8 +56,9 @@ pub(crate) struct GlobalSystem {
     /// Rows of `L_anchor` (attachments) for the free vertices (all columns).
     pub anchoring_rows: CsrMatrix,
     /// The projection operator `B`'s rows for the free vertices, stored
-    /// for the scatter of `B p` on one thread or the row gather on more
-    /// (`projection_scatter.rs`).
+    /// for the scatter of `B p` (on more threads one range of vertices per
+    /// thread) or, on more threads when most elements would straddle two
+    /// ranges, for the row gather (`projection_scatter.rs`).
     pub projection_rows: ProjectionOperator,
     /// Per pattern slot: the mass on the diagonal, else 0.
     pub mass_part: Vec<f64>,

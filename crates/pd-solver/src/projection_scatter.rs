@@ -15,16 +15,30 @@
 //! `out += p_c * B[f][c]` for its columns `c` in ascending order, which is
 //! exactly `row_dot`'s fold; then `constant + out * energy_factor`, as
 //! before (unit tests `scatter_is_the_row_gather_bit_for_bit` and
-//! `built_from_the_blocks_it_is_the_scatter_of_the_assembled_rows`). The
-//! scatter runs on one thread: [`ProjectionOperator`] keeps the
-//! row-parallel gather for a step on more threads, whose results are the
-//! same bits.
+//! `built_from_the_blocks_it_is_the_scatter_of_the_assembled_rows`), with
+//! AVX2 where the CPU has it (`kernels.rs`: lane by lane the same
+//! operations). On more threads each thread scatters into its own range of
+//! outputs (`ranges.rs`) when few groups straddle two ranges; otherwise
+//! [`ProjectionOperator`] keeps the row-parallel gather. All give the same
+//! bits.
+
+mod kernels;
+mod ranges;
 
 use pd_constraints::{ConstraintBlock, CsrMatrix, assembly};
 use pd_mesh::Point;
 use rayon::prelude::*;
 
+use crate::cholesky::vectorized;
 use crate::global::FIXED;
+use kernels::{Acc, Group, Scratch, Tet, add_group, add_tet};
+use ranges::Ranges;
+
+/// More threads scatter into their own ranges of outputs only while the
+/// ranges read each group at most this many times on average; above it
+/// they gather `B`'s rows (docs/performance.md, "`B p` with fewer
+/// instructions, and on both cores": the measured duplication per mesh).
+const MAX_DUPLICATION: f64 = 1.25;
 
 /// `B`'s entries by projection (source) in ascending order, in groups: a
 /// group is a run of consecutive projections with the same outputs (a
@@ -44,21 +58,31 @@ struct Groups {
     /// weight), group after group, within a group output by output and for
     /// each output projection by projection.
     values: Vec<f64>,
+    /// The maximal runs `a..b` of consecutive groups of a tet's shape
+    /// (three projections on four outputs), scattered by a loop that knows
+    /// their lengths.
+    tet_runs: Vec<(u32, u32)>,
 }
 
 /// The projection operator `B` over the free vertices, stored for the
 /// scatter (see the module docs).
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub(crate) struct ProjectionScatter {
     outputs: usize,
     groups: Groups,
+    /// The outputs cut into one range per thread, for a step on more
+    /// threads; `None` on one.
+    ranges: Option<Ranges>,
+    /// One accumulator per output, reused by every call.
+    scratch: Scratch,
 }
 
-/// `B` for the right-hand side: scattered on one thread, gathered row by
-/// row in parallel on more (the gather splits across threads without
-/// splitting an output's sum; the scatter would have to re-read the
-/// projections of every element that straddles two threads' vertices, on a
-/// randomly numbered mesh most of them). Both give the same bits.
+/// `B` for the right-hand side: scattered on one thread; on more, scattered
+/// range by range when few elements straddle two threads' vertices, else
+/// gathered row by row in parallel (the gather splits across threads
+/// without splitting an output's sum; the ranges re-read every element that
+/// straddles, on a randomly numbered mesh most of them). All give the same
+/// bits.
 #[derive(Debug, Clone)]
 pub(crate) enum ProjectionOperator {
     /// `B`'s rows for the free vertices, gathered row-parallel.
@@ -77,17 +101,20 @@ impl ProjectionOperator {
         free_index: &[usize],
         threads: usize,
     ) -> Self {
-        let scatter = (threads <= 1)
-            .then(|| ProjectionScatter::from_blocks(blocks, free, free_index))
-            .flatten();
-        match scatter {
-            Some(scatter) => Self::Scatter(scatter),
-            None => Self::Rows(assembly::projection_operator_rows(
-                blocks,
-                free_index.len(),
-                free,
-            )),
+        if let Some(scatter) = ProjectionScatter::from_blocks(blocks, free, free_index) {
+            if threads <= 1 {
+                return Self::Scatter(scatter);
+            }
+            if let Some(split) = scatter.split(threads) {
+                return Self::Scatter(split);
+            }
+            // The scatter is dropped before `B` is assembled (peak memory).
         }
+        Self::Rows(assembly::projection_operator_rows(
+            blocks,
+            free_index.len(),
+            free,
+        ))
     }
 
     /// `out[f] = constant[f] + (B p)[f] * energy_factor` for every free
@@ -185,11 +212,29 @@ impl ProjectionScatter {
             return None;
         }
         let groups = Groups::new(visit, &mut vec![0u32; columns]);
-        Some(Self { outputs, groups })
+        Some(Self {
+            outputs,
+            groups,
+            ranges: None,
+            scratch: Scratch::new(outputs),
+        })
+    }
+
+    /// This operator cut into `threads` ranges of outputs, one per thread
+    /// ([`Ranges`]); `None` when that would read the groups more than
+    /// [`MAX_DUPLICATION`] times on average (or cannot be cut).
+    fn split(self, threads: usize) -> Option<Self> {
+        let ranges = Ranges::new(&self.groups, self.outputs, threads)?;
+        (ranges.duplication() <= MAX_DUPLICATION).then_some(Self {
+            ranges: Some(ranges),
+            ..self
+        })
     }
 
     /// `out[f] = constant[f] + (B p)[f] * energy_factor` for every free
-    /// vertex `f`, on the calling thread. Allocates nothing.
+    /// vertex `f`: on the calling thread, or one range of outputs per
+    /// thread when the operator was [`split`](Self::split). Allocates
+    /// nothing.
     pub fn rhs(
         &self,
         constant: &[Point],
@@ -199,7 +244,24 @@ impl ProjectionScatter {
     ) {
         assert_eq!(out.len(), self.outputs, "one output per free vertex");
         assert_eq!(constant.len(), self.outputs, "one constant per free vertex");
-        self.groups.rhs(constant, projections, energy_factor, out);
+        self.scratch.with(self.outputs, |acc| match &self.ranges {
+            None => {
+                acc.fill([0.0; 4]);
+                self.groups.scatter(projections, acc);
+                finish(acc, constant, energy_factor, out);
+            }
+            Some(ranges) => {
+                ranges.rhs(&self.groups, projections, energy_factor, acc, constant, out);
+            }
+        });
+    }
+}
+
+/// `out = constant + acc * energy_factor`, output by output (the scatter's
+/// last pass, as `constant + sum * energy_factor` in the row gather).
+fn finish(acc: &[Acc], constant: &[Point], energy_factor: f64, out: &mut [Point]) {
+    for ((o, &c), a) in out.iter_mut().zip(constant).zip(acc) {
+        *o = c + Point::new(a[0], a[1], a[2]) * energy_factor;
     }
 }
 
@@ -229,51 +291,85 @@ impl Groups {
             counts[c] += 1;
         });
         let (sources, target_start) = group(&columns, &starts, &mut targets, &mut values);
+        let mut tet_runs: Vec<(u32, u32)> = Vec::new();
+        for (g, (&(from, to), ends)) in sources.iter().zip(target_start.windows(2)).enumerate() {
+            if to - from == 3 && ends[1] - ends[0] == 4 {
+                let g = g as u32;
+                match tet_runs.last_mut() {
+                    Some(run) if run.1 == g => run.1 = g + 1,
+                    _ => tet_runs.push((g, g + 1)),
+                }
+            }
+        }
         Self {
             sources,
             target_start,
             targets,
             values,
+            tet_runs,
         }
     }
 
-    /// `out = constant + B p * energy_factor`.
-    fn rhs(
-        &self,
-        constant: &[Point],
-        projections: &[Point],
-        energy_factor: f64,
-        out: &mut [Point],
-    ) {
-        out.iter_mut().for_each(|o| *o = Point::zeros());
-        let mut values = self.values.as_slice();
-        for (g, &(from, to)) in self.sources.iter().enumerate() {
-            let p = &projections[from as usize..to as usize];
-            let targets =
-                &self.targets[self.target_start[g] as usize..self.target_start[g + 1] as usize];
-            let (mine, rest) = values.split_at(targets.len() * p.len());
-            values = rest;
-            match p {
-                // A tet's three rows: the common case, unrolled.
-                [p0, p1, p2] => {
-                    for (&t, v) in targets.iter().zip(mine.chunks_exact(3)) {
-                        let o = &mut out[t as usize];
-                        *o = *o + p0 * v[0] + p1 * v[1] + p2 * v[2];
-                    }
-                }
-                _ => {
-                    for (&t, v) in targets.iter().zip(mine.chunks_exact(p.len())) {
-                        let o = &mut out[t as usize];
-                        for (p, &v) in p.iter().zip(v) {
-                            *o += p * v;
-                        }
-                    }
-                }
-            }
+    /// Group `g`'s projections, outputs and values (which start at
+    /// `value_start`).
+    #[inline(always)]
+    fn group<'a>(&'a self, g: usize, value_start: usize, projections: &'a [Point]) -> Group<'a> {
+        let (from, to) = self.sources[g];
+        let targets = self.targets_of(g);
+        let len = targets.len() * (to - from) as usize;
+        Group {
+            projections: &projections[from as usize..to as usize],
+            targets,
+            values: &self.values[value_start..value_start + len],
         }
-        for (o, &c) in out.iter_mut().zip(constant) {
-            *o = c + *o * energy_factor;
-        }
+    }
+
+    /// Group `g`'s outputs.
+    #[inline(always)]
+    fn targets_of(&self, g: usize) -> &[u32] {
+        &self.targets[self.target_start[g] as usize..self.target_start[g + 1] as usize]
+    }
+
+    /// Adds every group's terms into `acc` (one accumulator per output),
+    /// group by group in order: the runs of tets through a loop of fixed
+    /// lengths, the groups between them one by one.
+    fn scatter(&self, projections: &[Point], acc: &mut [Acc]) {
+        let end = self.sources.len() as u32;
+        vectorized(
+            #[inline(always)]
+            |simd| {
+                let (mut g, mut value_start) = (0, 0);
+                for &(a, b) in self.tet_runs.iter().chain([(end, end)].iter()) {
+                    for g in g..a as usize {
+                        let group = self.group(g, value_start, projections);
+                        value_start += group.values.len();
+                        add_group::<false>(simd, &group, 0, acc);
+                    }
+                    let (a, b) = (a as usize, b as usize);
+                    let from = self.target_start[a] as usize;
+                    let targets = self.targets[from..from + 4 * (b - a)].chunks_exact(4);
+                    let values = &self.values[value_start..value_start + 12 * (b - a)];
+                    for ((&(first, _), targets), values) in self.sources[a..b]
+                        .iter()
+                        .zip(targets)
+                        .zip(values.chunks_exact(12))
+                    {
+                        let first = first as usize;
+                        // The lengths are the run's: the conversions cannot fail.
+                        let tet = Tet {
+                            projections: projections[first..first + 3]
+                                .try_into()
+                                .expect("three projections"),
+                            targets: targets.try_into().expect("four targets"),
+                            values: values.try_into().expect("twelve values"),
+                        };
+                        add_tet::<false>(simd, &tet, 0, acc);
+                    }
+                    value_start += 12 * (b - a);
+                    g = b;
+                }
+            },
+        );
     }
 }
 
@@ -334,7 +430,7 @@ mod tests {
     /// A random-looking operator: rows of varying length over scattered
     /// columns (some rows empty), and projections of mixed magnitude so
     /// that a different summation order would round differently.
-    fn operator(rows: usize, columns: usize) -> CsrMatrix {
+    pub(super) fn operator(rows: usize, columns: usize) -> CsrMatrix {
         let mut triplets = Vec::new();
         let mut state: u64 = 0x9e37_79b9_7f4a_7c15;
         let mut next = || {
@@ -360,7 +456,7 @@ mod tests {
     /// `e` owns `rows_per` consecutive columns (1 to 4 by element), all
     /// acting on the same few rows, so that the scatter forms groups of
     /// every height; the element order is shuffled against the row order.
-    fn element_operator(rows: usize, elements: usize) -> (CsrMatrix, usize) {
+    pub(super) fn element_operator(rows: usize, elements: usize) -> (CsrMatrix, usize) {
         let mut triplets = Vec::new();
         let mut column = 0;
         for e in 0..elements {
@@ -381,7 +477,7 @@ mod tests {
         (CsrMatrix::from_triplets(rows, column, &triplets), column)
     }
 
-    fn bits(points: &[Point]) -> Vec<[u64; 3]> {
+    pub(super) fn bits(points: &[Point]) -> Vec<[u64; 3]> {
         points
             .iter()
             .map(|p| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()])

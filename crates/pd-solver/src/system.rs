@@ -291,9 +291,10 @@ impl GlobalStep {
 
     /// The full right-hand side `constant + energy_factor B p` for the
     /// stacked projections `p`, one point per free vertex, into `out`
-    /// (scattered projection by projection on one thread, gathered
-    /// row-parallel on more, `projection_scatter.rs`; each row is summed in
-    /// one fixed order, so the result does not depend on the thread count).
+    /// (scattered projection by projection, on more threads one range of
+    /// vertices per thread or gathered row-parallel,
+    /// `projection_scatter.rs`; each row is summed in one fixed order, so
+    /// the result does not depend on the thread count).
     pub fn rhs_with_projections(
         &self,
         constant: &[Point],

@@ -10,11 +10,11 @@ use pd_mesh::Point;
 
 /// The AVX2 instruction set, when the CPU has it.
 #[cfg(target_arch = "x86_64")]
-pub(super) type Simd = pulp::x86::V3;
+pub(crate) type Simd = pulp::x86::V3;
 /// No explicit SIMD off x86-64.
 #[cfg(not(target_arch = "x86_64"))]
 #[derive(Clone, Copy)]
-pub(super) enum Simd {}
+pub(crate) enum Simd {}
 
 /// Runs `f` compiled for AVX2 where the CPU has it (`pulp` dispatches at
 /// run time), handing it the instruction set for the kernels written with
@@ -24,7 +24,7 @@ pub(super) enum Simd {}
 /// closure is `#[inline(always)]`: compiled on its own, it would not get
 /// the AVX2 target features.
 #[inline(always)]
-pub(super) fn vectorized(f: impl FnOnce(Option<Simd>)) {
+pub(crate) fn vectorized(f: impl FnOnce(Option<Simd>)) {
     #[cfg(target_arch = "x86_64")]
     if let Some(simd) = pulp::x86::V3::try_new() {
         struct Op<F>(F, Simd);
