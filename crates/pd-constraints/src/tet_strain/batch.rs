@@ -179,9 +179,11 @@ impl pulp::WithSimd for EnergiesBatched<'_> {
 #[inline(always)]
 fn gradients(s: Simd, elements: [&TetStrain; LANES], q: &[Point]) -> Batch {
     let zero = s.splat_f64x4(0.0);
-    // positions[k][r]: coordinate r of stencil vertex k, over the lanes.
-    let mut positions = [[zero; 3]; 4];
-    for (k, position) in positions.iter_mut().enumerate() {
+    let operator = operator_lanes(s, elements);
+    // Vertex by vertex: each entry still sums its terms in the order
+    // `k = 0..4`, and only one vertex's three position lanes are live.
+    let mut f = [zero; 9];
+    for k in 0..4 {
         // Written out: `array::map` with a closure may stay out of line.
         let [a, b, c, d] = [
             q[elements[0].vertices[k]],
@@ -189,20 +191,13 @@ fn gradients(s: Simd, elements: [&TetStrain; LANES], q: &[Point]) -> Batch {
             q[elements[2].vertices[k]],
             q[elements[3].vertices[k]],
         ];
-        for (r, p) in position.iter_mut().enumerate() {
-            *p = f64x4(a[r], b[r], c[r], d[r]);
-        }
-    }
-    let operator = operator_lanes(s, elements);
-    let mut f = [zero; 9];
-    for (column, g) in operator.iter().enumerate() {
-        let mut acc = [zero; 3];
-        for (position, g) in positions.iter().zip(g) {
-            for (acc, p) in acc.iter_mut().zip(position) {
-                *acc = s.add_f64x4(*acc, s.mul_f64x4(*p, *g));
+        for r in 0..3 {
+            let p = f64x4(a[r], b[r], c[r], d[r]);
+            for (column, g) in operator.iter().enumerate() {
+                let acc = &mut f[3 * column + r];
+                *acc = s.add_f64x4(*acc, s.mul_f64x4(p, g[k]));
             }
         }
-        f[3 * column..3 * column + 3].copy_from_slice(&acc);
     }
     f
 }
@@ -238,6 +233,8 @@ fn operator_lanes(s: Simd, [a, b, c, d]: [&TetStrain; LANES]) -> [[f64x4; 4]; 3]
 /// Writes lane `l`'s projection into rows `3 l..3 l + 3` of `rows`: the
 /// columns of the converged iterate `x`, or of the scalar
 /// [`closest_rotation`] of the lane's `F` where Newton declined it.
+/// (Recomputing a declined element's `F` from `q` instead, so that the
+/// lanes of `F` need not outlive the Newton loop, ran more instructions.)
 #[inline(always)]
 fn scatter(x: &Batch, converged: [bool; LANES], f: &Batch, rows: &mut [Point]) {
     let Ok(rows) = <&mut [Point; 3 * LANES]>::try_from(rows) else {
