@@ -205,19 +205,15 @@ mod lanes {
         ]
     }
 
-    /// The scaled Newton polar iteration of `polar::newton_polar` on every
-    /// lane: the final iterates and whether each lane converged (the scalar
-    /// iteration answered `Some`, with bit-identical values).
+    /// `x` times `rescaling(x.amax())` per lane. The largest |entry| is
+    /// the same in any order; NaN entries may give another value than
+    /// nalgebra's fold, but such a lane's determinant is NaN, Newton
+    /// declines it and the scalar path recomputes it. Scaling by 1 is
+    /// exact, so when every lane is within range the product is skipped.
     #[inline(always)]
-    pub(super) fn newton_polar(s: Simd, f: &Batch) -> (Batch, [bool; LANES]) {
-        let mut x = *f;
-        // `rescaling(f.amax())` per lane. The largest |entry| is the same in
-        // any order; NaN entries may give another value than nalgebra's
-        // fold, but such a lane's determinant is NaN, Newton declines it and
-        // the scalar path recomputes it. Scaling by 1 is exact, so the
-        // common case (every lane within range) skips the product.
+    fn rescale(s: Simd, x: &mut Batch) {
         let mut largest = s.splat_f64x4(0.0);
-        for v in f {
+        for v in x.iter() {
             largest = pulp::Simd::max_f64s(s, largest, s.abs_f64x4(*v));
         }
         let in_range = s.and_m64x4(
@@ -227,11 +223,36 @@ mod lanes {
         if mask_bits(in_range).contains(&false) {
             let [a, b, c, d] = lanes_of(largest);
             let scale = f64x4(rescaling(a), rescaling(b), rescaling(c), rescaling(d));
-            for v in &mut x {
+            for v in x.iter_mut() {
                 *v = s.mul_f64x4(*v, scale);
             }
         }
-        let norm = s.sqrt_f64x4(norm_squared(s, &x));
+    }
+
+    /// The scaled Newton polar iteration of `polar::newton_polar` on every
+    /// lane: the final iterates and whether each lane converged (the scalar
+    /// iteration answered `Some`, with bit-identical values).
+    #[inline(always)]
+    pub(super) fn newton_polar(s: Simd, f: &Batch) -> (Batch, [bool; LANES]) {
+        let mut x = *f;
+        // `rescaling(f.amax())` per lane, decided first from `|F|^2`, which
+        // the iteration needs anyway: `amax^2 <= |F|^2 <= 9 amax^2`, so a
+        // lane with `18 TINY^2 <= |F|^2 <= HUGE^2 / 2` (a factor of two of
+        // room for the sum's round-off) has its largest entry in
+        // `[TINY, HUGE]` and is not rescaled. When every lane is, `x = f`
+        // and its squared norm is the one just computed (the same sum).
+        let f_norm2 = norm_squared(s, f);
+        let surely_in_range = s.and_m64x4(
+            s.cmp_ge_f64x4(f_norm2, s.splat_f64x4(18.0 * TINY * TINY)),
+            s.cmp_le_f64x4(f_norm2, s.splat_f64x4(0.5 * HUGE * HUGE)),
+        );
+        let norm2 = if mask_bits(surely_in_range).contains(&false) {
+            rescale(s, &mut x);
+            norm_squared(s, &x)
+        } else {
+            f_norm2
+        };
+        let norm = s.sqrt_f64x4(norm2);
         let mut cof = cofactor(s, &x);
         let mut det = determinant(s, &x, &cof);
         // `det > MIN_SHAPE |X|^3`, evaluated left to right; also rejects NaN
@@ -353,6 +374,40 @@ mod tests {
                 assert_matches_scalar(std::array::from_fn(|l| {
                     cases[(start + l + shift) % cases.len()]
                 }));
+            }
+        }
+    }
+
+    /// Matrices whose largest entry sits at either end of the rescaling
+    /// range `[TINY, HUGE]`, one lane at a time next to ordinary ones: the
+    /// lanes decide "no rescaling" from `|F|^2` first, which must never let
+    /// through a lane that the scalar path rescales (a largest entry just
+    /// outside the range with `|F|^2` up to 9 times its square) nor change
+    /// any other lane.
+    #[test]
+    fn lanes_at_the_rescaling_thresholds_match() {
+        use crate::signed_svd::{HUGE, TINY};
+        let r = rotation([0.3, -1.0, 0.7], 2.1);
+        let diag = |a: f64, b: f64, c: f64| Matrix3::from_diagonal(&Vector3::new(a, b, c));
+        let shapes = [
+            Matrix3::identity(),
+            r,
+            r * diag(1.0, 0.9, 0.8),
+            Matrix3::from_element(1.0),
+            diag(1.0, 1e-3, 1e-3),
+        ];
+        let factors = [0.3, 1.0 / 3.0, 0.5, 0.999, 1.0, 1.001, 2.0, 3.0, 3.001, 5.0];
+        for end in [TINY, HUGE] {
+            for shape in shapes {
+                for factor in factors {
+                    let amax = shape.amax();
+                    let f = shape * (end * factor / amax);
+                    for lane in 0..LANES {
+                        let mut batch = [r, r * diag(1.2, 0.9, 1.0), -r, r * 1e-3];
+                        batch[lane] = f;
+                        assert_matches_scalar(batch);
+                    }
+                }
             }
         }
     }
