@@ -205,15 +205,19 @@ mod lanes {
         ]
     }
 
-    /// `x` times `rescaling(x.amax())` per lane. The largest |entry| is
-    /// the same in any order; NaN entries may give another value than
-    /// nalgebra's fold, but such a lane's determinant is NaN, Newton
-    /// declines it and the scalar path recomputes it. Scaling by 1 is
-    /// exact, so when every lane is within range the product is skipped.
+    /// The scaled Newton polar iteration of `polar::newton_polar` on every
+    /// lane: the final iterates and whether each lane converged (the scalar
+    /// iteration answered `Some`, with bit-identical values).
     #[inline(always)]
-    fn rescale(s: Simd, x: &mut Batch) {
+    pub(super) fn newton_polar(s: Simd, f: &Batch) -> (Batch, [bool; LANES]) {
+        let mut x = *f;
+        // `rescaling(f.amax())` per lane. The largest |entry| is the same in
+        // any order; NaN entries may give another value than nalgebra's
+        // fold, but such a lane's determinant is NaN, Newton declines it and
+        // the scalar path recomputes it. Scaling by 1 is exact, so the
+        // common case (every lane within range) skips the product.
         let mut largest = s.splat_f64x4(0.0);
-        for v in x.iter() {
+        for v in f {
             largest = pulp::Simd::max_f64s(s, largest, s.abs_f64x4(*v));
         }
         let in_range = s.and_m64x4(
@@ -223,36 +227,11 @@ mod lanes {
         if mask_bits(in_range).contains(&false) {
             let [a, b, c, d] = lanes_of(largest);
             let scale = f64x4(rescaling(a), rescaling(b), rescaling(c), rescaling(d));
-            for v in x.iter_mut() {
+            for v in &mut x {
                 *v = s.mul_f64x4(*v, scale);
             }
         }
-    }
-
-    /// The scaled Newton polar iteration of `polar::newton_polar` on every
-    /// lane: the final iterates and whether each lane converged (the scalar
-    /// iteration answered `Some`, with bit-identical values).
-    #[inline(always)]
-    pub(super) fn newton_polar(s: Simd, f: &Batch) -> (Batch, [bool; LANES]) {
-        let mut x = *f;
-        // `rescaling(f.amax())` per lane, decided first from `|F|^2`, which
-        // the iteration needs anyway: `amax^2 <= |F|^2 <= 9 amax^2`, so a
-        // lane with `18 TINY^2 <= |F|^2 <= HUGE^2 / 2` (a factor of two of
-        // room for the sum's round-off) has its largest entry in
-        // `[TINY, HUGE]` and is not rescaled. When every lane is, `x = f`
-        // and its squared norm is the one just computed (the same sum).
-        let f_norm2 = norm_squared(s, f);
-        let surely_in_range = s.and_m64x4(
-            s.cmp_ge_f64x4(f_norm2, s.splat_f64x4(18.0 * TINY * TINY)),
-            s.cmp_le_f64x4(f_norm2, s.splat_f64x4(0.5 * HUGE * HUGE)),
-        );
-        let norm2 = if mask_bits(surely_in_range).contains(&false) {
-            rescale(s, &mut x);
-            norm_squared(s, &x)
-        } else {
-            f_norm2
-        };
-        let norm = s.sqrt_f64x4(norm2);
+        let norm = s.sqrt_f64x4(norm_squared(s, &x));
         let mut cof = cofactor(s, &x);
         let mut det = determinant(s, &x, &cof);
         // `det > MIN_SHAPE |X|^3`, evaluated left to right; also rejects NaN
