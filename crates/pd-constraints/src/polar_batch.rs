@@ -163,9 +163,24 @@ mod lanes {
         ]
     }
 
-    /// Laplace expansion along the first column.
+    /// The first column of [`cofactor`] (entries `(0, 0)`, `(1, 0)`,
+    /// `(2, 0)`, the same products), all that [`determinant`] reads.
     #[inline(always)]
-    fn determinant(s: Simd, x: &Batch, cof: &Batch) -> f64x4 {
+    fn first_cofactor_column(s: Simd, x: &Batch) -> [f64x4; 3] {
+        let at = |r: usize, c: usize| x[3 * (c % 3) + r % 3];
+        let entry = |r: usize| {
+            s.sub_f64x4(
+                s.mul_f64x4(at(r + 1, 1), at(r + 2, 2)),
+                s.mul_f64x4(at(r + 1, 2), at(r + 2, 1)),
+            )
+        };
+        [entry(0), entry(1), entry(2)]
+    }
+
+    /// Laplace expansion along the first column (`cof` holds at least the
+    /// cofactors' first column).
+    #[inline(always)]
+    fn determinant(s: Simd, x: &Batch, cof: &[f64x4]) -> f64x4 {
         s.add_f64x4(
             s.add_f64x4(s.mul_f64x4(x[0], cof[0]), s.mul_f64x4(x[1], cof[1])),
             s.mul_f64x4(x[2], cof[2]),
@@ -229,34 +244,53 @@ mod lanes {
         let mut converged = s.splat_m64x4(m64::new(false));
         let mut scale = frobenius_scale(s, &x, &cof, det);
         let (half, one) = (s.splat_f64x4(0.5), s.splat_f64x4(1.0));
-        for _ in 0..MAX_ITERATIONS {
+        // Only `x`, `det` and `scale` are carried from one iteration to the
+        // next: the cofactors are recomputed from `x` where they are used
+        // (the same products, so the same bits). Carrying all nine as well
+        // left too few of the sixteen registers, and the spills cost more
+        // than the three cofactor entries computed twice.
+        for iteration in 0..MAX_ITERATIONS {
             if !mask_bits(running).contains(&true) {
                 break;
             }
+            if iteration > 0 {
+                cof = cofactor(s, &x);
+            }
             let a = s.mul_f64x4(half, scale);
             let b = s.div_f64x4(half, s.mul_f64x4(scale, det));
-            let mut step = [s.splat_f64x4(0.0); 9];
-            for i in 0..9 {
-                let next = s.add_f64x4(s.mul_f64x4(x[i], a), s.mul_f64x4(cof[i], b));
-                step[i] = s.sub_f64x4(next, x[i]);
-                // A converged or declined lane keeps its iterate.
-                x[i] = s.select_f64x4(running, next, x[i]);
+            // `|next - x|^2` column by column as `norm_squared` sums it.
+            let mut change = s.splat_f64x4(0.0);
+            for c in 0..3 {
+                let mut column = s.splat_f64x4(0.0);
+                for i in 3 * c..3 * c + 3 {
+                    let next = s.add_f64x4(s.mul_f64x4(x[i], a), s.mul_f64x4(cof[i], b));
+                    let step = s.sub_f64x4(next, x[i]);
+                    let square = s.mul_f64x4(step, step);
+                    // `(a a + b b) + c c`: the first term is not added to 0.
+                    column = if i == 3 * c {
+                        square
+                    } else {
+                        s.add_f64x4(column, square)
+                    };
+                    // A converged or declined lane keeps its iterate.
+                    x[i] = s.select_f64x4(running, next, x[i]);
+                }
+                change = s.add_f64x4(change, column);
             }
-            let change = norm_squared(s, &step);
             let done = s.and_m64x4(
                 running,
                 s.cmp_lt_f64x4(change, s.splat_f64x4(CONVERGED_CHANGE_SQUARED)),
             );
             converged = s.or_m64x4(converged, done);
             running = s.and_m64x4(running, s.not_m64x4(done));
-            cof = cofactor(s, &x);
-            det = determinant(s, &x, &cof);
+            det = determinant(s, &x, &first_cofactor_column(s, &x));
             running = s.and_m64x4(running, s.cmp_gt_f64x4(det, s.splat_f64x4(0.0)));
             let far = s.cmp_gt_f64x4(change, s.splat_f64x4(SCALE_WHILE_CHANGE_SQUARED));
             // Near convergence (the last two or three iterations of a
             // well-shaped element) no lane rescales: skip the three square
             // roots and the division rather than select them away.
             scale = if mask_bits(far).contains(&true) {
+                let cof = cofactor(s, &x);
                 s.select_f64x4(far, frobenius_scale(s, &x, &cof, det), one)
             } else {
                 one
@@ -319,6 +353,40 @@ mod tests {
                 assert_matches_scalar(std::array::from_fn(|l| {
                     cases[(start + l + shift) % cases.len()]
                 }));
+            }
+        }
+    }
+
+    /// Matrices whose largest entry sits at either end of the rescaling
+    /// range `[TINY, HUGE]`, one lane at a time next to ordinary ones: the
+    /// lanes decide "no rescaling" from `|F|^2` first, which must never let
+    /// through a lane that the scalar path rescales (a largest entry just
+    /// outside the range with `|F|^2` up to 9 times its square) nor change
+    /// any other lane.
+    #[test]
+    fn lanes_at_the_rescaling_thresholds_match() {
+        use crate::signed_svd::{HUGE, TINY};
+        let r = rotation([0.3, -1.0, 0.7], 2.1);
+        let diag = |a: f64, b: f64, c: f64| Matrix3::from_diagonal(&Vector3::new(a, b, c));
+        let shapes = [
+            Matrix3::identity(),
+            r,
+            r * diag(1.0, 0.9, 0.8),
+            Matrix3::from_element(1.0),
+            diag(1.0, 1e-3, 1e-3),
+        ];
+        let factors = [0.3, 1.0 / 3.0, 0.5, 0.999, 1.0, 1.001, 2.0, 3.0, 3.001, 5.0];
+        for end in [TINY, HUGE] {
+            for shape in shapes {
+                for factor in factors {
+                    let amax = shape.amax();
+                    let f = shape * (end * factor / amax);
+                    for lane in 0..LANES {
+                        let mut batch = [r, r * diag(1.2, 0.9, 1.0), -r, r * 1e-3];
+                        batch[lane] = f;
+                        assert_matches_scalar(batch);
+                    }
+                }
             }
         }
     }

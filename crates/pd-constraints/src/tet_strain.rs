@@ -26,12 +26,32 @@ mod batch;
 /// strain limits `[min, max]` the matrix
 /// `U clamp(S, min, max) V^T`. The weight is `stiffness * rest volume`; with
 /// Poisson ratio 0 the stiffness plays the part of Young's modulus (Pa).
+///
+/// Stored in 128 bytes (two cache lines; the local step streams them): the
+/// operator's first column `G[r][0] = -(B^T[r][0] + B^T[r][1] + B^T[r][2])`
+/// is not stored but recomputed with that same sum (the same bits as
+/// storing it), and the optional limits are a pair with an impossible
+/// sentinel (`min < 0`) for "none".
 #[derive(Debug, Clone, PartialEq)]
 pub struct TetStrain {
     vertices: [usize; 4],
     weight: f64,
-    operator: [[f64; 4]; 3],
-    limits: Option<(f64, f64)>,
+    /// `B^T`: row `r` holds the operator's entries `G[r][1..4]`.
+    inverse_t: [[f64; 3]; 3],
+    /// `[min, max]`, or [`NO_LIMITS`].
+    limits: [f64; 2],
+}
+
+/// The stored limits of an element without strain limits: `min < 0`, which
+/// [`TetStrain::check_limits`] never accepts.
+const NO_LIMITS: [f64; 2] = [f64::NEG_INFINITY, f64::INFINITY];
+
+/// The operator's first entry of a row from the row's other three,
+/// `G[r][0] = -(B^T[r][0] + B^T[r][1] + B^T[r][2])`, summed as `Iterator::sum`
+/// sums them (the batched gather repeats this exact sum in its lanes).
+#[inline]
+fn first_entry(row: &[f64; 3]) -> f64 {
+    -row.iter().sum::<f64>()
 }
 
 impl TetStrain {
@@ -61,25 +81,28 @@ impl TetStrain {
                 vertices: tet.to_vec(),
             },
         )?;
-        let mut operator = [[0.0; 4]; 3];
-        for (row, g) in operator.iter_mut().enumerate() {
-            // Row `row` of B^T [-1 | I]: B^T[row][j] = B[j][row].
-            g[0] = -(0..3).map(|j| inverse[(j, row)]).sum::<f64>();
-            for j in 0..3 {
-                g[j + 1] = inverse[(j, row)];
-            }
-        }
+        // Row `row` of B^T [-1 | I]: B^T[row][j] = B[j][row]; the first
+        // column, `-sum_j B^T[row][j]`, is `first_entry`'s.
+        let inverse_t = std::array::from_fn(|row| std::array::from_fn(|j| inverse[(j, row)]));
         Ok(Self {
             vertices: tet,
             weight: stiffness * volume,
-            operator,
-            limits,
+            inverse_t,
+            limits: limits.map_or(NO_LIMITS, |(min, max)| [min, max]),
         })
     }
 
     /// The stretch limits, if any.
     pub fn limits(&self) -> Option<(f64, f64)> {
-        self.limits
+        self.has_limits()
+            .then_some((self.limits[0], self.limits[1]))
+    }
+
+    /// Whether the element has strain limits: its `min` is not the
+    /// sentinel's (one integer comparison in the batch loop).
+    #[inline]
+    fn has_limits(&self) -> bool {
+        self.limits[0].to_bits() != NO_LIMITS[0].to_bits()
     }
 
     /// Checks stretch limits: `0 <= min <= 1 <= max`, both finite.
@@ -109,13 +132,18 @@ impl Constraint for TetStrain {
         self.weight
     }
 
+    #[inline]
     fn operator(&self, row: usize, column: usize) -> f64 {
-        self.operator[row][column]
+        let b = &self.inverse_t[row];
+        match column {
+            0 => first_entry(b),
+            _ => b[column - 1],
+        }
     }
 
     fn project(&self, gx: &[Point], out: &mut [Point]) {
         let f = Matrix3::from_columns(&[gx[0], gx[1], gx[2]]);
-        let target = match self.limits {
+        let target = match self.limits() {
             None => closest_rotation(&f),
             Some((min, max)) => clamp_singular_values(&f, min, max),
         };
@@ -344,6 +372,39 @@ mod tests {
                 let mut one = [Point::zeros(); 3];
                 c.project(&gx, &mut one);
                 assert_eq!(rows, &one[..], "F = {a}");
+            }
+        }
+    }
+
+    /// The compact storage gives the operator `B^T [-1 | I]` exactly as
+    /// storing all twelve entries did (the first column summed by
+    /// `Iterator::sum`, in the same order), keeps the limits, and takes 128
+    /// bytes (it took 160).
+    #[test]
+    fn compact_storage_keeps_operator_and_limits() {
+        assert_eq!(std::mem::size_of::<TetStrain>(), 128);
+        let rest = vec![
+            Point::new(0.1, -0.2, 0.0),
+            Point::new(1.3, 0.1, -0.4),
+            Point::new(-0.2, 0.9, 0.3),
+            Point::new(0.4, 0.2, 1.1),
+        ];
+        for limits in [None, Some((0.0, 1.0)), Some((0.9, 1.1)), Some((-0.0, 3.0))] {
+            let c = TetStrain::new(&rest, [0, 1, 2, 3], 7.0, limits).unwrap();
+            assert_eq!(c.limits(), limits);
+            assert_eq!(c.has_limits(), limits.is_some());
+            let edges =
+                Matrix3::from_columns(&[rest[1] - rest[0], rest[2] - rest[0], rest[3] - rest[0]]);
+            let inverse = edges.try_inverse().unwrap();
+            for row in 0..3 {
+                let first = -(0..3).map(|j| inverse[(j, row)]).sum::<f64>();
+                assert_eq!(c.operator(row, 0).to_bits(), first.to_bits());
+                for j in 0..3 {
+                    assert_eq!(
+                        c.operator(row, j + 1).to_bits(),
+                        inverse[(j, row)].to_bits()
+                    );
+                }
             }
         }
     }

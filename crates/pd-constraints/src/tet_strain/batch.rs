@@ -54,7 +54,7 @@ impl<const ENERGIES: bool> pulp::WithSimd for ProjectBatched<'_, ENERGIES> {
                 // `chunks_exact` yields exactly LANES elements.
                 continue;
             };
-            if batch.iter().any(|c| c.limits.is_some()) {
+            if batch.iter().any(TetStrain::has_limits) {
                 project_one_by_one(batch, q, rows);
                 if ENERGIES && let Some(energy) = energy_batches.next() {
                     energies_one_by_one(batch, q, rows, energy);
@@ -179,9 +179,11 @@ impl pulp::WithSimd for EnergiesBatched<'_> {
 #[inline(always)]
 fn gradients(s: Simd, elements: [&TetStrain; LANES], q: &[Point]) -> Batch {
     let zero = s.splat_f64x4(0.0);
-    // positions[k][r]: coordinate r of stencil vertex k, over the lanes.
-    let mut positions = [[zero; 3]; 4];
-    for (k, position) in positions.iter_mut().enumerate() {
+    let operator = operator_lanes(s, elements);
+    // Vertex by vertex: each entry still sums its terms in the order
+    // `k = 0..4`, and only one vertex's three position lanes are live.
+    let mut f = [zero; 9];
+    for k in 0..4 {
         // Written out: `array::map` with a closure may stay out of line.
         let [a, b, c, d] = [
             q[elements[0].vertices[k]],
@@ -189,32 +191,50 @@ fn gradients(s: Simd, elements: [&TetStrain; LANES], q: &[Point]) -> Batch {
             q[elements[2].vertices[k]],
             q[elements[3].vertices[k]],
         ];
-        for (r, p) in position.iter_mut().enumerate() {
-            *p = f64x4(a[r], b[r], c[r], d[r]);
-        }
-    }
-    let mut f = [zero; 9];
-    for column in 0..3 {
-        let mut acc = [zero; 3];
-        for (k, position) in positions.iter().enumerate() {
-            let g = f64x4(
-                elements[0].operator[column][k],
-                elements[1].operator[column][k],
-                elements[2].operator[column][k],
-                elements[3].operator[column][k],
-            );
-            for (acc, p) in acc.iter_mut().zip(position) {
-                *acc = s.add_f64x4(*acc, s.mul_f64x4(*p, g));
+        for r in 0..3 {
+            let p = f64x4(a[r], b[r], c[r], d[r]);
+            for (column, g) in operator.iter().enumerate() {
+                let acc = &mut f[3 * column + r];
+                *acc = s.add_f64x4(*acc, s.mul_f64x4(p, g[k]));
             }
         }
-        f[3 * column..3 * column + 3].copy_from_slice(&acc);
     }
     f
+}
+
+/// The operator `G` of four elements in lanes: entry `[c][k]` holds
+/// `G[c][k]` of each element. The stored `B^T` entries (`G[c][1..4]`) are
+/// moved in lane by lane (building them from 128-bit pairs and shuffles
+/// instead ran more instructions: LLVM turned the shuffles into broadcasts
+/// and blends); the first column is recomputed
+/// per lane exactly as [`first_entry`](super::first_entry) sums it (the
+/// fold of `Iterator::sum` from its start value, then the sign flipped), so
+/// every lane holds the scalar `operator(c, k)` to the bit.
+#[inline(always)]
+fn operator_lanes(s: Simd, [a, b, c, d]: [&TetStrain; LANES]) -> [[f64x4; 4]; 3] {
+    let flat = |e: &TetStrain, i: usize| e.inverse_t[i / 3][i % 3];
+    let mut lanes = [s.splat_f64x4(0.0); 9];
+    for (i, lane) in lanes.iter_mut().enumerate() {
+        *lane = f64x4(flat(a, i), flat(b, i), flat(c, i), flat(d, i));
+    }
+    // `Iterator::sum`'s start value (the fold's first operand) and the sign
+    // bit that `-x` flips.
+    let start = s.splat_f64x4(std::iter::empty::<f64>().sum());
+    let sign = s.splat_f64x4(-0.0);
+    let mut g = [[s.splat_f64x4(0.0); 4]; 3];
+    for (row, g) in g.iter_mut().enumerate() {
+        let [b0, b1, b2] = [lanes[3 * row], lanes[3 * row + 1], lanes[3 * row + 2]];
+        let sum = s.add_f64x4(s.add_f64x4(s.add_f64x4(start, b0), b1), b2);
+        *g = [pulp::Simd::xor_f64s(s, sum, sign), b0, b1, b2];
+    }
+    g
 }
 
 /// Writes lane `l`'s projection into rows `3 l..3 l + 3` of `rows`: the
 /// columns of the converged iterate `x`, or of the scalar
 /// [`closest_rotation`] of the lane's `F` where Newton declined it.
+/// (Recomputing a declined element's `F` from `q` instead, so that the
+/// lanes of `F` need not outlive the Newton loop, ran more instructions.)
 #[inline(always)]
 fn scatter(x: &Batch, converged: [bool; LANES], f: &Batch, rows: &mut [Point]) {
     let Ok(rows) = <&mut [Point; 3 * LANES]>::try_from(rows) else {
