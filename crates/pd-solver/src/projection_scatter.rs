@@ -484,6 +484,25 @@ mod tests {
             .collect()
     }
 
+    /// Projections and constants of mixed magnitude (a different order of
+    /// summation would round differently).
+    pub(super) fn inputs(n: usize, columns: usize) -> (Vec<Point>, Vec<Point>) {
+        let projections = (0..columns)
+            .map(|i| {
+                let t = i as f64;
+                Point::new(
+                    (t * 0.37).sin() * 1e3,
+                    (t * 1.3).cos(),
+                    (t * 0.11).sin() * 1e-2,
+                )
+            })
+            .collect();
+        let constant = (0..n)
+            .map(|i| Point::new(i as f64 * 0.1, -(i as f64), 1.0 / (1.0 + i as f64)))
+            .collect();
+        (projections, constant)
+    }
+
     #[test]
     fn scatter_is_the_row_gather_bit_for_bit() {
         let (n, columns) = (300, 900);
@@ -495,19 +514,7 @@ mod tests {
     /// The scatter of `b` gives the bits of the row gather.
     fn check_against_gather(b: &CsrMatrix) {
         let (n, columns) = (b.nrows(), b.ncols());
-        let projections: Vec<Point> = (0..columns)
-            .map(|i| {
-                let t = i as f64;
-                Point::new(
-                    (t * 0.37).sin() * 1e3,
-                    (t * 1.3).cos(),
-                    (t * 0.11).sin() * 1e-2,
-                )
-            })
-            .collect();
-        let constant: Vec<Point> = (0..n)
-            .map(|i| Point::new(i as f64 * 0.1, -(i as f64), 1.0 / (1.0 + i as f64)))
-            .collect();
+        let (projections, constant) = inputs(n, columns);
         let factor = 0.73;
         let gathered: Vec<Point> = (0..n)
             .map(|f| constant[f] + b.row_dot(f, &projections) * factor)

@@ -423,15 +423,7 @@ impl BodyContact {
                     pair.force = self.update_force(&pair, &r, omega / compliance, thickness);
                 }
             }
-            let mut add = |i: usize, f: Point| {
-                if free_index[i] != usize::MAX {
-                    rhs[free_index[i]] += f;
-                }
-            };
-            add(v, pair.force);
-            for (&i, &w) in tri.iter().zip(&pair.weights) {
-                add(i, -pair.force * w);
-            }
+            forces::add_pair_force(free_index, rhs, v, &tri, &pair);
             // Only the force changed.
             if let Some(p) = &mut self.pairs[v] {
                 p.force = pair.force;

@@ -5,6 +5,7 @@
 
 use pd_mesh::Point;
 
+use super::super::forces::coulomb;
 use super::{BodyContact, Pair};
 
 impl BodyContact {
@@ -39,14 +40,7 @@ impl BodyContact {
         let normal_error = thickness - n.dot(r);
         let tangential_error = -(r - n * n.dot(r));
         let trial = pair.force + (tangential_error + n * normal_error) * rho;
-        let normal_force = trial.dot(&n).max(0.0);
-        let mut tangential = trial - n * trial.dot(&n);
-        let limit = self.friction * normal_force;
-        let norm = tangential.norm();
-        if norm > limit {
-            tangential *= if norm > 0.0 { limit / norm } else { 0.0 };
-        }
-        n * normal_force + tangential
+        coulomb(&trial, &n, self.friction)
     }
 
     /// Every pair's force as it is into `rhs` at the free vertices
@@ -55,15 +49,27 @@ impl BodyContact {
         for (v, pair) in self.pairs.iter().enumerate() {
             let Some(pair) = pair else { continue };
             let tri = self.faces[pair.face].vertices;
-            let mut add = |i: usize, f: Point| {
-                if free_index[i] != usize::MAX {
-                    rhs[free_index[i]] += f;
-                }
-            };
-            add(v, pair.force);
-            for (&i, &w) in tri.iter().zip(&pair.weights) {
-                add(i, -pair.force * w);
-            }
+            add_pair_force(free_index, rhs, v, &tri, pair);
         }
+    }
+}
+
+/// A pair's force into `rhs` at the free vertices (`free_index`): `f` at
+/// vertex `v`, `-w_i f` at the triangle `tri`'s vertices.
+pub(super) fn add_pair_force(
+    free_index: &[usize],
+    rhs: &mut [Point],
+    v: usize,
+    tri: &[usize; 3],
+    pair: &Pair,
+) {
+    let mut add = |i: usize, f: Point| {
+        if free_index[i] != usize::MAX {
+            rhs[free_index[i]] += f;
+        }
+    };
+    add(v, pair.force);
+    for (&i, &w) in tri.iter().zip(&pair.weights) {
+        add(i, -pair.force * w);
     }
 }

@@ -28,6 +28,34 @@ fn sheet(n: usize, y: f64, shift: f64, first: usize) -> (Vec<Point>, Vec<[usize;
     (points, triangles)
 }
 
+/// Contact between two sheets (`lower` and `upper` index `rest`), unit
+/// masses, nothing fixed, friction 0.3.
+fn two_sheets(
+    rest: &[Point],
+    [lower, upper]: [Vec<[usize; 3]>; 2],
+    two_sided: bool,
+    self_contact: bool,
+    thickness: f64,
+) -> BodyContact {
+    let surfaces = [lower, upper].map(|triangles| BodySurface {
+        triangles,
+        two_sided,
+    });
+    let masses = vec![1.0; rest.len()];
+    let fixed = vec![false; rest.len()];
+    let which = SurfacePairs {
+        between_bodies: true,
+        self_contact,
+    };
+    BodyContact::new(
+        surfaces.into(),
+        rest,
+        (&masses, &fixed),
+        (0.3, thickness),
+        which,
+    )
+}
+
 /// A deterministic generator of numbers in [-1, 1).
 struct Lcg(u64);
 
@@ -96,24 +124,7 @@ fn listed_detection_is_the_grid_detection_bit_for_bit() {
         let (mut rest, lower) = sheet(n, 0.0, 0.0, 0);
         let (upper_points, upper) = sheet(n, 0.005 + 0.02 * (trial % 4) as f64, shift, n * n);
         rest.extend(upper_points);
-        let surfaces = vec![
-            BodySurface {
-                triangles: lower,
-                two_sided: true,
-            },
-            BodySurface {
-                triangles: upper,
-                two_sided: true,
-            },
-        ];
-        let masses = vec![1.0; rest.len()];
-        let fixed = vec![false; rest.len()];
-        let which = SurfacePairs {
-            between_bodies: true,
-            self_contact: trial % 2 == 1,
-        };
-        let mut bodies =
-            BodyContact::new(surfaces, &rest, (&masses, &fixed), (0.3, thickness), which);
+        let mut bodies = two_sheets(&rest, [lower, upper], true, trial % 2 == 1, thickness);
         let noise = if shift == 0.0 { 0.0 } else { 0.002 };
         let x_n: Vec<Point> = rest
             .iter()
@@ -152,23 +163,7 @@ fn lists_kept_across_steps_give_the_grid_detection_bit_for_bit() {
     let (mut rest, lower) = sheet(n, 0.0, 0.0, 0);
     let (upper_points, upper) = sheet(n, 0.03, 0.037, n * n);
     rest.extend(upper_points);
-    let surfaces = [lower, upper].map(|triangles| BodySurface {
-        triangles,
-        two_sided: true,
-    });
-    let masses = vec![1.0; rest.len()];
-    let fixed = vec![false; rest.len()];
-    let which = SurfacePairs {
-        between_bodies: true,
-        self_contact: true,
-    };
-    let mut bodies = BodyContact::new(
-        surfaces.into(),
-        &rest,
-        (&masses, &fixed),
-        (0.3, thickness),
-        which,
-    );
+    let mut bodies = two_sheets(&rest, [lower, upper], true, true, thickness);
     let mut x_n = rest.clone();
     let (mut hits, mut reused, mut rebuilt) = (0, 0, 0);
     for step in 0..40 {
@@ -234,23 +229,7 @@ fn fast_listed_detection_is_the_grid_detection_bit_for_bit() {
         let (mut rest, lower) = sheet(n, 0.0, 0.0, 0);
         let (upper_points, upper) = sheet(n, 0.03, shift, n * n);
         rest.extend(upper_points);
-        let surfaces = [lower, upper].map(|triangles| BodySurface {
-            triangles,
-            two_sided: true,
-        });
-        let masses = vec![1.0; rest.len()];
-        let fixed = vec![false; rest.len()];
-        let which = SurfacePairs {
-            between_bodies: true,
-            self_contact: trial % 4 >= 2,
-        };
-        let mut bodies = BodyContact::new(
-            surfaces.into(),
-            &rest,
-            (&masses, &fixed),
-            (0.3, thickness),
-            which,
-        );
+        let mut bodies = two_sheets(&rest, [lower, upper], true, trial % 4 >= 2, thickness);
         let mut x_n = rest.clone();
         for step in 0..30 {
             bodies.begin_step(&x_n);
@@ -337,23 +316,7 @@ fn start_plane_verdicts_are_the_grid_detection_bit_for_bit() {
                 .for_each(|c| *c = -*c);
         }
         rest.extend(upper_points);
-        let surfaces = [lower, upper].map(|triangles| BodySurface {
-            triangles,
-            two_sided: trial % 4 >= 2,
-        });
-        let masses = vec![1.0; rest.len()];
-        let fixed = vec![false; rest.len()];
-        let which = SurfacePairs {
-            between_bodies: true,
-            self_contact: false,
-        };
-        let mut bodies = BodyContact::new(
-            surfaces.into(),
-            &rest,
-            (&masses, &fixed),
-            (0.3, thickness),
-            which,
-        );
+        let mut bodies = two_sheets(&rest, [lower, upper], trial % 4 >= 2, false, thickness);
         let mut x_n = rest.clone();
         for step in 0..40 {
             bodies.begin_step(&x_n);

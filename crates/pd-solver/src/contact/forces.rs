@@ -31,9 +31,16 @@ pub(super) fn update_force(slot: &Slot, collider: &Collider, x: &Point, rho: f64
     let normal_error = slot.lift - n.dot(&(x - slot.hit.point));
     let tangential_error = to_anchor - n * n.dot(&to_anchor);
     let trial = slot.force + (tangential_error + n * normal_error) * rho;
-    let normal_force = trial.dot(&n).max(0.0);
-    let mut tangential = trial - n * trial.dot(&n);
-    let limit = collider.friction * normal_force;
+    coulomb(&trial, &n, collider.friction)
+}
+
+/// The projection of a trial force onto Coulomb's cone of coefficient
+/// `friction` about the unit normal `n`: the normal part clamped at zero,
+/// the tangential part scaled down to at most `friction` times it.
+pub(super) fn coulomb(trial: &Point, n: &Point, friction: f64) -> Point {
+    let normal_force = trial.dot(n).max(0.0);
+    let mut tangential = trial - n * trial.dot(n);
+    let limit = friction * normal_force;
     let norm = tangential.norm();
     if norm > limit {
         tangential *= if norm > 0.0 { limit / norm } else { 0.0 };

@@ -178,29 +178,10 @@ impl Job<'_> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::{bits, element_operator, operator};
+    use super::super::tests::{bits, element_operator, inputs, operator};
     use super::super::{MAX_DUPLICATION, ProjectionScatter};
     use super::*;
     use pd_constraints::{CsrMatrix, Triplet};
-
-    /// Projections and constants of mixed magnitude (a different order of
-    /// summation would round differently).
-    fn inputs(n: usize, columns: usize) -> (Vec<Point>, Vec<Point>) {
-        let projections = (0..columns)
-            .map(|i| {
-                let t = i as f64;
-                Point::new(
-                    (t * 0.37).sin() * 1e3,
-                    (t * 1.3).cos(),
-                    (t * 0.11).sin() * 1e-2,
-                )
-            })
-            .collect();
-        let constant = (0..n)
-            .map(|i| Point::new(i as f64 * 0.1, -(i as f64), 1.0 / (1.0 + i as f64)))
-            .collect();
-        (projections, constant)
-    }
 
     #[test]
     fn every_range_count_gives_the_bits_of_one_thread() {
