@@ -6,7 +6,7 @@
 //! ```text
 //! pd-probe step     [beam options] [--mesh BASE] [--model M] [--integrator be|im] [--steps N]
 //! pd-probe overhead [beam options] [--integrator be|im] [--rounds R] [--warmup W]
-//! pd-probe phases   [beam options] [--model M] [--reps R]
+//! pd-probe phases   [beam options] [--mesh BASE] [--model M] [--reps R] [--evict-mib M] [--idle-us U]
 //! pd-probe accuracy [beam options] [--integrator be|im] [--time T] [--iters-list 1,2,...]
 //! pd-probe bandwidth [--mib M] [--reps R]
 //! pd-probe methods  [beam options] [--mesh BASE] [--integrator be|im|bdf2] [--model M] [--steps N] [--budgets 1,2,...]
@@ -294,11 +294,35 @@ fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     let model = options.value("--model").unwrap_or(UNDAMPED);
     let reps: usize = options.parse("--reps", 10)?;
     let factor_reps: usize = options.parse("--factor-reps", 3)?;
-    let mut sim = beam.simulation(model, "be")?;
+    // Diagnostics of the local step's 2-thread speed-up (issue 18): before
+    // each timed repetition (untimed), stream `--evict-mib` MiB on this
+    // thread (the global solve's factor evicts the L3 so in a step) and/or
+    // sleep `--idle-us` microseconds (rayon's idle workers fall asleep
+    // during a step's sequential parts). 0 = off, the default.
+    let evict_mib: usize = options.parse("--evict-mib", 0)?;
+    let idle_us: u64 = options.parse("--idle-us", 0)?;
+    let mut evict = vec![1.0f64; evict_mib * 1024 * 1024 / 8];
+    let mut between = || {
+        for x in evict.iter_mut() {
+            *x = std::hint::black_box(*x + 1.0);
+        }
+        if idle_us > 0 {
+            std::thread::sleep(std::time::Duration::from_micros(idle_us));
+        }
+    };
+    let mut sim = match options.value("--mesh") {
+        Some(base) => {
+            let mesh = pd_io::tetgen::read_tetgen_base(std::path::Path::new(base))
+                .map_err(|e| e.to_string())?;
+            beam.simulation_on(mesh, model, "be")?
+        }
+        None => beam.simulation(model, "be")?,
+    };
     sim.run(2).map_err(|e| e.to_string())?;
-    let time = |reps: usize, f: &mut dyn FnMut() -> Result<(), String>| {
+    let mut time = |reps: usize, f: &mut dyn FnMut() -> Result<(), String>| {
         let mut samples = Vec::with_capacity(reps);
         for _ in 0..reps {
+            between();
             let t = Instant::now();
             f()?;
             samples.push(ms(t.elapsed().as_secs_f64()));
@@ -320,6 +344,8 @@ fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         "n_tets": sim.model().bodies()[0].mesh.tets().len(),
         "threads": beam.threads,
         "model": model,
+        "evict_mib": evict_mib,
+        "idle_us": idle_us,
         "local_ms_median": local,
         "global_solve_ms_median": global,
         "numeric_factor_ms_median": factor,
