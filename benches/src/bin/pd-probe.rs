@@ -6,7 +6,7 @@
 //! ```text
 //! pd-probe step     [beam options] [--mesh BASE] [--model M] [--integrator be|im] [--steps N]
 //! pd-probe overhead [beam options] [--integrator be|im] [--rounds R] [--warmup W]
-//! pd-probe phases   [beam options] [--mesh BASE] [--model M] [--reps R] [--evict-mib M] [--idle-us U]
+//! pd-probe phases   [beam options] [--mesh BASE] [--model M] [--reps R] [--evict-mib M] [--idle-us U] [--parts P]
 //! pd-probe accuracy [beam options] [--integrator be|im] [--time T] [--iters-list 1,2,...]
 //! pd-probe bandwidth [--mib M] [--reps R]
 //! pd-probe methods  [beam options] [--mesh BASE] [--integrator be|im|bdf2] [--model M] [--steps N] [--budgets 1,2,...]
@@ -333,6 +333,7 @@ fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         sim.profile_local_step();
         Ok(())
     })?;
+    let parts = part_costs(&sim, options.parse("--parts", 0)?, reps);
     let global = time(reps, &mut || {
         sim.profile_global_solve().map_err(|e| e.to_string())
     })?;
@@ -347,11 +348,41 @@ fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         "evict_mib": evict_mib,
         "idle_us": idle_us,
         "local_ms_median": local,
+        "local_part_ns_per_tet_min": parts,
         "global_solve_ms_median": global,
         "numeric_factor_ms_median": factor,
         "nnz_L_factor": sim.factor_len(),
         "peak_bytes": peak_memory_bytes(),
     }))
+}
+
+/// With `--parts P` (diagnostic, issue 18): the first constraint block
+/// (the tet strain of a beam or mesh) cut into `P` equal contiguous parts,
+/// each projected on this thread alone `reps` times; the fastest pass per
+/// part in ns per constraint. Unequal parts would show a load imbalance of
+/// a fixed split (rayon's chunks are stolen, so they balance whatever the
+/// costs). Empty without the option.
+fn part_costs(sim: &Simulation, parts: usize, reps: usize) -> Vec<f64> {
+    let blocks = sim.model().constraint_blocks();
+    let Some(block) = blocks.first().filter(|_| parts > 0) else {
+        return Vec::new();
+    };
+    let q = &sim.state().positions;
+    let rows = block.rows_per_constraint();
+    let mut out = vec![Point::zeros(); block.len() * rows];
+    (0..parts)
+        .map(|p| {
+            let (first, last) = (block.len() * p / parts, block.len() * (p + 1) / parts);
+            let mine = &mut out[first * rows..last * rows];
+            let mut best = f64::INFINITY;
+            for _ in 0..reps.max(1) {
+                let t = Instant::now();
+                block.project_range(q, first, mine);
+                best = best.min(t.elapsed().as_secs_f64());
+            }
+            best * 1e9 / (last - first).max(1) as f64
+        })
+        .collect()
 }
 
 /// Total energy (kinetic + elastic + gravitational), J.
