@@ -6,7 +6,7 @@
 //! ```text
 //! pd-probe step     [beam options] [--mesh BASE] [--model M] [--integrator be|im] [--steps N]
 //! pd-probe overhead [beam options] [--integrator be|im] [--rounds R] [--warmup W]
-//! pd-probe phases   [beam options] [--model M] [--reps R]
+//! pd-probe phases   [beam options] [--mesh BASE] [--model M] [--reps R] [--evict-mib M] [--idle-us U] [--parts P]
 //! pd-probe accuracy [beam options] [--integrator be|im] [--time T] [--iters-list 1,2,...]
 //! pd-probe bandwidth [--mib M] [--reps R]
 //! pd-probe methods  [beam options] [--mesh BASE] [--integrator be|im|bdf2] [--model M] [--steps N] [--budgets 1,2,...]
@@ -294,11 +294,35 @@ fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     let model = options.value("--model").unwrap_or(UNDAMPED);
     let reps: usize = options.parse("--reps", 10)?;
     let factor_reps: usize = options.parse("--factor-reps", 3)?;
-    let mut sim = beam.simulation(model, "be")?;
+    // Diagnostics of the local step's 2-thread speed-up (issue 18): before
+    // each timed repetition (untimed), stream `--evict-mib` MiB on this
+    // thread (the global solve's factor evicts the L3 so in a step) and/or
+    // sleep `--idle-us` microseconds (rayon's idle workers fall asleep
+    // during a step's sequential parts). 0 = off, the default.
+    let evict_mib: usize = options.parse("--evict-mib", 0)?;
+    let idle_us: u64 = options.parse("--idle-us", 0)?;
+    let mut evict = vec![1.0f64; evict_mib * 1024 * 1024 / 8];
+    let mut between = || {
+        for x in evict.iter_mut() {
+            *x = std::hint::black_box(*x + 1.0);
+        }
+        if idle_us > 0 {
+            std::thread::sleep(std::time::Duration::from_micros(idle_us));
+        }
+    };
+    let mut sim = match options.value("--mesh") {
+        Some(base) => {
+            let mesh = pd_io::tetgen::read_tetgen_base(std::path::Path::new(base))
+                .map_err(|e| e.to_string())?;
+            beam.simulation_on(mesh, model, "be")?
+        }
+        None => beam.simulation(model, "be")?,
+    };
     sim.run(2).map_err(|e| e.to_string())?;
-    let time = |reps: usize, f: &mut dyn FnMut() -> Result<(), String>| {
+    let mut time = |reps: usize, f: &mut dyn FnMut() -> Result<(), String>| {
         let mut samples = Vec::with_capacity(reps);
         for _ in 0..reps {
+            between();
             let t = Instant::now();
             f()?;
             samples.push(ms(t.elapsed().as_secs_f64()));
@@ -309,6 +333,7 @@ fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         sim.profile_local_step();
         Ok(())
     })?;
+    let parts = part_costs(&sim, options.parse("--parts", 0)?, reps);
     let global = time(reps, &mut || {
         sim.profile_global_solve().map_err(|e| e.to_string())
     })?;
@@ -320,12 +345,44 @@ fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         "n_tets": sim.model().bodies()[0].mesh.tets().len(),
         "threads": beam.threads,
         "model": model,
+        "evict_mib": evict_mib,
+        "idle_us": idle_us,
         "local_ms_median": local,
+        "local_part_ns_per_tet_min": parts,
         "global_solve_ms_median": global,
         "numeric_factor_ms_median": factor,
         "nnz_L_factor": sim.factor_len(),
         "peak_bytes": peak_memory_bytes(),
     }))
+}
+
+/// With `--parts P` (diagnostic, issue 18): the first constraint block
+/// (the tet strain of a beam or mesh) cut into `P` equal contiguous parts,
+/// each projected on this thread alone `reps` times; the fastest pass per
+/// part in ns per constraint. Unequal parts would show a load imbalance of
+/// a fixed split (rayon's chunks are stolen, so they balance whatever the
+/// costs). Empty without the option.
+fn part_costs(sim: &Simulation, parts: usize, reps: usize) -> Vec<f64> {
+    let blocks = sim.model().constraint_blocks();
+    let Some(block) = blocks.first().filter(|_| parts > 0) else {
+        return Vec::new();
+    };
+    let q = &sim.state().positions;
+    let rows = block.rows_per_constraint();
+    let mut out = vec![Point::zeros(); block.len() * rows];
+    (0..parts)
+        .map(|p| {
+            let (first, last) = (block.len() * p / parts, block.len() * (p + 1) / parts);
+            let mine = &mut out[first * rows..last * rows];
+            let mut best = f64::INFINITY;
+            for _ in 0..reps.max(1) {
+                let t = Instant::now();
+                block.project_range(q, first, mine);
+                best = best.min(t.elapsed().as_secs_f64());
+            }
+            best * 1e9 / (last - first).max(1) as f64
+        })
+        .collect()
 }
 
 /// Total energy (kinetic + elastic + gravitational), J.

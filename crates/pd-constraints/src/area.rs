@@ -53,6 +53,8 @@ impl Constraint for Area {
     const TRANSLATION_INVARIANT: bool = true;
     const KIND: &'static str = "area";
 
+    type Vertices<'a> = &'a [usize];
+
     fn vertices(&self) -> &[usize] {
         &self.vertices
     }

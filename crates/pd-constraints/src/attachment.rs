@@ -45,6 +45,8 @@ impl Constraint for Attachment {
     const TRANSLATION_INVARIANT: bool = false;
     const KIND: &'static str = "attachment";
 
+    type Vertices<'a> = &'a [usize];
+
     fn vertices(&self) -> &[usize] {
         &self.vertex
     }

@@ -126,6 +126,8 @@ impl Constraint for Bending {
     const TRANSLATION_INVARIANT: bool = true;
     const KIND: &'static str = "bending-curved";
 
+    type Vertices<'a> = &'a [usize];
+
     fn vertices(&self) -> &[usize] {
         &self.vertices
     }

@@ -22,8 +22,15 @@ pub trait Constraint: Clone + std::fmt::Debug + Send + Sync + 'static {
     /// Short name of the kind, as scenes spell it (`tet-strain`).
     const KIND: &'static str;
 
+    /// How [`Constraint::vertices`] hands out the stencil: `&'a [usize]`
+    /// for a kind storing `usize` indices, [`crate::Stencil`] (by value)
+    /// for one storing them more compactly (tet strain: 32-bit).
+    type Vertices<'a>: std::ops::Deref<Target = [usize]>
+    where
+        Self: 'a;
+
     /// The stencil: `STENCIL` vertex indices.
-    fn vertices(&self) -> &[usize];
+    fn vertices(&self) -> Self::Vertices<'_>;
     /// The weight `w` (N/m for springs and attachments, N/m^2 x m^3 = N m for
     /// strain).
     fn weight(&self) -> f64;

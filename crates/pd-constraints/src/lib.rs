@@ -41,6 +41,7 @@ mod set;
 pub mod signed_svd;
 mod sparse;
 mod spring;
+mod stencil;
 mod tet_hessian;
 pub mod tet_strain;
 mod triangle_frame;
@@ -58,6 +59,7 @@ pub use plate_bending::PlateBending;
 pub use set::{ConstraintBlock, ConstraintSet, EnergyBound, MAX_ROWS};
 pub use sparse::{CsrMatrix, Triplet};
 pub use spring::Spring;
+pub use stencil::{MAX_STENCIL, Stencil};
 pub use tet_strain::TetStrain;
 pub use triangle_strain::TriangleStrain;
 pub use volume::Volume;
@@ -91,6 +93,15 @@ pub enum ConstraintError {
     NonFiniteTarget {
         /// The attached vertex.
         vertex: usize,
+    },
+    /// A vertex index does not fit the kind's compact storage (tet strain
+    /// stores 32-bit indices).
+    #[error("vertex index {vertex} exceeds the largest storable index {max}")]
+    VertexIndexTooLarge {
+        /// The rejected index.
+        vertex: usize,
+        /// The largest index the kind stores.
+        max: usize,
     },
     /// An element's rest shape is flat or inverted.
     #[error("element with vertices {vertices:?} has a flat or inverted rest shape")]

@@ -24,7 +24,7 @@ use nalgebra::Matrix3;
 use pd_mesh::Point;
 
 use crate::material::{Lame, MaterialKind, MaterialPoint, StressHessian, project_psd};
-use crate::{ConstraintBlock, ConstraintError, EnergyBound, Triplet};
+use crate::{ConstraintBlock, ConstraintError, EnergyBound, Stencil, Triplet};
 
 /// One hyperelastic tetrahedron: its stencil, the operator `G = B^T [-1 | I]`
 /// (the rows of `G x` are the columns of `F`, as for
@@ -279,8 +279,8 @@ impl ConstraintBlock for MaterialSet {
         }
     }
 
-    fn stencil(&self, i: usize) -> &[usize] {
-        &self.tets[i].vertices
+    fn stencil(&self, i: usize) -> Stencil {
+        Stencil::new(&self.tets[i].vertices)
     }
 
     fn hessian_len(&self) -> usize {

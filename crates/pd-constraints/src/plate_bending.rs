@@ -101,6 +101,8 @@ impl Constraint for PlateBending {
     const TRANSLATION_INVARIANT: bool = true;
     const KIND: &'static str = "bending";
 
+    type Vertices<'a> = &'a [usize];
+
     fn vertices(&self) -> &[usize] {
         &self.vertices
     }

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use pd_mesh::Point;
 
-use crate::{Constraint, Triplet, constraint::apply_operator};
+use crate::{Constraint, MAX_STENCIL, Stencil, Triplet, constraint::apply_operator};
 
 /// Largest `ROWS` of any constraint kind: the local step keeps `G q` and the
 /// projection of one constraint on the stack.
@@ -72,7 +72,7 @@ impl<C: Constraint> ConstraintSet<C> {
 
     /// Wraps constraints of one kind held elsewhere too.
     pub fn shared(constraints: Arc<Vec<C>>) -> Self {
-        const { assert!(C::ROWS <= MAX_ROWS) };
+        const { assert!(C::ROWS <= MAX_ROWS && C::STENCIL <= MAX_STENCIL) };
         Self { constraints }
     }
 
@@ -199,8 +199,9 @@ pub trait ConstraintBlock: std::fmt::Debug + Send + Sync {
     /// Adds the energy gradient `w_i G_i^T (G_i q - P_i(G_i q))` of every
     /// constraint to `gradient` (one entry per vertex, in N).
     fn add_gradient(&self, q: &[Point], gradient: &mut [Point]);
-    /// The stencil of constraint `i`.
-    fn stencil(&self, i: usize) -> &[usize];
+    /// The stencil of constraint `i` (by value: a kind may store its
+    /// indices more compactly than `usize`).
+    fn stencil(&self, i: usize) -> Stencil;
     /// Values in one constraint's stencil Hessian: `(3 STENCIL)^2`.
     fn hessian_len(&self) -> usize;
     /// Energy Hessians with respect to the stencil positions, at `q`, of
@@ -233,7 +234,7 @@ impl<C: Constraint> ConstraintBlock for ConstraintSet<C> {
     fn max_vertex(&self) -> Option<usize> {
         self.constraints
             .iter()
-            .flat_map(|c| c.vertices().iter().copied())
+            .filter_map(|c| c.vertices().iter().copied().max())
             .max()
     }
 
@@ -356,8 +357,8 @@ impl<C: Constraint> ConstraintBlock for ConstraintSet<C> {
         }
     }
 
-    fn stencil(&self, i: usize) -> &[usize] {
-        self.constraints[i].vertices()
+    fn stencil(&self, i: usize) -> Stencil {
+        Stencil::new(&self.constraints[i].vertices())
     }
 
     fn hessian_len(&self) -> usize {

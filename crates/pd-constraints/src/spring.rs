@@ -63,6 +63,8 @@ impl Constraint for Spring {
     const TRANSLATION_INVARIANT: bool = true;
     const KIND: &'static str = "spring";
 
+    type Vertices<'a> = &'a [usize];
+
     fn vertices(&self) -> &[usize] {
         &self.vertices
     }

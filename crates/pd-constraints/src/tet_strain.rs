@@ -10,7 +10,7 @@ use crate::polar::closest_rotation;
 #[cfg(target_arch = "x86_64")]
 use crate::polar_batch::Simd;
 use crate::signed_svd::signed_svd;
-use crate::{Constraint, ConstraintError};
+use crate::{Constraint, ConstraintError, Stencil};
 
 #[cfg(target_arch = "x86_64")]
 mod batch;
@@ -27,14 +27,16 @@ mod batch;
 /// `U clamp(S, min, max) V^T`. The weight is `stiffness * rest volume`; with
 /// Poisson ratio 0 the stiffness plays the part of Young's modulus (Pa).
 ///
-/// Stored in 128 bytes (two cache lines; the local step streams them): the
+/// Stored in 112 bytes (the local step streams them): the vertex indices
+/// are 32-bit ([`Constraint::vertices`] widens them into a
+/// [`Stencil`]; [`TetStrain::new`] rejects an index beyond `u32::MAX`), the
 /// operator's first column `G[r][0] = -(B^T[r][0] + B^T[r][1] + B^T[r][2])`
 /// is not stored but recomputed with that same sum (the same bits as
 /// storing it), and the optional limits are a pair with an impossible
 /// sentinel (`min < 0`) for "none".
 #[derive(Debug, Clone, PartialEq)]
 pub struct TetStrain {
-    vertices: [usize; 4],
+    vertices: [u32; 4],
     weight: f64,
     /// `B^T`: row `r` holds the operator's entries `G[r][1..4]`.
     inverse_t: [[f64; 3]; 3],
@@ -61,8 +63,8 @@ impl TetStrain {
     /// principal stretches, `0 <= min <= 1 <= max`.
     ///
     /// # Errors
-    /// A degenerate rest shape, or a negative or non-finite stiffness or
-    /// limit.
+    /// A degenerate rest shape, a negative or non-finite stiffness or
+    /// limit, or a vertex index beyond `u32::MAX`.
     pub fn new(
         rest: &[Point],
         tet: [usize; 4],
@@ -72,6 +74,13 @@ impl TetStrain {
         check_stiffness(stiffness)?;
         if let Some((min, max)) = limits {
             Self::check_limits(min, max)?;
+        }
+        let mut vertices = [0u32; 4];
+        for (compact, &v) in vertices.iter_mut().zip(&tet) {
+            *compact = u32::try_from(v).map_err(|_| ConstraintError::VertexIndexTooLarge {
+                vertex: v,
+                max: u32::MAX as usize,
+            })?;
         }
         let [x0, x1, x2, x3] = tet.map(|v| rest[v]);
         let rest_edges = Matrix3::from_columns(&[x1 - x0, x2 - x0, x3 - x0]);
@@ -85,7 +94,7 @@ impl TetStrain {
         // column, `-sum_j B^T[row][j]`, is `first_entry`'s.
         let inverse_t = std::array::from_fn(|row| std::array::from_fn(|j| inverse[(j, row)]));
         Ok(Self {
-            vertices: tet,
+            vertices,
             weight: stiffness * volume,
             inverse_t,
             limits: limits.map_or(NO_LIMITS, |(min, max)| [min, max]),
@@ -124,8 +133,11 @@ impl Constraint for TetStrain {
     const TRANSLATION_INVARIANT: bool = true;
     const KIND: &'static str = "tet-strain";
 
-    fn vertices(&self) -> &[usize] {
-        &self.vertices
+    type Vertices<'a> = Stencil;
+
+    #[inline]
+    fn vertices(&self) -> Stencil {
+        Stencil::from_u32x4(self.vertices)
     }
 
     fn weight(&self) -> f64 {
@@ -378,11 +390,11 @@ mod tests {
 
     /// The compact storage gives the operator `B^T [-1 | I]` exactly as
     /// storing all twelve entries did (the first column summed by
-    /// `Iterator::sum`, in the same order), keeps the limits, and takes 128
-    /// bytes (it took 160).
+    /// `Iterator::sum`, in the same order), keeps the limits, and takes 112
+    /// bytes (it took 160, then 128 with `usize` indices).
     #[test]
     fn compact_storage_keeps_operator_and_limits() {
-        assert_eq!(std::mem::size_of::<TetStrain>(), 128);
+        assert_eq!(std::mem::size_of::<TetStrain>(), 112);
         let rest = vec![
             Point::new(0.1, -0.2, 0.0),
             Point::new(1.3, 0.1, -0.4),
@@ -407,6 +419,30 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// 32-bit storage: the largest index round-trips, the next one is an
+    /// error naming it (not a panic or a silent wrap).
+    #[test]
+    fn vertex_indices_are_stored_in_32_bits() {
+        let big = u32::MAX as usize;
+        let mut rest = vec![Point::zeros(); 4];
+        rest[1] = Point::x();
+        rest[2] = Point::y();
+        rest[3] = Point::z();
+        // No 4-billion-point mesh: the largest index is set directly.
+        let c = TetStrain::new(&rest, [0, 1, 2, 3], 1.0, None).unwrap();
+        assert_eq!(&*c.vertices(), &[0, 1, 2, 3]);
+        let mut wide = c.clone();
+        wide.vertices = [0, 1, 2, u32::MAX];
+        assert_eq!(&*wide.vertices(), &[0, 1, 2, big]);
+        assert_eq!(
+            TetStrain::new(&rest, [0, 1, 2, big + 1], 1.0, None),
+            Err(ConstraintError::VertexIndexTooLarge {
+                vertex: big + 1,
+                max: big
+            })
+        );
     }
 
     #[test]

@@ -75,6 +75,8 @@ impl Constraint for TriangleStrain {
     const TRANSLATION_INVARIANT: bool = true;
     const KIND: &'static str = "triangle-strain";
 
+    type Vertices<'a> = &'a [usize];
+
     fn vertices(&self) -> &[usize] {
         &self.vertices
     }

@@ -6,7 +6,7 @@ use nalgebra::{Matrix3, Vector3};
 use pd_mesh::Point;
 
 use crate::signed_svd::signed_svd;
-use crate::{Constraint, ConstraintError, TetStrain, unit_product};
+use crate::{Constraint, ConstraintError, Stencil, TetStrain, unit_product};
 
 /// A volume-preservation constraint on a tetrahedron.
 ///
@@ -46,7 +46,9 @@ impl Constraint for Volume {
     const TRANSLATION_INVARIANT: bool = true;
     const KIND: &'static str = "volume";
 
-    fn vertices(&self) -> &[usize] {
+    type Vertices<'a> = Stencil;
+
+    fn vertices(&self) -> Stencil {
         self.shape.vertices()
     }
 

@@ -33,6 +33,8 @@ impl Constraint for Rail {
     const TRANSLATION_INVARIANT: bool = false;
     const KIND: &'static str = "rail";
 
+    type Vertices<'a> = &'a [usize];
+
     fn vertices(&self) -> &[usize] {
         &self.vertex
     }

@@ -52,7 +52,7 @@ impl Topology {
         let mut anchored = vec![false; n];
         for block in blocks.iter().filter(|b| !b.translation_invariant()) {
             for i in 0..block.len() {
-                for &v in block.stencil(i) {
+                for &v in &block.stencil(i) {
                     anchored[v] = true;
                 }
             }

@@ -186,10 +186,10 @@ fn gradients(s: Simd, elements: [&TetStrain; LANES], q: &[Point]) -> Batch {
     for k in 0..4 {
         // Written out: `array::map` with a closure may stay out of line.
         let [a, b, c, d] = [
-            q[elements[0].vertices[k]],
-            q[elements[1].vertices[k]],
-            q[elements[2].vertices[k]],
-            q[elements[3].vertices[k]],
+            q[elements[0].vertices[k] as usize],
+            q[elements[1].vertices[k] as usize],
+            q[elements[2].vertices[k] as usize],
+            q[elements[3].vertices[k] as usize],
         ];
         for r in 0..3 {
             let p = f64x4(a[r], b[r], c[r], d[r]);

@@ -29,8 +29,8 @@ pub(super) fn assemble(
     for block in blocks {
         for e in 0..block.len() {
             let stencil = block.stencil(e);
-            for &u in stencil {
-                for &v in stencil {
+            for &u in &stencil {
+                for &v in &stencil {
                     let (fu, fv) = (free_index[u], free_index[v]);
                     if fu != usize::MAX && fv != usize::MAX && fu > fv {
                         below[fv].push(fu);
