@@ -1,11 +1,12 @@
 //! `cargo run -p pd-benches --example predictor_gap -- [--integrator
 //! be|im|bdf2] [--damping D] [--steps N] [--cells NX,NY,NZ] [--fits
-//! K/M,K/M,...] [--reference-iterations I]`: how good each start of a step
+//! K/M,K/M,...] [--reference-iterations I] [--history-iterations H]`: how good each start of a step
 //! is, for the fitted predictor (docs/solver.md, "Implicit midpoint's 3x:
 //! a fitted predictor").
 //!
 //! The benchmark beam (one thread) runs `N` steps with Anderson at `I`
-//! iterations (40: the reference), keeping the last 36 corrections. Before
+//! iterations (40: the reference; or `H`, to fit the corrections a
+//! budget-limited run would store), keeping the last 36 corrections. Before
 //! each step from the fourth, every candidate start `y + p` is measured by
 //! a probe simulation restored to the same state with `p` as its stored
 //! correction and the extrapolated predictor (so the start is `y + p`),
@@ -60,7 +61,9 @@ fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let integrator = value(&args, "--integrator").unwrap_or("im");
     let damping = value(&args, "--damping").unwrap_or("none");
-    let steps: usize = value(&args, "--steps").map_or(Ok(20), str::parse).map_err(|e| format!("{e}"))?;
+    let steps: usize = value(&args, "--steps")
+        .map_or(Ok(20), str::parse)
+        .map_err(|e| format!("{e}"))?;
     let reference: usize = value(&args, "--reference-iterations")
         .map_or(Ok(40), str::parse)
         .map_err(|e| format!("{e}"))?;
@@ -69,7 +72,10 @@ fn main() -> Result<(), String> {
         .split(',')
         .map(|f| {
             let (k, m) = f.split_once('/').ok_or(format!("--fits: {f:?}"))?;
-            Ok((k.parse().map_err(|_| f.to_string())?, m.parse().map_err(|_| f.to_string())?))
+            Ok((
+                k.parse().map_err(|_| f.to_string())?,
+                m.parse().map_err(|_| f.to_string())?,
+            ))
         })
         .collect::<Result<_, String>>()?;
     let mut beam = Beam {
@@ -85,18 +91,23 @@ fn main() -> Result<(), String> {
         method: SolverMethod::Anderson,
         ..SolverSpec::default()
     };
-    let make = |predictor: Predictor| -> Result<Simulation, String> {
+    let history_iterations: usize = value(&args, "--history-iterations")
+        .map_or(Ok(reference), str::parse)
+        .map_err(|e| format!("{e}"))?;
+    let make = |predictor: Predictor, iterations: usize| -> Result<Simulation, String> {
+        let beam = Beam { iterations, ..beam };
         let mut sim = beam.simulation(damping, integrator)?;
         sim.set_position_solver(anderson.create().map_err(|e| e.to_string())?);
         sim.set_predictor(predictor);
         Ok(sim)
     };
-    let mut main = make(Predictor::Fitted {
+    let long = Predictor::Fitted {
         order: 12,
         equations: 24,
-    })?;
-    let mut inertial = make(Predictor::Inertial)?;
-    let mut probe = make(Predictor::Extrapolated)?;
+    };
+    let mut main = make(long, history_iterations)?;
+    let mut inertial = make(Predictor::Inertial, reference)?;
+    let mut probe = make(Predictor::Extrapolated, reference)?;
     inertial.record_objective(true);
     probe.record_objective(true);
     let masses = main.model().masses().to_vec();

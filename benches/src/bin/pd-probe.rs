@@ -489,8 +489,16 @@ fn parse_predictor(text: &str) -> Option<pd_solver::Predictor> {
         return pd_solver::Predictor::parse(text);
     };
     Some(pd_solver::Predictor::Fitted {
-        order: k.parse().ok().filter(|k| (1..=pd_solver::Predictor::MAX_ORDER).contains(k))?,
-        equations: m.parse().ok().filter(|m| *m <= pd_solver::Predictor::MAX_EQUATIONS)?,
+        order: k
+            .parse()
+            .ok()
+            .filter(|k| (1..=pd_solver::Predictor::MAX_ORDER).contains(k))?,
+        equations: m
+            .parse()
+            .ok()
+            .filter(|m| *m <= pd_solver::Predictor::MAX_EQUATIONS)?,
     })
-    .filter(|p| matches!(p, pd_solver::Predictor::Fitted { order, equations } if equations >= order))
+    .filter(
+        |p| matches!(p, pd_solver::Predictor::Fitted { order, equations } if equations >= order),
+    )
 }

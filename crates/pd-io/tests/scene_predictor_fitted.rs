@@ -32,7 +32,10 @@ fn order_and_window_are_read_as_written() {
     let at = |order, equations| Predictor::Fitted { order, equations };
     assert_eq!(fitted("predictor_order = 3"), at(3, 6));
     assert_eq!(fitted("predictor_order = 12"), at(12, 24));
-    assert_eq!(fitted("predictor_order = 3\npredictor_window = 3"), at(3, 3));
+    assert_eq!(
+        fitted("predictor_order = 3\npredictor_window = 3"),
+        at(3, 3)
+    );
     assert_eq!(fitted("predictor_window = 20"), at(4, 20));
     let s = parse("[solver]\npredictor = \"fitted\"\npredictor_order = 5").unwrap();
     assert_eq!(s.build().unwrap().predictor(), at(5, 10));
@@ -41,15 +44,35 @@ fn order_and_window_are_read_as_written() {
 #[test]
 fn bad_keys_name_their_field() {
     for (extra, field) in [
-        ("predictor = \"fitted\"\npredictor_order = 0", "solver.predictor_order"),
-        ("predictor = \"fitted\"\npredictor_order = 13", "solver.predictor_order"),
-        ("predictor = \"fitted\"\npredictor_order = 4\npredictor_window = 3", "solver.predictor_window"),
-        ("predictor = \"fitted\"\npredictor_window = 25", "solver.predictor_window"),
-        ("predictor = \"linear\"\npredictor_order = 4", "solver.predictor_order"),
+        (
+            "predictor = \"fitted\"\npredictor_order = 0",
+            "solver.predictor_order",
+        ),
+        (
+            "predictor = \"fitted\"\npredictor_order = 13",
+            "solver.predictor_order",
+        ),
+        (
+            "predictor = \"fitted\"\npredictor_order = 4\npredictor_window = 3",
+            "solver.predictor_window",
+        ),
+        (
+            "predictor = \"fitted\"\npredictor_window = 25",
+            "solver.predictor_window",
+        ),
+        (
+            "predictor = \"linear\"\npredictor_order = 4",
+            "solver.predictor_order",
+        ),
         ("predictor_window = 4", "solver.predictor_window"),
     ] {
-        let error = parse(&format!("[solver]\n{extra}")).unwrap_err().to_string();
-        assert!(error.starts_with(&format!("s.toml: {field}: ")), "{extra}: {error}");
+        let error = parse(&format!("[solver]\n{extra}"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            error.starts_with(&format!("s.toml: {field}: ")),
+            "{extra}: {error}"
+        );
     }
 }
 

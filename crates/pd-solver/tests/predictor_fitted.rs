@@ -57,24 +57,33 @@ fn the_history_keeps_order_plus_equations_corrections() {
 }
 
 /// With a full history the fitted start differs from the linear one (so
-/// the fit is used), and both runs stay close: the same beam within 1e-4 of
-/// its 0.2 m thickness after 10 steps (measured 2e-7 at 5 Anderson
-/// iterations: both runs reach about the same answer; the bound only shows
-/// that the fitted start is not a wild one that the iterations must undo).
+/// the fit is used), and it is not a wild one that the iterations must
+/// undo: after 10 steps at 5 Anderson iterations the fitted run is no
+/// farther from the converged run than 4 times the linear run's distance
+/// (the converged run: 200 Anderson iterations a step; measured: backward
+/// Euler 6.1e-5 against 9.4e-5 m, implicit midpoint 7.0e-5 against 5.5e-5
+/// m; at this budget either start may be the better one, docs/solver.md
+/// "a fitted predictor", so the bound allows three times the larger
+/// measured ratio, 1.27).
 #[test]
 fn the_fitted_start_is_used_once_the_history_is_full() {
     for scheme in [Scheme::BackwardEuler, Scheme::ImplicitMidpoint] {
-        let run = |predictor| {
-            let mut sim = beam(scheme, predictor, 5, 1);
+        let run = |predictor, iterations| {
+            let mut sim = beam(scheme, predictor, iterations, 1);
             sim.run(10).unwrap();
             sim.state().positions.clone()
         };
-        let (fitted, linear) = (run(FITTED), run(Predictor::Linear));
+        let converged = run(Predictor::Inertial, 200);
+        let (fitted, linear) = (run(FITTED, 5), run(Predictor::Linear, 5));
         assert_ne!(bits(&fitted), bits(&linear), "{scheme:?}");
-        let largest = (fitted.iter().zip(&linear))
-            .map(|(a, b)| (a - b).norm())
-            .fold(0.0, f64::max);
-        assert!(largest < 2e-5, "{scheme:?}: {largest}");
+        let distance = |x: &[Point]| {
+            (x.iter().zip(&converged))
+                .map(|(a, b)| (a - b).norm())
+                .fold(0.0, f64::max)
+        };
+        let (f, l) = (distance(&fitted), distance(&linear));
+        eprintln!("{scheme:?}: fitted {f:.2e} m, linear {l:.2e} m");
+        assert!(f < 4.0 * l, "{scheme:?}: fitted {f}, linear {l}");
     }
 }
 

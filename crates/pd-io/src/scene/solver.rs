@@ -36,7 +36,7 @@ impl Validator<'_> {
     /// The validated `solver.predictor`; `inertial` without one.
     pub(super) fn predictor(&self, raw: Option<&Solver>) -> Result<Predictor> {
         let Some(name) = raw.and_then(|raw| raw.predictor.as_deref()) else {
-            return Ok(Predictor::default());
+            return super::solver_fitted::fitted_keys(self, raw, Predictor::default());
         };
         let predictor = Predictor::parse(name).ok_or_else(|| {
             self.field(

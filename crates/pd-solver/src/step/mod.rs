@@ -43,11 +43,11 @@ use iteration::IterationBuffers;
 
 pub use anderson::Anderson;
 pub use chebyshev::Chebyshev;
+pub use fitted::{RecurrenceFit, fit_recurrence};
 pub use iteration::{IterationChange, LocalGlobal, PositionSolver, StepProblem};
 pub use lbfgs::Lbfgs;
 pub use method::{SolverMethod, SolverSpec, SpectralRadius};
 pub use newton::Newton;
-pub use fitted::{RecurrenceFit, fit_recurrence};
 pub use predictor::{Predictor, PredictorState};
 
 /// Scratch buffers sized once, so that a step allocates nothing.

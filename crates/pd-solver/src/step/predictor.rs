@@ -47,8 +47,9 @@ pub enum Predictor {
     Linear,
     /// At `y + sum_j a_j c_{n+1-j}` (`j = 1..order`), the coefficients
     /// fitted to the last `equations` steps' corrections
-    /// ([`super::fitted::fit_recurrence`]); as [`Predictor::Linear`] until
-    /// `order + equations` corrections of the same kind are stored, or when
+    /// ([`super::fitted::fit_recurrence`]; over fewer steps, down to
+    /// `order`, while the history grows); as [`Predictor::Linear`] until
+    /// `2 order` corrections of the same kind are stored, or when
     /// the fit fails or leaves a relative residual above
     /// [`Predictor::FIT_RESIDUAL_LIMIT`].
     Fitted {

@@ -46,12 +46,15 @@ impl PredictorState {
 
 impl Simulation {
     /// The fitted recurrence's coefficients for the stored corrections, if
-    /// enough are stored and the fit is good
+    /// at least `2 order` are stored (fitted over `order` to `equations`
+    /// steps as the history grows) and the fit is good
     /// ([`Predictor::FIT_RESIDUAL_LIMIT`]).
     pub(crate) fn fit_corrections(&self, order: usize, equations: usize) -> Option<Vec<f64>> {
         let state = &self.predictor_state;
         let history: Vec<&[Point]> = state.correction_history().take(order + equations).collect();
-        if history.len() < order + equations {
+        // Until the history is full, fit fewer equations (at least `order`).
+        let equations = history.len().saturating_sub(order).min(equations);
+        if equations < order {
             return None;
         }
         let gram = mass_gram(&history, self.model.masses());
@@ -65,7 +68,10 @@ impl Simulation {
         let fixed = self.model.fixed();
         let dx = &mut self.scratch.iteration.displacement;
         self.scratch.predicted = true;
-        for (a, c) in coefficients.iter().zip(self.predictor_state.correction_history()) {
+        for (a, c) in coefficients
+            .iter()
+            .zip(self.predictor_state.correction_history())
+        {
             for ((dx, c), &fixed) in dx.iter_mut().zip(c).zip(fixed) {
                 if !fixed {
                     *dx += c * *a;
