@@ -36,7 +36,7 @@ impl PredictorState {
         } else {
             Vec::new()
         };
-        let previous = std::mem::replace(&mut self.previous, Vec::new());
+        let previous = std::mem::take(&mut self.previous);
         if !previous.is_empty() && len > 2 {
             self.history.insert(0, previous);
         }
