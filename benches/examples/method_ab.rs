@@ -1,5 +1,5 @@
 //! `cargo run --release -p pd-benches --example method_ab -- METHOD BUDGET
-//! [--predictor P] [--integrator be|im|bdf2] [--damping D] [--steps N]
+//! [--predictor P|fittedK/M] [--integrator be|im|bdf2] [--damping D] [--steps N]
 //! [--warmup W] [--cells NX,NY,NZ] [--window W]`: runs the benchmark beam
 //! (one thread) with one iteration method and budget and prints, on one
 //! line, the median and mean wall time per step (ms) after `W` warm-up
@@ -25,6 +25,18 @@ fn parse<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> Resul
     })
 }
 
+/// A predictor name, or `fittedK/M` (the fitted predictor of order `K`
+/// over `M` steps).
+fn parse_predictor(text: &str) -> Option<Predictor> {
+    let Some((k, m)) = text.strip_prefix("fitted").and_then(|t| t.split_once('/')) else {
+        return Predictor::parse(text);
+    };
+    let (order, equations) = (k.parse().ok()?, m.parse().ok()?);
+    ((1..=Predictor::MAX_ORDER).contains(&order)
+        && (order..=Predictor::MAX_EQUATIONS).contains(&equations))
+    .then_some(Predictor::Fitted { order, equations })
+}
+
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let (Some(method), Some(budget)) = (args.first(), args.get(1)) else {
@@ -33,8 +45,7 @@ fn main() -> Result<(), String> {
     let method = SolverMethod::parse(method).ok_or(format!("unknown method {method:?}"))?;
     let budget: usize = budget.parse().map_err(|_| format!("BUDGET: {budget:?}"))?;
     let predictor = value(&args, "--predictor").unwrap_or("inertial");
-    let predictor =
-        Predictor::parse(predictor).ok_or(format!("unknown predictor {predictor:?}"))?;
+    let predictor = parse_predictor(predictor).ok_or(format!("unknown predictor {predictor:?}"))?;
     let integrator = value(&args, "--integrator").unwrap_or("be");
     let damping = value(&args, "--damping").unwrap_or("none");
     let steps: usize = parse(&args, "--steps", 40)?;

@@ -116,6 +116,9 @@ pub fn measure(beam: &Beam, mesh: &Mesh, plan: &MethodsPlan) -> Result<Value, St
     for (method, predictor) in variants {
         let name = match predictor {
             Predictor::Inertial => method.name().to_string(),
+            Predictor::Fitted { order, equations } if predictor != Predictor::FITTED => {
+                format!("{}+fitted{order}/{equations}", method.name())
+            }
             other => format!("{}+{}", method.name(), other.name()),
         };
         let budgets = if method == SolverMethod::Newton {

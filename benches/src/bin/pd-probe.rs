@@ -529,7 +529,7 @@ fn methods(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
                         .unwrap_or((item.trim(), "extrapolated"));
                     let method = SolverMethod::parse(name)
                         .ok_or_else(|| format!("--predicted: unknown method {name:?}"))?;
-                    let predictor = pd_solver::Predictor::parse(predictor)
+                    let predictor = parse_predictor(predictor)
                         .ok_or_else(|| format!("--predicted: unknown predictor {predictor:?}"))?;
                     Ok::<_, String>((method, predictor))
                 })
@@ -537,4 +537,25 @@ fn methods(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         },
     };
     pd_benches::methods::measure(beam, &mesh, &plan)
+}
+
+/// A predictor name, or `fittedK/M` for the fitted predictor of order `K`
+/// over `M` steps (`fitted` alone: the default order and steps).
+fn parse_predictor(text: &str) -> Option<pd_solver::Predictor> {
+    let Some((k, m)) = text.strip_prefix("fitted").and_then(|t| t.split_once('/')) else {
+        return pd_solver::Predictor::parse(text);
+    };
+    Some(pd_solver::Predictor::Fitted {
+        order: k
+            .parse()
+            .ok()
+            .filter(|k| (1..=pd_solver::Predictor::MAX_ORDER).contains(k))?,
+        equations: m
+            .parse()
+            .ok()
+            .filter(|m| *m <= pd_solver::Predictor::MAX_EQUATIONS)?,
+    })
+    .filter(
+        |p| matches!(p, pd_solver::Predictor::Fitted { order, equations } if equations >= order),
+    )
 }

@@ -139,6 +139,9 @@ struct RawPredictor {
     key: [f64; 4],
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     previous: Vec<[f64; 3]>,
+    /// The fitted predictor's older corrections, newest first.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    history: Vec<Vec<[f64; 3]>>,
 }
 
 const FORMAT: &str = "pd-checkpoint";
@@ -171,6 +174,7 @@ pub fn write_checkpoint(path: &Path, file: &CheckpointFile) -> Result<()> {
             .all(|s| s.force.iter().chain(&s.normal).all(|x| x.is_finite()))
         && finite(&c.predictor.correction)
         && finite(&c.predictor.previous)
+        && c.predictor.history.iter().all(|h| finite(h))
         && c.predictor.key.iter().all(|x| x.is_finite()))
     {
         return Err(Error::Content {
@@ -214,6 +218,7 @@ pub fn write_checkpoint(path: &Path, file: &CheckpointFile) -> Result<()> {
             correction: arrays(&c.predictor.correction),
             key: c.predictor.key,
             previous: arrays(&c.predictor.previous),
+            history: c.predictor.history.iter().map(|h| arrays(h)).collect(),
         }),
     };
     write_atomically(path, |w| {
@@ -339,6 +344,7 @@ pub fn read_checkpoint(path: &Path) -> Result<CheckpointFile> {
                     correction: points(&p.correction),
                     key: p.key,
                     previous: points(&p.previous),
+                    history: p.history.iter().map(|h| points(h)).collect(),
                 })
                 .unwrap_or_default(),
         },

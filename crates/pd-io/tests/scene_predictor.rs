@@ -44,7 +44,7 @@ fn an_unknown_predictor_names_the_field() {
     assert_eq!(
         error,
         "s.toml: solver.predictor: unknown predictor \"quadratic\"; expected one of: \
-         inertial, extrapolated, linear"
+         inertial, extrapolated, linear, fitted"
     );
 }
 

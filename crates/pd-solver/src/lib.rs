@@ -56,7 +56,8 @@ pub use settings::Settings;
 pub use simulation::{Energies, SetupStats, Simulation, State, StepStats};
 pub use step::{
     Anderson, Chebyshev, IterationChange, Lbfgs, LocalGlobal, Newton, PositionSolver, Predictor,
-    PredictorState, SolverMethod, SolverSpec, SpectralRadius, StepProblem,
+    PredictorState, RecurrenceFit, SolverMethod, SolverSpec, SpectralRadius, StepProblem,
+    fit_recurrence,
 };
 
 /// Everything that can go wrong building or stepping a simulation.

@@ -22,6 +22,7 @@ mod per_body;
 mod ratio;
 mod raw;
 mod solver;
+mod solver_fitted;
 mod spec;
 mod validate;
 

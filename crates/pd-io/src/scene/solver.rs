@@ -18,6 +18,10 @@ pub(super) struct Solver {
     pub(super) start: Option<usize>,
     /// Where each step's iteration starts (`pd_solver::Predictor`).
     pub(super) predictor: Option<String>,
+    /// `k` of `predictor = "fitted"` (docs/scene-format.md).
+    pub(super) predictor_order: Option<u8>,
+    /// `m` of `predictor = "fitted"`: the past steps fitted.
+    pub(super) predictor_window: Option<u8>,
 }
 
 /// `rho = 0.99` or `rho = "auto"`.
@@ -32,9 +36,9 @@ impl Validator<'_> {
     /// The validated `solver.predictor`; `inertial` without one.
     pub(super) fn predictor(&self, raw: Option<&Solver>) -> Result<Predictor> {
         let Some(name) = raw.and_then(|raw| raw.predictor.as_deref()) else {
-            return Ok(Predictor::default());
+            return super::solver_fitted::fitted_keys(self, raw, Predictor::default());
         };
-        Predictor::parse(name).ok_or_else(|| {
+        let predictor = Predictor::parse(name).ok_or_else(|| {
             self.field(
                 "solver.predictor",
                 format!(
@@ -42,7 +46,8 @@ impl Validator<'_> {
                     Predictor::ALL.map(Predictor::name).join(", ")
                 ),
             )
-        })
+        })?;
+        super::solver_fitted::fitted_keys(self, raw, predictor)
     }
 
     /// The validated `[solver]` table; the default (local-global) without one.

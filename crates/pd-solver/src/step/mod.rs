@@ -15,6 +15,7 @@
 pub(crate) mod anderson;
 pub(crate) mod chebyshev;
 pub(crate) mod divergence;
+pub(crate) mod fitted;
 pub(crate) mod iteration;
 pub(crate) mod lbfgs;
 pub(crate) mod materials;
@@ -23,6 +24,7 @@ pub(crate) mod newton;
 pub(crate) mod objective;
 pub(crate) mod ops;
 pub(crate) mod predictor;
+pub(crate) mod predictor_fit;
 pub(crate) mod ray;
 
 use std::time::Instant;
@@ -41,6 +43,7 @@ use iteration::IterationBuffers;
 
 pub use anderson::Anderson;
 pub use chebyshev::Chebyshev;
+pub use fitted::{RecurrenceFit, fit_recurrence};
 pub use iteration::{IterationChange, LocalGlobal, PositionSolver, StepProblem};
 pub use lbfgs::Lbfgs;
 pub use method::{SolverMethod, SolverSpec, SpectralRadius};

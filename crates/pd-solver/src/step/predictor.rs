@@ -45,15 +45,45 @@ pub enum Predictor {
     /// when the previous two steps were of the same kind (else as
     /// [`Predictor::Extrapolated`]).
     Linear,
+    /// At `y + sum_j a_j c_{n+1-j}` (`j = 1..order`), the coefficients
+    /// fitted to the last `equations` steps' corrections
+    /// ([`super::fitted::fit_recurrence`]; over fewer steps, down to
+    /// `order`, while the history grows); as [`Predictor::Linear`] until
+    /// `2 order` corrections of the same kind are stored, or when
+    /// the fit fails or leaves a relative residual above
+    /// [`Predictor::FIT_RESIDUAL_LIMIT`].
+    Fitted {
+        /// `k`, the recurrence's number of terms (1 to 12).
+        order: u8,
+        /// `m >= k`, the number of past steps it is fitted to (up to 24).
+        equations: u8,
+    },
 }
 
 impl Predictor {
     /// Every predictor, in the order scenes list them.
-    pub const ALL: [Predictor; 3] = [
+    pub const ALL: [Predictor; 4] = [
         Predictor::Inertial,
         Predictor::Extrapolated,
         Predictor::Linear,
+        Predictor::FITTED,
     ];
+
+    /// [`Predictor::Fitted`] with its default order and equations.
+    pub const FITTED: Predictor = Predictor::Fitted {
+        order: 4,
+        equations: 8,
+    };
+
+    /// The largest [`Predictor::Fitted`] order.
+    pub const MAX_ORDER: u8 = 12;
+
+    /// The largest [`Predictor::Fitted`] equation count.
+    pub const MAX_EQUATIONS: u8 = 24;
+
+    /// A fit whose relative residual is above this is not used (the step
+    /// predicts linearly): the history is not a recurrence of that order.
+    pub const FIT_RESIDUAL_LIMIT: f64 = 0.5;
 
     /// The name as scenes spell it (`inertial`).
     pub fn name(self) -> &'static str {
@@ -61,12 +91,24 @@ impl Predictor {
             Predictor::Inertial => "inertial",
             Predictor::Extrapolated => "extrapolated",
             Predictor::Linear => "linear",
+            Predictor::Fitted { .. } => "fitted",
         }
     }
 
-    /// The predictor named `name`, if any.
+    /// The predictor named `name`, if any ([`Predictor::FITTED`] for
+    /// `fitted`).
     pub fn parse(name: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|p| p.name() == name)
+    }
+
+    /// How many corrections the predictor keeps (the newest included).
+    fn history_len(self) -> usize {
+        match self {
+            Predictor::Inertial => 0,
+            Predictor::Extrapolated => 1,
+            Predictor::Linear => 2,
+            Predictor::Fitted { order, equations } => usize::from(order) + usize::from(equations),
+        }
     }
 }
 
@@ -81,6 +123,9 @@ pub struct PredictorState {
     /// The correction of the step before, of the same kind, for
     /// [`Predictor::Linear`] (empty when there is none).
     pub previous: Vec<Point>,
+    /// Older corrections of the same kind for [`Predictor::Fitted`],
+    /// newest first (`c_{n-2}, c_{n-3}, ...`; empty for the others).
+    pub history: Vec<Vec<Point>>,
 }
 
 impl PredictorState {
@@ -126,9 +171,17 @@ impl Simulation {
         {
             return key;
         }
+        if let Predictor::Fitted { order, equations } = self.predictor {
+            let fit = self.fit_corrections(order.into(), equations.into());
+            if let Some(a) = fit {
+                self.apply_fitted(&a);
+                return key;
+            }
+        }
+        let state = &self.predictor_state;
         let fixed = self.model.fixed();
         let dx = &mut self.scratch.iteration.displacement;
-        let linear = self.predictor == Predictor::Linear && !state.previous.is_empty();
+        let linear = self.predictor != Predictor::Extrapolated && !state.previous.is_empty();
         self.scratch.predicted = true;
         for (v, ((dx, c), &fixed)) in dx.iter_mut().zip(&state.correction).zip(fixed).enumerate() {
             if fixed {
@@ -156,6 +209,8 @@ impl Simulation {
         let same_kind = state.key.map(f64::to_bits) == key.map(f64::to_bits);
         if self.predictor == Predictor::Linear && same_kind && !state.correction.is_empty() {
             std::mem::swap(&mut state.previous, &mut state.correction);
+        } else if matches!(self.predictor, Predictor::Fitted { .. }) {
+            state.shift_history(same_kind, self.predictor.history_len());
         } else {
             state.previous.clear();
         }
@@ -182,10 +237,17 @@ impl Simulation {
         if state.is_empty() {
             return Ok(());
         }
+        let older = state.history.iter().map(|h| ("history", h, [n, n]));
+        if !state.history.is_empty() && state.previous.len() != n {
+            return invalid("predictor history without a previous correction".into());
+        }
         for (name, values, lengths) in [
             ("correction", &state.correction, [n, n]),
             ("previous", &state.previous, [0, n]),
-        ] {
+        ]
+        .into_iter()
+        .chain(older)
+        {
             if !lengths.contains(&values.len()) {
                 return invalid(format!(
                     "predictor {name} has {} points for {n} vertices",

@@ -1,0 +1,120 @@
+//! `[solver] predictor = "fitted"` with `predictor_order` and
+//! `predictor_window`: read as written, refused at their field path when
+//! out of range or without the fitted predictor, and the predictor's
+//! history carried through a checkpoint file bit for bit.
+
+use std::path::Path;
+
+use pd_io::checkpoint::{CheckpointFile, SceneText, read_checkpoint, write_checkpoint};
+use pd_io::scene::{Scene, Syntax};
+use pd_solver::Predictor;
+
+fn scene(solver: &str) -> String {
+    format!(
+        "[simulation]\ndt = 0.01\nsteps = 1\n\n{solver}\n\n[[body]]\n\
+         mesh = {{ generator = \"chain\", points = 4, length = 1.0 }}\nvertex_mass = 0.1\n\
+         constraints = [{{ kind = \"spring\", stiffness = 50.0 }}]\nfixed = {{ vertices = [0] }}\n"
+    )
+}
+
+fn parse(solver: &str) -> pd_io::Result<Scene> {
+    Scene::parse(&scene(solver), Syntax::Toml, Path::new("s.toml"))
+}
+
+#[test]
+fn order_and_window_are_read_as_written() {
+    let fitted = |extra: &str| {
+        parse(&format!("[solver]\npredictor = \"fitted\"\n{extra}"))
+            .unwrap()
+            .predictor
+    };
+    assert_eq!(fitted(""), Predictor::FITTED);
+    let at = |order, equations| Predictor::Fitted { order, equations };
+    assert_eq!(fitted("predictor_order = 3"), at(3, 6));
+    assert_eq!(fitted("predictor_order = 12"), at(12, 24));
+    assert_eq!(
+        fitted("predictor_order = 3\npredictor_window = 3"),
+        at(3, 3)
+    );
+    assert_eq!(fitted("predictor_window = 20"), at(4, 20));
+    let s = parse("[solver]\npredictor = \"fitted\"\npredictor_order = 5").unwrap();
+    assert_eq!(s.build().unwrap().predictor(), at(5, 10));
+}
+
+#[test]
+fn bad_keys_name_their_field() {
+    for (extra, field) in [
+        (
+            "predictor = \"fitted\"\npredictor_order = 0",
+            "solver.predictor_order",
+        ),
+        (
+            "predictor = \"fitted\"\npredictor_order = 13",
+            "solver.predictor_order",
+        ),
+        (
+            "predictor = \"fitted\"\npredictor_order = 4\npredictor_window = 3",
+            "solver.predictor_window",
+        ),
+        (
+            "predictor = \"fitted\"\npredictor_window = 25",
+            "solver.predictor_window",
+        ),
+        (
+            "predictor = \"linear\"\npredictor_order = 4",
+            "solver.predictor_order",
+        ),
+        ("predictor_window = 4", "solver.predictor_window"),
+    ] {
+        let error = parse(&format!("[solver]\n{extra}"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            error.starts_with(&format!("s.toml: {field}: ")),
+            "{extra}: {error}"
+        );
+    }
+}
+
+/// The fitted predictor's older corrections go through the checkpoint file
+/// with every bit: a simulation restored from the file continues as the
+/// saved one.
+#[test]
+fn a_checkpoint_file_keeps_the_history() {
+    let table = "[solver]\nmethod = \"anderson\"\npredictor = \"fitted\"\n\
+                 predictor_order = 2\npredictor_window = 2";
+    let mut a = parse(table).unwrap().build().unwrap();
+    a.run(6).unwrap();
+    let saved = a.checkpoint();
+    assert_eq!(saved.predictor.history.len(), 2);
+    let dir = std::env::temp_dir().join(format!("pd-io-fitted-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("checkpoint.json");
+    let file = CheckpointFile {
+        scene: SceneText {
+            source: "s.toml".into(),
+            syntax: Syntax::Toml,
+            text: scene(table),
+        },
+        steps_requested: 9,
+        threads: 1,
+        checkpoint_every: 6,
+        checkpoint: saved,
+    };
+    write_checkpoint(&path, &file).unwrap();
+    let back = read_checkpoint(&path).unwrap();
+    assert_eq!(back, file);
+    a.run(3).unwrap();
+    let mut b = parse(table).unwrap().build().unwrap();
+    b.restore(&back.checkpoint).unwrap();
+    b.run(3).unwrap();
+    let bits = |s: &pd_solver::State| -> Vec<u64> {
+        s.positions
+            .iter()
+            .chain(&s.velocities)
+            .flat_map(|p| p.iter().map(|x| x.to_bits()))
+            .collect()
+    };
+    assert_eq!(bits(a.state()), bits(b.state()));
+    std::fs::remove_dir_all(&dir).ok();
+}
