@@ -330,7 +330,7 @@ impl SupernodalSolve {
             |simd| {
                 let mut below = Below::split(below, simd, structure.prefetch);
                 for (i, &s) in split.top.iter().enumerate().rev() {
-                    if i > 0 {
+                    if i > 0 && below.prefetches() {
                         structure.prefetch_backward_start(values, split.top[i - 1], &below);
                     }
                     let first = structure.begin[s];
@@ -442,7 +442,7 @@ impl Structure<'_> {
             |simd| {
                 let mut below = Below::split(below, simd, self.prefetch);
                 for (i, &s) in split.bins[bin].iter().enumerate().rev() {
-                    if i > 0 {
+                    if i > 0 && below.prefetches() {
                         self.prefetch_backward_start(values, split.bins[bin][i - 1], &below);
                     }
                     let first = split.slot[self.begin[s]] as usize;
@@ -547,7 +547,7 @@ impl Structure<'_> {
         below.subtract_products(block, ld, c, top, r);
         for j in (0..c).rev() {
             // The next column's rows under the diagonal.
-            if j > 0 && c >= WIDE_DIAGONAL {
+            if below.prefetches() && j > 0 && c >= WIDE_DIAGONAL {
                 below.prefetch(block, (j - 1) * ld + j, c - j);
             }
             let column = &block[j * ld..(j + 1) * ld];
