@@ -3,7 +3,8 @@
 //! enough for any verdict, and the step on real (TetGen) meshes.
 //!
 //! - Streaming bandwidth: `pd-probe bandwidth` (best single-thread read of
-//!   a 512 MiB array).
+//!   a 512 MiB array), and with `--threads 2` the bandwidth both cores get
+//!   together, the bound of the 2-thread rows (the same bytes).
 //! - The solve bound: a forward and a backward substitution each read the
 //!   whole factor once (all three right-hand-side columns at a time), so a
 //!   solve cannot take less than `2 x 8 bytes x stored values / bandwidth`.
@@ -79,12 +80,24 @@ pub fn measure(
         "--mib",
         if quick { "256" } else { "512" },
     ]))?;
-    let bytes_per_second = f(&bandwidth["bytes_per_second"]);
+    let bandwidth_2 = probe(strings(&[
+        "bandwidth",
+        "--mib",
+        if quick { "256" } else { "512" },
+        "--threads",
+        "2",
+    ]))?;
     let cells = cells(quick);
     let cells_arg = format!("{},{},{}", cells[0], cells[1], cells[2]);
     let repeats = if quick { 2 } else { 3 };
     let mut per_threads = Vec::new();
     for threads in ["1", "2"] {
+        let measured = if threads == "1" {
+            &bandwidth
+        } else {
+            &bandwidth_2
+        };
+        let bytes_per_second = f(&measured["bytes_per_second"]);
         let mut runs = Vec::new();
         for _ in 0..repeats {
             runs.push(probe(strings(&[
@@ -112,6 +125,7 @@ pub fn measure(
             "local_ns_per_tet_iteration": pick("local_ms_median") * 1e6 / (iters * tets),
             "global_ms_per_iteration": global_per_iteration,
             "factor_bytes": factor_bytes,
+            "bandwidth_bytes_per_second": bytes_per_second,
             "solve_bound_ms": bound_ms,
             "ratio_to_bound": global_per_iteration / bound_ms,
             "solve_ms": solve,
@@ -172,6 +186,7 @@ pub fn measure(
     }
     Ok(json!({
         "bandwidth": bandwidth,
+        "bandwidth_2_threads": bandwidth_2,
         "cells": cells,
         "by_threads": per_threads,
         "step_speedup": step_speedup,
@@ -210,15 +225,19 @@ pub fn markdown(limits: &Value) -> String {
         );
     }
     let bandwidth = f(&limits["bandwidth"]["bytes_per_second"]);
+    let bandwidth_2 = f(&limits["bandwidth_2_threads"]["bytes_per_second"]);
     let cells = &limits["cells"];
     let _ = writeln!(
         md,
-        "Streaming read bandwidth (1 thread, measured now): {:.1} GB/s. Beam of {} x {} x {} \
+        "Streaming read bandwidth (measured now): {:.1} GB/s on 1 thread, {:.1} GB/s on 2 \
+         threads together. Beam of {} x {} x {} \
          cells; a solve reads the factor twice (forward and backward), so its bound is \
-         2 x factor bytes / bandwidth. \"solve\" is the solve alone (what the bound \
+         2 x factor bytes / bandwidth, with the bandwidth of the row's thread count. \
+         \"solve\" is the solve alone (what the bound \
          describes); \"global per iteration\" also assembles the right-hand side and \
          updates the displacement.\n",
         bandwidth / 1e9,
+        bandwidth_2 / 1e9,
         cells[0],
         cells[1],
         cells[2]
@@ -321,6 +340,24 @@ mod tests {
         assert!((f(&one["local_ns_per_tet_iteration"]) - 20_000.0).abs() < 1e-6);
         assert!((f(&limits["local_speedup"]) - 1.5).abs() < 1e-12);
         assert!(markdown(&limits).contains("| 1 | 100 |"));
+    }
+
+    #[test]
+    fn the_two_thread_rows_use_the_two_thread_bandwidth() {
+        // Bandwidth 10 GB/s on 1 thread and 16 GB/s on 2: the 2-thread bound
+        // is 2 x 8 MB / 16 GB/s = 1 ms, the 1-thread one 1.6 ms.
+        let probe = |a: Vec<String>| {
+            if a[0] == "bandwidth" && a.iter().any(|x| x == "--threads") {
+                return Ok(json!({ "bytes_per_second": 1.6e10 }));
+            }
+            fake(1.5)(a)
+        };
+        let limits = measure(&probe, true, &[]).unwrap();
+        let [one, two] = [0, 1].map(|i| &limits["by_threads"][i]);
+        assert!((f(&one["solve_bound_ms"]) - 1.6).abs() < 1e-12);
+        assert!((f(&two["solve_bound_ms"]) - 1.0).abs() < 1e-12);
+        assert!((f(&two["solve_ratio_to_bound"]) - 1.8).abs() < 1e-12);
+        assert!(markdown(&limits).contains("16.0 GB/s on 2"));
     }
 
     #[test]

@@ -8,7 +8,7 @@
 //! pd-probe overhead [beam options] [--integrator be|im] [--rounds R] [--warmup W]
 //! pd-probe phases   [beam options] [--mesh BASE] [--model M] [--reps R] [--evict-mib M] [--idle-us U] [--parts P]
 //! pd-probe accuracy [beam options] [--integrator be|im] [--time T] [--iters-list 1,2,...]
-//! pd-probe bandwidth [--mib M] [--reps R]
+//! pd-probe bandwidth [--mib M] [--reps R] [--threads T]
 //! pd-probe methods  [beam options] [--mesh BASE] [--integrator be|im|bdf2] [--model M] [--steps N] [--budgets 1,2,...]
 //!                   [--methods local-global,anderson,...] [--window W] [--start S] [--cheb-rho R|auto]
 //!                   [--predicted anderson,lbfgs:linear,...]   (those methods again with a predictor, default extrapolated)
@@ -125,36 +125,75 @@ fn run(args: &[String]) -> Result<Value, String> {
     }
 }
 
-/// Single-thread streaming read bandwidth: the best of `--reps` sums of a
-/// `--mib` MiB array of f64 (far larger than the caches), in bytes per
-/// second. A triangular solve streams its factor much like this read, so
-/// this is the bound `cargo xtask bench-report` compares solves with.
+/// Streaming read bandwidth: the best of `--reps` sums of a `--mib` MiB
+/// array of f64 (far larger than the caches), in bytes per second. A
+/// triangular solve streams its factor much like this read, so this is the
+/// bound `cargo xtask bench-report` compares solves with. With
+/// `--threads T` (default 1), T threads each sum one contiguous T-th of
+/// the array at once, timed from before the first starts to after the last
+/// ends: the bandwidth T cores get together, the bound for a T-thread
+/// solve reading the same bytes.
 fn bandwidth(options: &Options<'_>) -> Result<Value, String> {
     let mib: usize = options.parse("--mib", 512)?;
     let reps: usize = options.parse("--reps", 7)?;
+    let threads: usize = options.parse("--threads", 1)?;
+    if threads == 0 {
+        return Err("--threads: must be at least 1".into());
+    }
     let len = mib * 1024 * 1024 / 8;
     let data: Vec<f64> = (0..len).map(|i| (i % 7) as f64).collect();
+    // Whole groups of eight per thread (the last takes the rest).
+    let part = len / threads / 8 * 8;
     let mut best = f64::INFINITY;
     let mut checksum = 0.0;
     for _ in 0..reps.max(1) {
         let t = Instant::now();
-        // Eight independent sums: the adds never limit the read.
-        let mut sums = [0.0f64; 8];
-        for chunk in data.chunks_exact(8) {
-            for (s, x) in sums.iter_mut().zip(chunk) {
-                *s += x;
-            }
-        }
-        checksum += std::hint::black_box(sums.iter().sum::<f64>());
+        let total: f64 = if threads == 1 {
+            sum_streaming(&data)
+        } else {
+            std::thread::scope(|scope| {
+                let handles: Vec<_> = (0..threads)
+                    .map(|i| {
+                        let end = if i + 1 == threads {
+                            len
+                        } else {
+                            (i + 1) * part
+                        };
+                        let slice = &data[i * part..end];
+                        scope.spawn(move || sum_streaming(slice))
+                    })
+                    .collect();
+                handles
+                    .into_iter()
+                    .map(|h| h.join().unwrap_or(f64::NAN))
+                    .sum()
+            })
+        };
+        checksum += std::hint::black_box(total);
         best = best.min(t.elapsed().as_secs_f64());
     }
     Ok(json!({
         "bytes": len * 8,
         "reps": reps,
+        "threads": threads,
         "best_seconds": best,
         "bytes_per_second": (len * 8) as f64 / best,
         "checksum": checksum,
     }))
+}
+
+/// The sum of `data` in eight independent sums, so that the adds never
+/// limit the read.
+fn sum_streaming(data: &[f64]) -> f64 {
+    let mut sums = [0.0f64; 8];
+    let chunks = data.chunks_exact(8);
+    let rest: f64 = chunks.remainder().iter().sum();
+    for chunk in chunks {
+        for (s, x) in sums.iter_mut().zip(chunk) {
+            *s += x;
+        }
+    }
+    sums.iter().sum::<f64>() + rest
 }
 
 fn ms(seconds: f64) -> f64 {

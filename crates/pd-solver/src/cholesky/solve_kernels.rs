@@ -48,15 +48,42 @@ pub(super) struct Below<'a> {
     pub z: &'a mut [f64],
     #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     simd: Option<Simd>,
+    /// The instruction set for [`prefetch`], `None` for no prefetches.
+    fetch: Option<Simd>,
 }
 
 impl<'a> Below<'a> {
+    /// The scratch `storage` as three coordinate arrays; `prefetch`:
+    /// whether the kernels ask for the factor's values ahead of their use
+    /// ([`prefetch`]).
     #[inline(always)]
-    pub fn split(storage: &'a mut [f64], simd: Option<Simd>) -> Self {
+    pub fn split(storage: &'a mut [f64], simd: Option<Simd>, prefetch: bool) -> Self {
         let third = storage.len() / 3;
         let (x, rest) = storage.split_at_mut(third);
         let (y, z) = rest.split_at_mut(third);
-        Self { x, y, z, simd }
+        let fetch = simd.filter(|_| prefetch);
+        Self {
+            x,
+            y,
+            z,
+            simd,
+            fetch,
+        }
+    }
+
+    /// [`prefetch`], if this solve prefetches.
+    #[inline(always)]
+    pub fn prefetch(&self, values: &[f64], start: usize, len: usize) {
+        prefetch(self.fetch, values, start, len);
+    }
+
+    /// Whether this solve prefetches: callers test it before working out
+    /// what to prefetch, so that a solve without prefetches does not pay
+    /// for the addresses (callgrind: 3 % more instructions on the
+    /// armadillo without this test).
+    #[inline(always)]
+    pub fn prefetches(&self) -> bool {
+        self.fetch.is_some()
     }
 
     /// `top <- L_diag^-1 top`: the forward step's triangular solve with the
@@ -69,11 +96,16 @@ impl<'a> Below<'a> {
     #[inline(always)]
     pub fn solve_diagonal(&mut self, block: &[f64], ld: usize, top: &mut [Point]) {
         let c = top.len();
+        let fetch = self.fetch;
         let (tx, ty, tz) = (&mut self.x[..c], &mut self.y[..c], &mut self.z[..c]);
         for (k, p) in top.iter().enumerate() {
             (tx[k], ty[k], tz[k]) = (p.x, p.y, p.z);
         }
         for j in 0..c {
+            // The next column's rows under the diagonal.
+            if fetch.is_some() && j + 1 < c {
+                prefetch(fetch, block, (j + 1) * ld + j + 1, c - j - 1);
+            }
             let column = &block[j * ld..j * ld + c];
             let d = column[j];
             let (xj, yj, zj) = (tx[j] / d, ty[j] / d, tz[j] / d);
@@ -168,6 +200,12 @@ impl<'a> Below<'a> {
             let column = |j: usize| &block[j * ld + c..(j + 1) * ld][..r];
             let mut pairs = top.chunks_exact_mut(2);
             for (j, pair) in (0..).step_by(2).zip(&mut pairs) {
+                // The next pair's columns.
+                if self.prefetches() {
+                    for i in j + 2..c.min(j + 4) {
+                        self.prefetch(block, i * ld + c, r);
+                    }
+                }
                 let (la, lb) = (column(j), column(j + 1));
                 let [a, b] = wide_lanes(s, [la, lb], bx, by, bz);
                 pair[0] -= a.finish(la, bx, by, bz);
@@ -209,6 +247,35 @@ impl<'a> Below<'a> {
                 a.add(l, x, y, z);
             }
             *p -= a.finish(l, bx, by, bz);
+        }
+    }
+}
+
+/// Asks the caches for `values[start..start + len]` ahead of its use:
+/// one prefetch per 64-byte line (8 values), no effect on any value.
+/// Nothing without AVX2. The solve reads its factor once per pass in
+/// short column pieces, too short for the hardware's stream detection
+/// to run ahead of them (`perf annotate` showed the backward dot
+/// products waiting on the loads of the factor).
+#[inline(always)]
+#[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))]
+fn prefetch(simd: Option<Simd>, values: &[f64], start: usize, len: usize) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(s) = simd {
+        let base = values.as_ptr();
+        let end = start + len;
+        let mut k = start;
+        while k < end {
+            // A prefetch never faults, and `wrapping_add` makes no
+            // promise that the address is inside `values`.
+            s.sse
+                ._mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>(base.wrapping_add(k).cast());
+            k += 8;
+        }
+        if len > 0 {
+            s.sse._mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>(
+                base.wrapping_add(end - 1).cast(),
+            );
         }
     }
 }

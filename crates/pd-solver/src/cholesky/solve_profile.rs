@@ -39,11 +39,18 @@ fn profile(label: &str, mesh: &pd_mesh::Mesh) {
         .map(|i| pd_mesh::Point::new((i % 13) as f64, (i % 7) as f64, (i % 5) as f64))
         .collect();
     let mut solve = factor.fast_solve.take().expect("a supernodal factor");
+    let [top, bin0, bin1] = solve.split_values(&factor.symbolic);
+    println!("  stored values: top of the tree {top}, bins {bin0} and {bin1}");
     // The bits of one solve, to compare kernels that must not change them.
     let mut once = rhs.clone();
     solve.solve(&factor.symbolic, &numeric.values, &mut once);
     println!("  solution bits: {:016x}", bits_hash(&once));
-    let rounds = 41;
+    // `PD_SOLVE_ROUNDS` solves (41 unless set): more rounds find quieter
+    // moments on a busy machine.
+    let rounds: usize = std::env::var("PD_SOLVE_ROUNDS")
+        .ok()
+        .and_then(|r| r.parse().ok())
+        .unwrap_or(41);
     let mut parts: [Vec<f64>; 4] = Default::default();
     // One thread (the bins run one after the other); wall time against a
     // fixed start, read as a minimum over the rounds on a busy machine.

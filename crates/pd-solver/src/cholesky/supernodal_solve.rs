@@ -36,6 +36,15 @@ use super::solve_tree::{TOP, TreeSplit};
 /// Either way gives the same bits.
 const WIDE_DIAGONAL: usize = 16;
 
+/// The smallest factor (bytes of stored values) whose solve prefetches its
+/// values (`Below::prefetch`; the same bits either way). On this machine
+/// (32 MiB L3) the 80 x 14 x 14 beam's 27.8 MB factor does not stay in
+/// the cache between passes and its solve was about 10 % faster with
+/// prefetches, while the armadillo's 7.3 MB factor, which does, was
+/// slower (the prefetch instructions cost, and the data was already
+/// there; docs/performance.md, "eighth round").
+const PREFETCH_BYTES: usize = 16 << 20;
+
 /// The supernodal structure of a factor: a view of faer's symbolic
 /// analysis (not a copy: its row indices alone are a tenth of the factor's
 /// size), read by both halves of a split solve.
@@ -50,6 +59,9 @@ struct Structure<'a> {
     row_len: &'a [usize],
     row_idx: &'a [usize],
     value_ptr: &'a [usize],
+    /// Whether the kernels prefetch the factor's values (a factor of at
+    /// least [`PREFETCH_BYTES`]).
+    prefetch: bool,
 }
 
 impl<'a> Structure<'a> {
@@ -65,6 +77,7 @@ impl<'a> Structure<'a> {
             row_len: s.nnz_per_super(),
             row_idx: s.row_idx(),
             value_ptr: s.col_ptr_for_val(),
+            prefetch: s.col_ptr_for_val().last().copied().unwrap_or(0) * 8 >= PREFETCH_BYTES,
         })
     }
 }
@@ -90,6 +103,9 @@ pub(crate) struct SupernodalSolve {
     /// The top's scratch, and each bin's.
     below: Vec<f64>,
     lanes: [Lane; 2],
+    /// Whether the kernels prefetch the factor (at least
+    /// [`PREFETCH_BYTES`] stored).
+    prefetch: bool,
 }
 
 impl SupernodalSolve {
@@ -143,7 +159,15 @@ impl SupernodalSolve {
             lanes: [lane(&split.bin_columns[0]), lane(&split.bin_columns[1])],
             split,
             x: vec![Point::zeros(); n],
+            prefetch: structure.prefetch,
         })
+    }
+
+    /// Turns the kernels' prefetches on or off, whatever the factor's size
+    /// (tests: they must not change a bit).
+    #[cfg(test)]
+    pub fn set_prefetch(&mut self, on: bool) {
+        self.prefetch = on;
     }
 
     /// Whether the solve runs in two halves (independent of the thread
@@ -157,7 +181,8 @@ impl SupernodalSolve {
     /// per row of the (unpermuted) system.
     /// `symbolic` is the factor's symbolic analysis this plan was made for.
     pub fn solve(&mut self, symbolic: &SymbolicCholesky<usize>, values: &[f64], rhs: &mut [Point]) {
-        let structure = Structure::of(symbolic).expect("the plan of a supernodal factor");
+        let mut structure = Structure::of(symbolic).expect("the plan of a supernodal factor");
+        structure.prefetch = self.prefetch;
         let forward = symbolic.perm().map(|p| p.arrays().0);
         self.permute_in(forward, rhs);
         self.forward_substitution(&structure, values);
@@ -200,7 +225,8 @@ impl SupernodalSolve {
         rhs: &mut [Point],
         clock: &dyn Fn() -> f64,
     ) -> [f64; 4] {
-        let structure = Structure::of(symbolic).expect("the plan of a supernodal factor");
+        let mut structure = Structure::of(symbolic).expect("the plan of a supernodal factor");
+        structure.prefetch = self.prefetch;
         let forward = symbolic.perm().map(|p| p.arrays().0);
         let t0 = clock();
         self.permute_in(forward, rhs);
@@ -211,6 +237,23 @@ impl SupernodalSolve {
         let t3 = clock();
         self.permute_out(forward, rhs);
         [t1 - t0, t2 - t1, t3 - t2, clock() - t3]
+    }
+
+    /// The stored values of the top of the tree and of each bin, for
+    /// `solve_profile.rs`.
+    #[cfg(test)]
+    pub fn split_values(&self, symbolic: &SymbolicCholesky<usize>) -> [usize; 3] {
+        let structure = Structure::of(symbolic).expect("a supernodal factor");
+        let values = |list: &[usize]| -> usize {
+            list.iter()
+                .map(|&s| structure.value_ptr[s + 1] - structure.value_ptr[s])
+                .sum()
+        };
+        [
+            values(&self.split.top),
+            values(&self.split.bins[0]),
+            values(&self.split.bins[1]),
+        ]
     }
 
     /// The supernodes by width class `(widest width, count, values of the
@@ -262,7 +305,7 @@ impl SupernodalSolve {
         vectorized(
             #[inline(always)]
             |simd| {
-                let mut below = Below::split(below, simd);
+                let mut below = Below::split(below, simd, structure.prefetch);
                 for &s in &split.top {
                     let first = structure.begin[s];
                     structure.forward_supernode(values, s, x, first, Some, &mut below, |_, _| {});
@@ -285,8 +328,11 @@ impl SupernodalSolve {
         vectorized(
             #[inline(always)]
             |simd| {
-                let mut below = Below::split(below, simd);
-                for &s in split.top.iter().rev() {
+                let mut below = Below::split(below, simd, structure.prefetch);
+                for (i, &s) in split.top.iter().enumerate().rev() {
+                    if i > 0 && below.prefetches() {
+                        structure.prefetch_backward_start(values, split.top[i - 1], &below);
+                    }
                     let first = structure.begin[s];
                     structure.backward_supernode(values, s, x, first, Some, &mut below, |_| {
                         Point::zeros()
@@ -355,7 +401,7 @@ impl Structure<'_> {
         vectorized(
             #[inline(always)]
             |simd| {
-                let mut below = Below::split(below, simd);
+                let mut below = Below::split(below, simd, self.prefetch);
                 for &s in &split.bins[bin] {
                     let first = split.slot[self.begin[s]] as usize;
                     self.forward_supernode(
@@ -394,8 +440,11 @@ impl Structure<'_> {
         vectorized(
             #[inline(always)]
             |simd| {
-                let mut below = Below::split(below, simd);
-                for &s in split.bins[bin].iter().rev() {
+                let mut below = Below::split(below, simd, self.prefetch);
+                for (i, &s) in split.bins[bin].iter().enumerate().rev() {
+                    if i > 0 && below.prefetches() {
+                        self.prefetch_backward_start(values, split.bins[bin][i - 1], &below);
+                    }
                     let first = split.slot[self.begin[s]] as usize;
                     self.backward_supernode(values, s, local, first, locate, &mut below, |row| {
                         x[row]
@@ -403,6 +452,19 @@ impl Structure<'_> {
                 }
             },
         );
+    }
+
+    /// Prefetches what supernode `s`'s backward step reads first: its row
+    /// indices and its first two columns' rows below the diagonal block.
+    #[inline(always)]
+    fn prefetch_backward_start(&self, values: &[f64], s: usize, below: &Below) {
+        let c = self.end[s] - self.begin[s];
+        let r = self.row_len[s];
+        let ld = c + r;
+        let start = self.value_ptr[s];
+        for j in 0..c.min(2) {
+            below.prefetch(values, start + j * ld + c, r);
+        }
     }
 
     /// Supernode `s`'s forward step on `x`, where its columns start at
@@ -484,6 +546,10 @@ impl Structure<'_> {
         let top = &mut x[first..first + c];
         below.subtract_products(block, ld, c, top, r);
         for j in (0..c).rev() {
+            // The next column's rows under the diagonal.
+            if below.prefetches() && j > 0 && c >= WIDE_DIAGONAL {
+                below.prefetch(block, (j - 1) * ld + j, c - j);
+            }
             let column = &block[j * ld..(j + 1) * ld];
             let mut sum = top[j];
             for (i, &l) in column[j + 1..c].iter().enumerate() {
@@ -493,3 +559,7 @@ impl Structure<'_> {
         }
     }
 }
+
+#[cfg(test)]
+#[path = "supernodal_solve_tests.rs"]
+mod tests;
