@@ -103,6 +103,9 @@ pub(crate) struct BodyContact {
     in_needed: Vec<bool>,
     /// The per-step broad phase (`candidates.rs`).
     candidates: Candidates,
+    /// The vertices with a pair after this iteration's detection, in
+    /// increasing order ([`BodyContact::detect`]).
+    paired: Vec<usize>,
     /// Per vertex, its pair's shared compliance and the counts it was taken
     /// with (`bodies_forces.rs`); cleared with the pairs' weights.
     compliances: Vec<Option<([u32; 4], f64)>>,
@@ -116,6 +119,13 @@ pub(crate) struct BodyContact {
     /// step ([`listed::StartHit`]), filled with `start_planes`.
     start_hits: Vec<listed::StartHit>,
     start_planes_fresh: bool,
+    /// The step's live entries ([`listed::LiveEntry`]), vertex by vertex:
+    /// vertex `v`'s are `live[live_of[v].0..live_of[v].1]`; the vertices
+    /// with any, in increasing order, are `live_vertices`. Filled with
+    /// `start_planes`.
+    live: Vec<listed::LiveEntry>,
+    live_of: Vec<(u32, u32)>,
+    live_vertices: Vec<usize>,
 }
 
 /// A body's surface for [`BodyContact::new`]: its triangles in global
@@ -180,6 +190,7 @@ impl BodyContact {
             neighbourhood,
             pairs: vec![None; rest.len()],
             compliances: vec![None; rest.len()],
+            paired: Vec::new(),
             count: vec![0; rest.len()],
             grid: Grid::default(),
             boxes: Vec::new(),
@@ -187,6 +198,9 @@ impl BodyContact {
             start_planes: Vec::new(),
             start_hits: Vec::new(),
             start_planes_fresh: false,
+            live: Vec::new(),
+            live_of: Vec::new(),
+            live_vertices: Vec::new(),
         }
     }
 
@@ -252,23 +266,29 @@ impl BodyContact {
 
     /// Detects new pairs for the free surface vertices without one (the
     /// linearised swept test of [`BodyContact::first_hit`]), then counts
-    /// every vertex's contacts; `collider` says which vertices hold a
-    /// collider contact; `motion` is the largest `|dx|_inf` (m).
+    /// every vertex's contacts and lists the vertices with a pair
+    /// (`paired`, for [`BodyContact::apply`]); `collider` lists the
+    /// vertices holding a collider contact (each once); `motion` is the
+    /// largest `|dx|_inf` (m).
     pub fn detect(
         &mut self,
         x_n: &[Point],
         dx: &[Point],
         (thickness, motion): (f64, f64),
-        collider: impl Fn(usize) -> bool,
+        collider: &[usize],
     ) {
         if !self.detect_listed_fast(x_n, dx, (thickness, motion)) {
             self.detect_with_boxes(x_n, dx, thickness);
         }
-        for (v, c) in self.count.iter_mut().enumerate() {
-            *c = u32::from(collider(v));
+        // Counts are integers: the order they are taken in changes nothing.
+        self.count.iter_mut().for_each(|c| *c = 0);
+        for &v in collider {
+            self.count[v] = 1;
         }
+        self.paired.clear();
         for (v, pair) in self.pairs.iter().enumerate() {
             let Some(p) = pair else { continue };
+            self.paired.push(v);
             self.count[v] += 1;
             for (&i, &w) in self.faces[p.face].vertices.iter().zip(&p.weights) {
                 self.count[i] += u32::from(w != 0.0);
@@ -399,7 +419,10 @@ impl BodyContact {
     /// Updates every pair's force (one projected Uzawa step at the iterate
     /// `x_n + dx`) and adds it to `rhs` at the free vertices (`free_index`,
     /// `usize::MAX` for fixed ones). In the first iteration a warm force is
-    /// applied as it is.
+    /// applied as it is. Runs after this iteration's
+    /// [`BodyContact::detect`], whose list of the vertices with a pair
+    /// (`paired`, in increasing order: the forces reach `rhs` in the order
+    /// of a pass over all vertices) it visits.
     #[allow(clippy::too_many_arguments)]
     pub fn apply(
         &mut self,
@@ -410,7 +433,8 @@ impl BodyContact {
         free_index: &[usize],
         rhs: &mut [Point],
     ) {
-        for v in 0..self.pairs.len() {
+        for k in 0..self.paired.len() {
+            let v = self.paired[k];
             let Some(mut pair) = self.pairs[v] else {
                 continue;
             };

@@ -7,8 +7,9 @@
 use pd_mesh::Point;
 
 use super::super::candidates::Surface;
+use super::super::end_plane::surely_beyond;
 use super::super::grid::{cell_index, cell_size, query_end};
-use super::{BodyContact, Pair, inside, plane_of, project_onto};
+use super::{BodyContact, Pair, inside, project_onto};
 
 /// What a candidate entry's start plane tells of its crossings in every
 /// iteration of a step (docs/contact.md, "Fifth round"). When the vertex
@@ -204,6 +205,17 @@ impl BodyContact {
     }
 }
 
+/// A candidate entry that can give a pair in this step (it has a start
+/// plane and is not [`StartHit::Never`]), with what the step's start told
+/// of it ([`BodyContact::fill_start_planes`]): the fast detection visits
+/// these only, in the lists' order.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct LiveEntry {
+    face: usize,
+    plane: (Point, f64),
+    known: StartHit,
+}
+
 /// Two candidates of one vertex hit at the same fraction (or at fractions
 /// that do not compare): the winner is the grid's visiting order, which
 /// only [`BodyContact::first_listed_hit`] knows.
@@ -286,13 +298,14 @@ impl BodyContact {
         }
         let mut cell = None;
         // A vertex with an empty list finds nothing; a listed one is on a
-        // surface and free, so it searches if it has no pair.
-        for k in 0..self.candidates.listed().len() {
-            let v = self.candidates.listed()[k];
+        // surface and free, so it searches if it has no pair. Only the
+        // vertices with a live entry (`fill_start_planes`) can find one.
+        for k in 0..self.live_vertices.len() {
+            let v = self.live_vertices[k];
             if self.pairs[v].is_some() {
                 continue;
             }
-            self.pairs[v] = match self.first_listed_hit_fast(v, x_n, dx, thickness) {
+            let found = match self.first_listed_hit_fast(v, x_n, dx, thickness) {
                 Ok(pair) => pair,
                 Err(Tie) => {
                     let cell = *cell.get_or_insert_with(|| {
@@ -302,6 +315,11 @@ impl BodyContact {
                     self.first_listed_hit(v, x_n, dx, (thickness, cell))
                 }
             };
+            // The slot is empty: written only when a pair is found (the
+            // store of a 100-byte `None` over `None` was a hot spot).
+            if found.is_some() {
+                self.pairs[v] = found;
+            }
         }
         true
     }
@@ -321,15 +339,11 @@ impl BodyContact {
         let query = (a.inf(&b) - m, a.sup(&b) + m);
         let widen = Point::repeat(thickness + self.reach);
         let mut best: Option<(f64, Pair)> = None;
-        for e in self.candidates.entries(v) {
-            let Some(start_plane) = self.start_planes[e] else {
-                continue;
-            };
-            let known = self.start_hits[e];
-            if let StartHit::Never = known {
-                continue;
-            }
-            let f = self.candidates.face(e);
+        // Only the live entries: the others (no start plane, or never hit)
+        // were skipped here entry by entry before (`fill_start_planes`).
+        let (from, to) = self.live_of[v];
+        for live in &self.live[from as usize..to as usize] {
+            let (f, start_plane, known) = (live.face, live.plane, live.known);
             let face = self.faces[f];
             let [i, j, k] = face.vertices;
             let [p, q, r] = [self.segments[i], self.segments[j], self.segments[k]];
@@ -380,10 +394,15 @@ impl BodyContact {
         self.start_hits.clear();
         (self.start_hits).resize(self.candidates.entry_count(), StartHit::Unknown);
         self.needed.clear();
+        self.live.clear();
+        self.live_vertices.clear();
+        self.live_of.clear();
+        self.live_of.resize(x_n.len(), (0, 0));
         for &v in self.candidates.listed() {
             if self.pairs[v].is_some() {
                 continue;
             }
+            let from = self.live.len();
             for e in self.candidates.entries(v) {
                 let face = self.faces[self.candidates.face(e)];
                 let [i, j, k] = face.vertices;
@@ -397,12 +416,23 @@ impl BodyContact {
                 if let StartHit::Never = self.start_hits[e] {
                     continue;
                 }
+                self.live.push(LiveEntry {
+                    face: self.candidates.face(e),
+                    plane,
+                    known: self.start_hits[e],
+                });
                 for i in face.vertices {
                     if !self.in_needed[i] {
                         self.in_needed[i] = true;
                         self.needed.push(i);
                     }
                 }
+            }
+            // Counts far below `u32::MAX`: at most the entries of the lists,
+            // which `Candidates::build` keeps below it.
+            if self.live.len() > from {
+                self.live_of[v] = (from as u32, self.live.len() as u32);
+                self.live_vertices.push(v);
             }
         }
         for &i in &self.needed {
@@ -425,9 +455,22 @@ impl BodyContact {
         b: &Point,
         thickness: f64,
     ) -> Option<f64> {
-        let (n1, _) = plane_of(end, b)?;
+        // `plane_of(end, b)`'s operations written out, so that the
+        // pre-test (`end_plane.rs`) reads the same cross product and
+        // `b - end[0]` and, where it can tell, spares the square root and
+        // the divisions of a vertex that ends beyond the thickness.
+        let cross = (end[1] - end[0]).cross(&(end[2] - end[0]));
+        let area2 = cross.norm_squared();
+        if !(area2 > 0.0) {
+            return None;
+        }
+        let q = b - end[0];
+        if surely_beyond(&cross, area2, &q, &n0, thickness) {
+            return None;
+        }
+        let n1 = cross / area2.sqrt();
         let n1 = if n1.dot(&n0) >= 0.0 { n1 } else { -n1 };
-        let d1 = n1.dot(&(b - end[0]));
+        let d1 = n1.dot(&q);
         if d1 >= thickness {
             return None;
         }
