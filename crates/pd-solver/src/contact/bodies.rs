@@ -119,11 +119,11 @@ pub(crate) struct BodyContact {
     /// step ([`listed::StartHit`]), filled with `start_planes`.
     start_hits: Vec<listed::StartHit>,
     start_planes_fresh: bool,
-    /// The step's live entries ([`listed::LiveEntry`]), vertex by vertex:
+    /// The step's live entries ([`live::LiveEntry`]), vertex by vertex:
     /// vertex `v`'s are `live[live_of[v].0..live_of[v].1]`; the vertices
     /// with any, in increasing order, are `live_vertices`. Filled with
     /// `start_planes`.
-    live: Vec<listed::LiveEntry>,
+    live: Vec<live::LiveEntry>,
     live_of: Vec<(u32, u32)>,
     live_vertices: Vec<usize>,
 }
@@ -598,6 +598,8 @@ fn project_onto(t: &[Point; 3], p: &Point) -> Option<([f64; 3], Point, f64)> {
 mod forces;
 #[path = "bodies_listed.rs"]
 mod listed;
+#[path = "bodies_live.rs"]
+mod live;
 #[cfg(test)]
 #[path = "bodies_tests.rs"]
 mod tests;
