@@ -103,8 +103,7 @@ pub(crate) struct BodyContact {
     in_needed: Vec<bool>,
     /// The per-step broad phase (`candidates.rs`).
     candidates: Candidates,
-    /// The vertices with a pair after this iteration's detection, in
-    /// increasing order ([`BodyContact::detect`]).
+    /// The vertices with a pair after this iteration's detection, in order.
     paired: Vec<usize>,
     /// Per vertex, its pair's shared compliance and the counts it was taken
     /// with (`bodies_forces.rs`); cleared with the pairs' weights.
@@ -119,10 +118,8 @@ pub(crate) struct BodyContact {
     /// step ([`listed::StartHit`]), filled with `start_planes`.
     start_hits: Vec<listed::StartHit>,
     start_planes_fresh: bool,
-    /// The step's live entries ([`live::LiveEntry`]), vertex by vertex:
-    /// vertex `v`'s are `live[live_of[v].0..live_of[v].1]`; the vertices
-    /// with any, in increasing order, are `live_vertices`. Filled with
-    /// `start_planes`.
+    /// The step's live entries ([`live::LiveEntry`]): `v`'s in the range
+    /// `live_of[v]`; the vertices with any, in order, `live_vertices`.
     live: Vec<live::LiveEntry>,
     live_of: Vec<(u32, u32)>,
     live_vertices: Vec<usize>,
@@ -266,10 +263,9 @@ impl BodyContact {
 
     /// Detects new pairs for the free surface vertices without one (the
     /// linearised swept test of [`BodyContact::first_hit`]), then counts
-    /// every vertex's contacts and lists the vertices with a pair
-    /// (`paired`, for [`BodyContact::apply`]); `collider` lists the
-    /// vertices holding a collider contact (each once); `motion` is the
-    /// largest `|dx|_inf` (m).
+    /// every vertex's contacts and lists the paired vertices (`paired`);
+    /// `collider` lists the vertices holding a collider contact (each
+    /// once); `motion` is the largest `|dx|_inf` (m).
     pub fn detect(
         &mut self,
         x_n: &[Point],
@@ -419,10 +415,8 @@ impl BodyContact {
     /// Updates every pair's force (one projected Uzawa step at the iterate
     /// `x_n + dx`) and adds it to `rhs` at the free vertices (`free_index`,
     /// `usize::MAX` for fixed ones). In the first iteration a warm force is
-    /// applied as it is. Runs after this iteration's
-    /// [`BodyContact::detect`], whose list of the vertices with a pair
-    /// (`paired`, in increasing order: the forces reach `rhs` in the order
-    /// of a pass over all vertices) it visits.
+    /// applied as it is. Visits `paired` of this iteration's `detect`, in
+    /// order (the forces reach `rhs` as in a pass over all vertices).
     #[allow(clippy::too_many_arguments)]
     pub fn apply(
         &mut self,

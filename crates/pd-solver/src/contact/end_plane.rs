@@ -22,9 +22,9 @@
 //!   subnormal range, where absolute errors of `2^-1074` would count.)
 //! - *The distance.* The computed `d1` is within `7.3 u |q|_2` of `sigma (c
 //!   . q) / |c|`, and `H`, the computed `sigma (c . q)`, within `3.1 u |c|
-//!   |q|_2` of it; so `d1 >= H / |c| - 10.4 u |q|_2`. With `S = thickness
-//!   + 1e-12 |q|_1` (`|q|_1 >= |q|_2`; `1e-12` is about 9000 `u`), `H > 0`
-//!   and `H^2 >= S^2 |c|^2` give `d1 >= thickness`. The test compares the
+//!   |q|_2` of it; so `d1 >= H / |c| - 10.4 u |q|_2`. With
+//!   `S = thickness + 1e-12 |q|_1` (`|q|_1 >= |q|_2`; `1e-12` is about
+//!   9000 `u`), `H > 0` and `H^2 >= S^2 |c|^2` give `d1 >= thickness`. The test compares the
 //!   computed `H^2` with `S^2 |c|^2 (1 + 1e-12)`, the factor covering the
 //!   few roundings of both sides (each within `4 u` relative); both sides
 //!   must be finite and `H^2 >= 1e-250` (no overflow, no underflow in the
