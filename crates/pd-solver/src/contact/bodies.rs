@@ -118,11 +118,6 @@ pub(crate) struct BodyContact {
     /// step ([`listed::StartHit`]), filled with `start_planes`.
     start_hits: Vec<listed::StartHit>,
     start_planes_fresh: bool,
-    /// The step's live entries ([`live::LiveEntry`]): `v`'s in the range
-    /// `live_of[v]`; the vertices with any, in order, `live_vertices`.
-    live: Vec<live::LiveEntry>,
-    live_of: Vec<(u32, u32)>,
-    live_vertices: Vec<usize>,
 }
 
 /// A body's surface for [`BodyContact::new`]: its triangles in global
@@ -195,9 +190,6 @@ impl BodyContact {
             start_planes: Vec::new(),
             start_hits: Vec::new(),
             start_planes_fresh: false,
-            live: Vec::new(),
-            live_of: Vec::new(),
-            live_vertices: Vec::new(),
         }
     }
 
@@ -592,8 +584,6 @@ fn project_onto(t: &[Point; 3], p: &Point) -> Option<([f64; 3], Point, f64)> {
 mod forces;
 #[path = "bodies_listed.rs"]
 mod listed;
-#[path = "bodies_live.rs"]
-mod live;
 #[cfg(test)]
 #[path = "bodies_tests.rs"]
 mod tests;
