@@ -103,6 +103,8 @@ pub(crate) struct BodyContact {
     in_needed: Vec<bool>,
     /// The per-step broad phase (`candidates.rs`).
     candidates: Candidates,
+    /// The vertices with a pair after this iteration's detection, in order.
+    paired: Vec<usize>,
     /// Per vertex, its pair's shared compliance and the counts it was taken
     /// with (`bodies_forces.rs`); cleared with the pairs' weights.
     compliances: Vec<Option<([u32; 4], f64)>>,
@@ -180,6 +182,7 @@ impl BodyContact {
             neighbourhood,
             pairs: vec![None; rest.len()],
             compliances: vec![None; rest.len()],
+            paired: Vec::new(),
             count: vec![0; rest.len()],
             grid: Grid::default(),
             boxes: Vec::new(),
@@ -252,23 +255,28 @@ impl BodyContact {
 
     /// Detects new pairs for the free surface vertices without one (the
     /// linearised swept test of [`BodyContact::first_hit`]), then counts
-    /// every vertex's contacts; `collider` says which vertices hold a
-    /// collider contact; `motion` is the largest `|dx|_inf` (m).
+    /// every vertex's contacts and lists the paired vertices (`paired`);
+    /// `collider` lists the vertices holding a collider contact (each
+    /// once); `motion` is the largest `|dx|_inf` (m).
     pub fn detect(
         &mut self,
         x_n: &[Point],
         dx: &[Point],
         (thickness, motion): (f64, f64),
-        collider: impl Fn(usize) -> bool,
+        collider: &[usize],
     ) {
         if !self.detect_listed_fast(x_n, dx, (thickness, motion)) {
             self.detect_with_boxes(x_n, dx, thickness);
         }
-        for (v, c) in self.count.iter_mut().enumerate() {
-            *c = u32::from(collider(v));
+        // Counts are integers: the order they are taken in changes nothing.
+        self.count.iter_mut().for_each(|c| *c = 0);
+        for &v in collider {
+            self.count[v] = 1;
         }
+        self.paired.clear();
         for (v, pair) in self.pairs.iter().enumerate() {
             let Some(p) = pair else { continue };
+            self.paired.push(v);
             self.count[v] += 1;
             for (&i, &w) in self.faces[p.face].vertices.iter().zip(&p.weights) {
                 self.count[i] += u32::from(w != 0.0);
@@ -399,7 +407,8 @@ impl BodyContact {
     /// Updates every pair's force (one projected Uzawa step at the iterate
     /// `x_n + dx`) and adds it to `rhs` at the free vertices (`free_index`,
     /// `usize::MAX` for fixed ones). In the first iteration a warm force is
-    /// applied as it is.
+    /// applied as it is. Visits `paired` of this iteration's `detect`, in
+    /// order (the forces reach `rhs` as in a pass over all vertices).
     #[allow(clippy::too_many_arguments)]
     pub fn apply(
         &mut self,
@@ -410,7 +419,8 @@ impl BodyContact {
         free_index: &[usize],
         rhs: &mut [Point],
     ) {
-        for v in 0..self.pairs.len() {
+        for k in 0..self.paired.len() {
+            let v = self.paired[k];
             let Some(mut pair) = self.pairs[v] else {
                 continue;
             };

@@ -7,8 +7,9 @@
 use pd_mesh::Point;
 
 use super::super::candidates::Surface;
+use super::super::end_plane::surely_beyond;
 use super::super::grid::{cell_index, cell_size, query_end};
-use super::{BodyContact, Pair, inside, plane_of, project_onto};
+use super::{BodyContact, Pair, inside, project_onto};
 
 /// What a candidate entry's start plane tells of its crossings in every
 /// iteration of a step (docs/contact.md, "Fifth round"). When the vertex
@@ -292,7 +293,7 @@ impl BodyContact {
             if self.pairs[v].is_some() {
                 continue;
             }
-            self.pairs[v] = match self.first_listed_hit_fast(v, x_n, dx, thickness) {
+            let found = match self.first_listed_hit_fast(v, x_n, dx, thickness) {
                 Ok(pair) => pair,
                 Err(Tie) => {
                     let cell = *cell.get_or_insert_with(|| {
@@ -302,6 +303,11 @@ impl BodyContact {
                     self.first_listed_hit(v, x_n, dx, (thickness, cell))
                 }
             };
+            // The slot is empty: written only when a pair is found (the
+            // store of a 100-byte `None` over `None` was a hot spot).
+            if found.is_some() {
+                self.pairs[v] = found;
+            }
         }
         true
     }
@@ -425,9 +431,22 @@ impl BodyContact {
         b: &Point,
         thickness: f64,
     ) -> Option<f64> {
-        let (n1, _) = plane_of(end, b)?;
+        // `plane_of(end, b)`'s operations written out, so that the
+        // pre-test (`end_plane.rs`) reads the same cross product and
+        // `b - end[0]` and, where it can tell, spares the square root and
+        // the divisions of a vertex that ends beyond the thickness.
+        let cross = (end[1] - end[0]).cross(&(end[2] - end[0]));
+        let area2 = cross.norm_squared();
+        if !(area2 > 0.0) {
+            return None;
+        }
+        let q = b - end[0];
+        if surely_beyond(&cross, area2, &q, &n0, thickness) {
+            return None;
+        }
+        let n1 = cross / area2.sqrt();
         let n1 = if n1.dot(&n0) >= 0.0 { n1 } else { -n1 };
-        let d1 = n1.dot(&(b - end[0]));
+        let d1 = n1.dot(&q);
         if d1 >= thickness {
             return None;
         }

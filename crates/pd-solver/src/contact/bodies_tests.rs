@@ -390,3 +390,97 @@ fn start_plane_verdicts_are_the_grid_detection_bit_for_bit() {
         "{hits} hits, {inside} inside, {never} never"
     );
 }
+
+/// The counts taken from the list of collider contacts, and the pair
+/// updates over the list of paired vertices (`BodyContact::detect` and
+/// `apply`, sixth round), are those of a pass over every vertex, bit for
+/// bit: sheets sinking onto each other with random forces, a third of the
+/// vertices holding a collider contact, several pairs adding into one
+/// right-hand-side entry (the order of the additions shows in the bits).
+#[test]
+fn listed_counts_and_pair_updates_are_a_pass_over_every_vertex() {
+    let (n, thickness) = (6, 0.01);
+    let mut rng = Lcg(5);
+    let (mut updated, mut shared) = (0, 0);
+    for trial in 0..12 {
+        let shift = if trial % 2 == 0 { 0.0 } else { 0.037 };
+        let (mut rest, lower) = sheet(n, 0.0, 0.0, 0);
+        let (upper_points, upper) = sheet(n, 0.004, shift, n * n);
+        rest.extend(upper_points);
+        let mut bodies = two_sheets(&rest, [lower, upper], true, false, thickness);
+        let x_n: Vec<Point> = rest
+            .iter()
+            .map(|p| p + Point::new(rng.next(), rng.next(), rng.next()) * 1e-4)
+            .collect();
+        let dx: Vec<Point> = (0..rest.len())
+            .map(|v| {
+                let down = if v >= n * n { -0.004 } else { 0.0 };
+                Point::new(0.0, down, 0.0) + Point::new(rng.next(), rng.next(), rng.next()) * 1e-3
+            })
+            .collect();
+        bodies.begin_step(&x_n);
+        let collider: Vec<usize> = (0..rest.len()).filter(|v| v % 3 == trial % 3).collect();
+        for first in [true, false] {
+            bodies.detect(&x_n, &dx, (thickness, largest_motion(&dx)), &collider);
+            // Counts: a pass over every vertex, as before.
+            let mut count: Vec<u32> = (0..rest.len())
+                .map(|v| u32::from(collider.contains(&v)))
+                .collect();
+            for (v, pair) in bodies.pairs.iter().enumerate() {
+                let Some(p) = pair else { continue };
+                count[v] += 1;
+                for (&i, &w) in bodies.faces[p.face].vertices.iter().zip(&p.weights) {
+                    count[i] += u32::from(w != 0.0);
+                }
+            }
+            assert_eq!(bodies.count, count, "trial {trial}");
+            shared += count.iter().filter(|&&c| c > 1).count();
+            // Random forces, some warm.
+            for pair in bodies.pairs.iter_mut().flatten() {
+                pair.force = Point::new(rng.next(), rng.next(), rng.next());
+                pair.warm = rng.next() > 0.0;
+            }
+            // The update as a pass over every vertex.
+            let mut reference = bodies.clone();
+            let free_index: Vec<usize> = (0..rest.len()).collect();
+            let mut expected = vec![Point::new(0.1, 0.2, 0.3); rest.len()];
+            let settings = (0.01, 1.5, thickness);
+            for v in 0..rest.len() {
+                let Some(mut pair) = reference.pairs[v] else {
+                    continue;
+                };
+                let tri = reference.faces[pair.face].vertices;
+                if !(first && pair.warm) {
+                    let compliance = settings.0
+                        * settings.0
+                        * reference.compliance(v, &tri, &pair.weights, true);
+                    let x = |i: usize| x_n[i] + dx[i];
+                    let r = x(v) - (0..3).map(|k| x(tri[k]) * pair.weights[k]).sum::<Point>();
+                    pair.force =
+                        reference.update_force(&pair, &r, settings.1 / compliance, thickness);
+                    updated += 1;
+                }
+                forces::add_pair_force(&free_index, &mut expected, v, &tri, &pair);
+                reference.pairs[v] = Some(pair);
+            }
+            let mut rhs = vec![Point::new(0.1, 0.2, 0.3); rest.len()];
+            bodies.apply(&x_n, &dx, settings, first, &free_index, &mut rhs);
+            let bits = |p: &[Point]| -> Vec<u64> {
+                p.iter()
+                    .flat_map(|q| q.iter().map(|c| c.to_bits()))
+                    .collect()
+            };
+            assert_eq!(bits(&rhs), bits(&expected), "trial {trial}");
+            assert_eq!(
+                format!("{:?}", bodies.pairs),
+                format!("{:?}", reference.pairs),
+                "trial {trial}"
+            );
+        }
+    }
+    // Not vacuous: pairs were updated and vertices shared contacts.
+    assert!(
+        updated > 100 && shared > 50,
+        "{updated} updated, {shared} shared"
+    );
+}

@@ -185,10 +185,12 @@ impl ContactState {
                 }
             }
         }
-        let slots = &self.slots;
+        // `occupied` holds every vertex with a slot: fixed vertices never
+        // get one, and a vertex with a slot is never skipped (its
+        // clearance is `-inf`).
         if let Some(bodies) = &mut self.bodies {
             let thickness = self.settings.thickness;
-            bodies.detect(x_n, dx, (thickness, motion), |v| slots[v].is_some());
+            bodies.detect(x_n, dx, (thickness, motion), &self.occupied);
         }
     }
 }

@@ -22,6 +22,7 @@
 mod bodies;
 mod candidates;
 mod clearance;
+mod end_plane;
 mod forces;
 mod geometry;
 mod grid;
