@@ -1,4 +1,5 @@
-//! `[solver] predictor`: read as written, reported at its field path, and
+//! `[solver] predictor` (and the fitted predictor's `predictor_order` and
+//! `predictor_window`): read as written, reported at their field path, and
 //! carried through a checkpoint file so that a resumed run continues bit
 //! for bit.
 
@@ -48,17 +49,67 @@ fn an_unknown_predictor_names_the_field() {
     );
 }
 
-/// The predictor's corrections go through the checkpoint file with every
-/// bit: a simulation restored from the file continues as the saved one.
 #[test]
-fn a_checkpoint_file_keeps_the_corrections() {
-    let table = "[solver]\nmethod = \"anderson\"\npredictor = \"linear\"";
-    let mut a = parse(table).unwrap().build().unwrap();
-    a.run(3).unwrap();
+fn order_and_window_are_read_as_written() {
+    let fitted = |extra: &str| {
+        parse(&format!("[solver]\npredictor = \"fitted\"\n{extra}"))
+            .unwrap()
+            .predictor
+    };
+    assert_eq!(fitted(""), Predictor::FITTED);
+    let at = |order, equations| Predictor::Fitted { order, equations };
+    assert_eq!(fitted("predictor_order = 3"), at(3, 6));
+    assert_eq!(fitted("predictor_order = 12"), at(12, 24));
+    assert_eq!(
+        fitted("predictor_order = 3\npredictor_window = 3"),
+        at(3, 3)
+    );
+    assert_eq!(fitted("predictor_window = 20"), at(4, 20));
+    let s = parse("[solver]\npredictor = \"fitted\"\npredictor_order = 5").unwrap();
+    assert_eq!(s.build().unwrap().predictor(), at(5, 10));
+}
+
+#[test]
+fn bad_keys_name_their_field() {
+    for (extra, field) in [
+        (
+            "predictor = \"fitted\"\npredictor_order = 0",
+            "solver.predictor_order",
+        ),
+        (
+            "predictor = \"fitted\"\npredictor_order = 13",
+            "solver.predictor_order",
+        ),
+        (
+            "predictor = \"fitted\"\npredictor_order = 4\npredictor_window = 3",
+            "solver.predictor_window",
+        ),
+        (
+            "predictor = \"fitted\"\npredictor_window = 25",
+            "solver.predictor_window",
+        ),
+        (
+            "predictor = \"linear\"\npredictor_order = 4",
+            "solver.predictor_order",
+        ),
+        ("predictor_window = 4", "solver.predictor_window"),
+    ] {
+        let error = parse(&format!("[solver]\n{extra}"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            error.starts_with(&format!("s.toml: {field}: ")),
+            "{extra}: {error}"
+        );
+    }
+}
+
+/// Saves `a`'s checkpoint through a checkpoint file and checks that a
+/// simulation restored from the file continues as `a` for 3 steps, bit for
+/// bit; `tag` names the temporary directory.
+fn resumes_through_a_file(table: &str, mut a: pd_solver::Simulation, tag: &str) {
     let saved = a.checkpoint();
-    assert_eq!(saved.predictor.correction.len(), 4);
-    assert_eq!(saved.predictor.previous.len(), 4);
-    let dir = std::env::temp_dir().join(format!("pd-io-predictor-{}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!("pd-io-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("checkpoint.json");
     let file = CheckpointFile {
@@ -67,7 +118,7 @@ fn a_checkpoint_file_keeps_the_corrections() {
             syntax: Syntax::Toml,
             text: scene(table),
         },
-        steps_requested: 6,
+        steps_requested: 9,
         threads: 1,
         checkpoint_every: 3,
         checkpoint: saved,
@@ -88,4 +139,30 @@ fn a_checkpoint_file_keeps_the_corrections() {
     };
     assert_eq!(bits(a.state()), bits(b.state()));
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The predictor's corrections go through the checkpoint file with every
+/// bit: a simulation restored from the file continues as the saved one.
+#[test]
+fn a_checkpoint_file_keeps_the_corrections() {
+    let table = "[solver]\nmethod = \"anderson\"\npredictor = \"linear\"";
+    let mut a = parse(table).unwrap().build().unwrap();
+    a.run(3).unwrap();
+    let saved = a.checkpoint();
+    assert_eq!(saved.predictor.correction.len(), 4);
+    assert_eq!(saved.predictor.previous.len(), 4);
+    resumes_through_a_file(table, a, "predictor");
+}
+
+/// The fitted predictor's older corrections go through the checkpoint file
+/// with every bit: a simulation restored from the file continues as the
+/// saved one.
+#[test]
+fn a_checkpoint_file_keeps_the_history() {
+    let table = "[solver]\nmethod = \"anderson\"\npredictor = \"fitted\"\n\
+                 predictor_order = 2\npredictor_window = 2";
+    let mut a = parse(table).unwrap().build().unwrap();
+    a.run(6).unwrap();
+    assert_eq!(a.checkpoint().predictor.history.len(), 2);
+    resumes_through_a_file(table, a, "fitted");
 }
