@@ -265,22 +265,9 @@ fn fast_listed_detection_is_the_grid_detection_bit_for_bit() {
                     slow_runs += 1;
                     bodies.detect_with_boxes(&x_n, &dx, thickness);
                 }
-                for (v, expected) in expected.iter().enumerate() {
-                    let Some(expected) = expected else { continue };
-                    assert_eq!(
-                        format!("{:?}", bodies.pairs[v]),
-                        format!("{expected:?}"),
-                        "trial {trial}, step {step}, scale {scale}, vertex {v}"
-                    );
-                    hits += usize::from(expected.is_some());
-                }
-                // Forces on every other pair, so that some are kept into
-                // the next step and the others search again.
-                for (v, pair) in bodies.pairs.iter_mut().enumerate() {
-                    if let Some(p) = pair {
-                        p.force = p.normal * f64::from(u8::from(v % 2 == 0));
-                    }
-                }
+                let context = format!("trial {trial}, step {step}, scale {scale}");
+                hits += matching_hits(&bodies.pairs, &expected, &context);
+                push_every_other_pair(&mut bodies.pairs, 0);
             }
             x_n = x_n.iter().zip(&motion).map(|(x, d)| x + d).collect();
         }
@@ -357,20 +344,9 @@ fn start_plane_verdicts_are_the_grid_detection_bit_for_bit() {
                 } else {
                     bodies.detect_with_boxes(&x_n, &dx, thickness);
                 }
-                for (v, expected) in expected.iter().enumerate() {
-                    let Some(expected) = expected else { continue };
-                    assert_eq!(
-                        format!("{:?}", bodies.pairs[v]),
-                        format!("{expected:?}"),
-                        "trial {trial}, step {step}, scale {scale}, vertex {v}"
-                    );
-                    hits += usize::from(expected.is_some());
-                }
-                for (v, pair) in bodies.pairs.iter_mut().enumerate() {
-                    if let Some(p) = pair {
-                        p.force = p.normal * f64::from(u8::from((v + step) % 2 == 0));
-                    }
-                }
+                let context = format!("trial {trial}, step {step}, scale {scale}");
+                hits += matching_hits(&bodies.pairs, &expected, &context);
+                push_every_other_pair(&mut bodies.pairs, step);
             }
             x_n = x_n.iter().zip(&motion).map(|(x, d)| x + d).collect();
         }
@@ -483,4 +459,36 @@ fn listed_counts_and_pair_updates_are_a_pass_over_every_vertex() {
         updated > 100 && shared > 50,
         "{updated} updated, {shared} shared"
     );
+}
+
+/// Checks every vertex with an expected verdict against `pairs` (as their
+/// debug text, so that every field and bit counts) and returns how many of
+/// them hold a pair.
+fn matching_hits(
+    pairs: &[Option<Pair>],
+    expected: &[Option<Option<Pair>>],
+    context: &str,
+) -> usize {
+    let mut hits = 0;
+    for (v, expected) in expected.iter().enumerate() {
+        let Some(expected) = expected else { continue };
+        assert_eq!(
+            format!("{:?}", pairs[v]),
+            format!("{expected:?}"),
+            "{context}, vertex {v}"
+        );
+        hits += usize::from(expected.is_some());
+    }
+    hits
+}
+
+/// Gives the pair of every other vertex (`(v + parity) % 2 == 0`) a unit
+/// force along its normal and the others none, so that some pairs are kept
+/// into the next step and the others search again.
+fn push_every_other_pair(pairs: &mut [Option<Pair>], parity: usize) {
+    for (v, pair) in pairs.iter_mut().enumerate() {
+        if let Some(p) = pair {
+            p.force = p.normal * f64::from(u8::from((v + parity) % 2 == 0));
+        }
+    }
 }
