@@ -246,13 +246,7 @@ fn fast_listed_detection_is_the_grid_detection_bit_for_bit() {
                 .collect();
             for scale in [1.0, 0.5, 3.0] {
                 let dx: Vec<Point> = motion.iter().map(|d| d * scale).collect();
-                // The reference: the per-iteration grid.
-                let mut grid = bodies.clone();
-                grid.sweep_boxes(&x_n, &dx, thickness);
-                grid.grid.build(&grid.boxes);
-                let expected: Vec<Option<Option<Pair>>> = (0..x_n.len())
-                    .map(|v| (grid.searching(v)).then(|| grid.first_hit(v, &x_n, &dx, thickness)))
-                    .collect();
+                let expected = grid_reference(&bodies, (&x_n, &dx), thickness);
                 if bodies.detect_listed_fast(&x_n, &dx, (thickness, largest_motion(&dx))) {
                     fast_runs += 1;
                     // The vertices whose candidates tied (the segments and
@@ -319,12 +313,7 @@ fn start_plane_verdicts_are_the_grid_detection_bit_for_bit() {
                 .collect();
             for scale in [1.0, 0.5, 2.0] {
                 let dx: Vec<Point> = motion.iter().map(|d| d * scale).collect();
-                let mut grid = bodies.clone();
-                grid.sweep_boxes(&x_n, &dx, thickness);
-                grid.grid.build(&grid.boxes);
-                let expected: Vec<Option<Option<Pair>>> = (0..x_n.len())
-                    .map(|v| (grid.searching(v)).then(|| grid.first_hit(v, &x_n, &dx, thickness)))
-                    .collect();
+                let expected = grid_reference(&bodies, (&x_n, &dx), thickness);
                 // The coverage from the motion bound says yes only where
                 // the full test does.
                 let (on_surface, lists) = (&bodies.on_surface, &mut bodies.candidates);
@@ -459,6 +448,22 @@ fn listed_counts_and_pair_updates_are_a_pass_over_every_vertex() {
         updated > 100 && shared > 50,
         "{updated} updated, {shared} shared"
     );
+}
+
+/// The reference verdicts of an iteration, from the per-iteration grid on
+/// a copy of `bodies`: for each searching vertex its first hit (`None`
+/// for a vertex that does not search).
+fn grid_reference(
+    bodies: &BodyContact,
+    (x_n, dx): (&[Point], &[Point]),
+    thickness: f64,
+) -> Vec<Option<Option<Pair>>> {
+    let mut grid = bodies.clone();
+    grid.sweep_boxes(x_n, dx, thickness);
+    grid.grid.build(&grid.boxes);
+    (0..x_n.len())
+        .map(|v| (grid.searching(v)).then(|| grid.first_hit(v, x_n, dx, thickness)))
+        .collect()
 }
 
 /// Checks every vertex with an expected verdict against `pairs` (as their
