@@ -172,9 +172,8 @@ impl Simulation {
             return key;
         }
         if let Predictor::Fitted { order, equations } = self.predictor {
-            let fit = self.fit_corrections(order.into(), equations.into());
-            if let Some(a) = fit {
-                self.apply_fitted(&a);
+            if self.fit_corrections(order.into(), equations.into()) {
+                self.apply_fitted();
                 return key;
             }
         }

@@ -8,13 +8,13 @@
 //! then cycle between the history and [`FitScratch`]'s spares, and the Gram
 //! matrix is kept from step to step ([`GramCache`]), so each step computes
 //! only the inner products of its new correction. The fit itself
-//! ([`fit_recurrence`]) still allocates its small `k x k` matrices
+//! ([`FitWorkspace::fit`]) still allocates a few small `k x k` matrices
 //! (nalgebra's `SymmetricEigen` takes and returns heap matrices): see
 //! `tests/no_allocation_in_step.rs`.
 
 use pd_mesh::Point;
 
-use super::fitted::fit_recurrence;
+use super::fitted::FitWorkspace;
 use super::predictor::{Predictor, PredictorState};
 use crate::Simulation;
 
@@ -27,8 +27,10 @@ pub(crate) struct FitScratch {
     /// The inner products of the stored corrections.
     gram: GramCache,
     /// The Gram matrix of the stored corrections, `rows x rows` row-major,
-    /// as [`fit_recurrence`] takes it.
+    /// as [`FitWorkspace::fit`] takes it.
     compact: Vec<f64>,
+    /// The fit's buffers; its coefficients those of the step's start.
+    work: FitWorkspace,
 }
 
 /// The mass-weighted inner products `<c_p, c_q>_M` (kg m^2) of the stored
@@ -238,11 +240,12 @@ impl Simulation {
         self.scratch.fit.gram.forget();
     }
 
-    /// The fitted recurrence's coefficients for the stored corrections, if
-    /// at least `2 order` are stored (fitted over `order` to `equations`
-    /// steps as the history grows) and the fit is good
-    /// ([`Predictor::FIT_RESIDUAL_LIMIT`]).
-    pub(crate) fn fit_corrections(&mut self, order: usize, equations: usize) -> Option<Vec<f64>> {
+    /// Fits the recurrence to the stored corrections and returns whether
+    /// the step starts from it: if at least `2 order` are stored (fitted
+    /// over `order` to `equations` steps as the history grows) and the fit
+    /// is good ([`Predictor::FIT_RESIDUAL_LIMIT`]); the coefficients are
+    /// then in the scratch's workspace, for [`Simulation::apply_fitted`].
+    pub(crate) fn fit_corrections(&mut self, order: usize, equations: usize) -> bool {
         let fit = &mut self.scratch.fit;
         let stride = order + equations;
         let rows = fit
@@ -251,17 +254,19 @@ impl Simulation {
         // Until the history is full, fit fewer equations (at least `order`).
         let equations = rows.saturating_sub(order).min(equations);
         if equations < order {
-            return None;
+            return false;
         }
         fit.gram.write_full(&mut fit.compact);
-        let fit = fit_recurrence(&fit.compact, order, equations)?;
-        (fit.relative_residual <= Predictor::FIT_RESIDUAL_LIMIT).then_some(fit.coefficients)
+        fit.work
+            .fit(&fit.compact, order, equations)
+            .is_some_and(|residual| residual <= Predictor::FIT_RESIDUAL_LIMIT)
     }
 
     /// Moves the step's start from `y` to `y + sum_j a_j c_{n+1-j}`
-    /// (fixed vertices stay).
-    pub(crate) fn apply_fitted(&mut self, coefficients: &[f64]) {
+    /// (fixed vertices stay), `a` from the last [`Simulation::fit_corrections`].
+    pub(crate) fn apply_fitted(&mut self) {
         let fixed = self.model.fixed();
+        let coefficients = self.scratch.fit.work.coefficients();
         let dx = &mut self.scratch.iteration.displacement;
         self.scratch.predicted = true;
         for (a, c) in coefficients
@@ -429,7 +434,7 @@ mod tests {
             }
             // The fit is used (else the test compares little).
             assert_eq!(cached.scratch.fit.gram.rows, 12);
-            assert!(cached.fit_corrections(4, 8).is_some());
+            assert!(cached.fit_corrections(4, 8));
         }
     }
 }
