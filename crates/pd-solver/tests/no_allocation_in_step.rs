@@ -3,7 +3,9 @@
 //! lagged models, recomputed into preallocated buffers).
 //!
 //! A counting global allocator counts heap allocations made by this thread
-//! and the pool's workers while steps run. Implementing `GlobalAlloc` is
+//! and the pool's workers while steps run (by every thread of the process,
+//! so the file holds one `#[test]`, whose parts run one after the other,
+//! and the simulations are never dropped). Implementing `GlobalAlloc` is
 //! unsafe by nature; this file is the one place the workspace allows it.
 #![allow(unsafe_code)]
 
