@@ -151,7 +151,7 @@ impl Simulation {
             return Err(invalid(reason));
         }
         self.state = checkpoint.state.clone();
-        self.predictor_state = checkpoint.predictor.clone();
+        self.replace_predictor_state(checkpoint.predictor.clone());
         self.steps = checkpoint.steps;
         self.time = checkpoint.time;
         self.divergence.reference = checkpoint.energy_reference;

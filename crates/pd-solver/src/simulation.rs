@@ -287,7 +287,7 @@ impl Simulation {
             }
         }
         self.integrator.reset();
-        self.predictor_state = crate::step::PredictorState::default();
+        self.replace_predictor_state(crate::step::PredictorState::default());
         self.reset_energy_reference();
         Ok(())
     }

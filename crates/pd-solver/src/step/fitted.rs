@@ -45,62 +45,123 @@ const EIGENVALUE_CUT: f64 = 1e-10;
 /// zero norm. The caller decides from
 /// [`RecurrenceFit::relative_residual`] whether the fit is good enough.
 pub fn fit_recurrence(gram: &[f64], order: usize, equations: usize) -> Option<RecurrenceFit> {
-    let len = (gram.len() as f64).sqrt() as usize;
-    let (k, m) = (order, equations);
-    if len * len != gram.len() || k == 0 || m < k || len < m + k {
-        return None;
-    }
-    if !gram.iter().all(|g| g.is_finite()) {
-        return None;
-    }
-    let h = |p: usize, q: usize| gram[p * len + q];
-    // Normal equations G a = b over the m equations t = 0..m: the
-    // unknown a_j multiplies c_{n-t-j}.
-    let mut g = nalgebra::DMatrix::<f64>::zeros(k, k);
-    let mut b = nalgebra::DVector::<f64>::zeros(k);
-    let mut norm = 0.0;
-    for t in 0..m {
-        norm += h(t, t);
-        for i in 0..k {
-            b[i] += h(t + 1 + i, t);
-            for j in 0..k {
-                g[(i, j)] += h(t + 1 + i, t + 1 + j);
-            }
-        }
-    }
-    let scale: Vec<f64> = (0..k).map(|i| g[(i, i)].sqrt()).collect();
-    if norm <= 0.0 || scale.iter().any(|&s| s <= 0.0 || !s.is_finite()) {
-        return None;
-    }
-    // Jacobi scaling, then a truncated eigen-decomposition.
-    let scaled = nalgebra::DMatrix::from_fn(k, k, |i, j| g[(i, j)] / (scale[i] * scale[j]));
-    let rhs = nalgebra::DVector::from_fn(k, |i, _| b[i] / scale[i]);
-    let eigen = nalgebra::SymmetricEigen::new(scaled);
-    let largest = eigen.eigenvalues.iter().fold(0.0_f64, |a, &l| a.max(l));
-    if largest <= 0.0 || !largest.is_finite() {
-        return None;
-    }
-    let mut solution = nalgebra::DVector::<f64>::zeros(k);
-    for (l, v) in eigen
-        .eigenvalues
-        .iter()
-        .zip(eigen.eigenvectors.column_iter())
-    {
-        if *l > EIGENVALUE_CUT * largest {
-            solution += v * (v.dot(&rhs) / l);
-        }
-    }
-    let coefficients: Vec<f64> = (0..k).map(|i| solution[i] / scale[i]).collect();
-    let a = nalgebra::DVector::from_column_slice(&coefficients);
-    let residual = norm - 2.0 * a.dot(&b) + (&g * &a).dot(&a);
-    let relative_residual = (residual.max(0.0) / norm).sqrt();
-    if !relative_residual.is_finite() || coefficients.iter().any(|a| !a.is_finite()) {
-        return None;
-    }
+    let mut work = FitWorkspace::default();
+    let relative_residual = work.fit(gram, order, equations)?;
     Some(RecurrenceFit {
-        coefficients,
+        coefficients: work.coefficients().to_vec(),
         relative_residual,
     })
+}
+
+/// The buffers of one fit, kept between fits of the same order so that a
+/// fit allocates only what nalgebra's eigen-decomposition takes and returns
+/// (its input matrix, its internal buffers and `G a` of the residual).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct FitWorkspace {
+    /// The normal matrix `G` (`k x k`) and right-hand side `b`.
+    g: nalgebra::DMatrix<f64>,
+    b: nalgebra::DVector<f64>,
+    /// `sqrt(G_ii)`, the Jacobi scaling.
+    scale: Vec<f64>,
+    /// `b_i / scale_i`.
+    rhs: nalgebra::DVector<f64>,
+    /// The scaled system's truncated solution.
+    solution: nalgebra::DVector<f64>,
+    /// The coefficients `a`.
+    a: nalgebra::DVector<f64>,
+}
+
+impl FitWorkspace {
+    /// Zeroes the accumulators, sized for order `k` (allocates only when
+    /// `k` changes).
+    fn reset(&mut self, k: usize) {
+        if self.scale.len() != k {
+            self.g = nalgebra::DMatrix::zeros(k, k);
+            self.b = nalgebra::DVector::zeros(k);
+            self.scale = vec![0.0; k];
+            self.rhs = nalgebra::DVector::zeros(k);
+            self.solution = nalgebra::DVector::zeros(k);
+            self.a = nalgebra::DVector::zeros(k);
+        }
+        self.g.fill(0.0);
+        self.b.fill(0.0);
+        self.solution.fill(0.0);
+    }
+
+    /// The coefficients `a_1 .. a_k` of the last successful
+    /// [`FitWorkspace::fit`].
+    pub fn coefficients(&self) -> &[f64] {
+        self.a.as_slice()
+    }
+
+    /// [`fit_recurrence`] into this workspace: returns the relative
+    /// residual, the coefficients in [`FitWorkspace::coefficients`].
+    pub fn fit(&mut self, gram: &[f64], order: usize, equations: usize) -> Option<f64> {
+        let len = (gram.len() as f64).sqrt() as usize;
+        let (k, m) = (order, equations);
+        if len * len != gram.len() || k == 0 || m < k || len < m + k {
+            return None;
+        }
+        if !gram.iter().all(|g| g.is_finite()) {
+            return None;
+        }
+        self.reset(k);
+        let h = |p: usize, q: usize| gram[p * len + q];
+        // Normal equations G a = b over the m equations t = 0..m: the
+        // unknown a_j multiplies c_{n-t-j}.
+        let (g, b) = (&mut self.g, &mut self.b);
+        let mut norm = 0.0;
+        for t in 0..m {
+            norm += h(t, t);
+            for i in 0..k {
+                b[i] += h(t + 1 + i, t);
+                for j in 0..k {
+                    g[(i, j)] += h(t + 1 + i, t + 1 + j);
+                }
+            }
+        }
+        for (i, s) in self.scale.iter_mut().enumerate() {
+            *s = g[(i, i)].sqrt();
+        }
+        let scale = &self.scale;
+        if norm <= 0.0 || scale.iter().any(|&s| s <= 0.0 || !s.is_finite()) {
+            return None;
+        }
+        // Jacobi scaling, then a truncated eigen-decomposition.
+        let scaled = nalgebra::DMatrix::from_fn(k, k, |i, j| g[(i, j)] / (scale[i] * scale[j]));
+        for (i, r) in self.rhs.iter_mut().enumerate() {
+            *r = b[i] / scale[i];
+        }
+        let eigen = nalgebra::SymmetricEigen::new(scaled);
+        let largest = eigen.eigenvalues.iter().fold(0.0_f64, |a, &l| a.max(l));
+        if largest <= 0.0 || !largest.is_finite() {
+            return None;
+        }
+        for (l, v) in eigen
+            .eigenvalues
+            .iter()
+            .zip(eigen.eigenvectors.column_iter())
+        {
+            if *l > EIGENVALUE_CUT * largest {
+                // `solution += v * s`, element by element: the same
+                // products and sums, without the temporary vector.
+                let s = v.dot(&self.rhs) / l;
+                for (x, v) in self.solution.iter_mut().zip(v.iter()) {
+                    *x += v * s;
+                }
+            }
+        }
+        for (i, a) in self.a.iter_mut().enumerate() {
+            *a = self.solution[i] / scale[i];
+        }
+        let a = &self.a;
+        let residual = norm - 2.0 * a.dot(b) + (&*g * a).dot(a);
+        let relative_residual = (residual.max(0.0) / norm).sqrt();
+        if !relative_residual.is_finite() || a.iter().any(|a| !a.is_finite()) {
+            return None;
+        }
+        Some(relative_residual)
+    }
 }
 
 #[cfg(test)]

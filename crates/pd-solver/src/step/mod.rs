@@ -70,6 +70,8 @@ pub(crate) struct Scratch {
     pub predicted: bool,
     /// The predicted start while the inertial one is evaluated.
     pub predicted_start: Vec<Point>,
+    /// The fitted predictor's buffers and Gram cache (step/predictor_fit.rs).
+    pub fit: predictor_fit::FitScratch,
 }
 
 impl Scratch {
@@ -84,6 +86,7 @@ impl Scratch {
             forces: vec![Point::zeros(); vertices],
             predicted: false,
             predicted_start: Vec::new(),
+            fit: predictor_fit::FitScratch::default(),
         }
     }
 }

@@ -102,7 +102,7 @@ impl Predictor {
     }
 
     /// How many corrections the predictor keeps (the newest included).
-    fn history_len(self) -> usize {
+    pub(crate) fn history_len(self) -> usize {
         match self {
             Predictor::Inertial => 0,
             Predictor::Extrapolated => 1,
@@ -146,7 +146,7 @@ impl Simulation {
     /// step starts at `y`.
     pub fn set_predictor(&mut self, predictor: Predictor) {
         self.predictor = predictor;
-        self.predictor_state = PredictorState::default();
+        self.replace_predictor_state(PredictorState::default());
     }
 
     /// Where each step's iteration starts.
@@ -172,9 +172,8 @@ impl Simulation {
             return key;
         }
         if let Predictor::Fitted { order, equations } = self.predictor {
-            let fit = self.fit_corrections(order.into(), equations.into());
-            if let Some(a) = fit {
-                self.apply_fitted(&a);
+            if self.fit_corrections(order.into(), equations.into()) {
+                self.apply_fitted();
                 return key;
             }
         }
@@ -203,16 +202,26 @@ impl Simulation {
         if self.predictor == Predictor::Inertial {
             return;
         }
-        let fixed = self.model.fixed();
-        let s = &self.scratch;
+        self.size_start_buffers();
         let state = &mut self.predictor_state;
         let same_kind = state.key.map(f64::to_bits) == key.map(f64::to_bits);
         if self.predictor == Predictor::Linear && same_kind && !state.correction.is_empty() {
             std::mem::swap(&mut state.previous, &mut state.correction);
         } else if matches!(self.predictor, Predictor::Fitted { .. }) {
-            state.shift_history(same_kind, self.predictor.history_len());
+            self.shift_fitted_history(same_kind);
         } else {
             state.previous.clear();
+        }
+        let fixed = self.model.fixed();
+        let s = &self.scratch;
+        let state = &mut self.predictor_state;
+        if self.predictor == Predictor::Linear {
+            // The buffer `previous` becomes `correction` at the next step of
+            // the same kind: sized now (once), not then.
+            let n = s.iteration.displacement.len();
+            state
+                .previous
+                .reserve(n.saturating_sub(state.previous.len()));
         }
         let correction = &mut state.correction;
         correction.resize(s.iteration.displacement.len(), Point::zeros());
@@ -225,6 +234,25 @@ impl Simulation {
             *c = if fixed { Point::zeros() } else { dx - y };
         }
         self.predictor_state.key = key;
+    }
+
+    /// Sizes the buffers of [`keep_the_better_start`] (first used in the
+    /// first predicted step, which may come several steps after the first:
+    /// BDF-2's third) in the first step that stores a correction, so that
+    /// no later step allocates. Their contents are scratch.
+    fn size_start_buffers(&mut self) {
+        let chunks = self.local.num_chunks();
+        let s = &mut self.scratch;
+        let b = &mut s.iteration;
+        if b.partials.len() != chunks {
+            b.partials = vec![pd_constraints::EnergyBound::default(); chunks];
+        }
+        let rows = b.projections.len();
+        b.spare_projections
+            .reserve(rows.saturating_sub(b.spare_projections.len()));
+        let n = b.displacement.len();
+        s.predicted_start
+            .reserve(n.saturating_sub(s.predicted_start.len()));
     }
 
     /// Checks a checkpoint's stored correction against this simulation
