@@ -6,7 +6,7 @@
 
 use pd_mesh::Point;
 
-use super::super::candidates::Surface;
+use super::super::candidates::{Surface, apart};
 use super::super::end_plane::surely_beyond;
 use super::super::grid::{cell_index, cell_size, query_end};
 use super::{BodyContact, Pair, inside, project_onto};
@@ -33,20 +33,6 @@ pub(super) enum StartHit {
     /// A crossing that passes the end-plane test is a pair with these
     /// weights and normal (turned to the start normal's side).
     Inside([f64; 3], Point),
-}
-
-/// Whether two boxes `(min, max)` are apart (a strict gap on some axis):
-/// all six comparisons, combined without short-circuit, so that the test
-/// is one branch, not up to six that depend on the data (the most
-/// mispredicted of the candidate loop).
-pub(super) fn apart(a: &(Point, Point), b: &(Point, Point)) -> bool {
-    let ((a_lo, a_hi), (b_lo, b_hi)) = (a, b);
-    (a_hi[0] < b_lo[0])
-        | (a_lo[0] > b_hi[0])
-        | (a_hi[1] < b_lo[1])
-        | (a_lo[1] > b_hi[1])
-        | (a_hi[2] < b_lo[2])
-        | (a_lo[2] > b_hi[2])
 }
 
 impl BodyContact {
@@ -134,8 +120,8 @@ impl BodyContact {
             // Every vertex that may search while the lists last, pair or
             // not: a pair is dropped at a step's start, and the lists
             // outlive the step.
-            listed: &|v| self.body_of[v] != usize::MAX && !self.fixed[v],
-            admits: &|v, f| self.admits(v, f),
+            listed: |v: usize| self.body_of[v] != usize::MAX && !self.fixed[v],
+            admits: |v: usize, f: usize| self.admits(v, f),
         };
         let margin = thickness + self.reach;
         let covered = candidates.build(
