@@ -419,24 +419,31 @@ impl BodyContact {
         free_index: &[usize],
         rhs: &mut [Point],
     ) {
+        // The pair is read in place and only its force written back (a
+        // copy of the 100-byte pair in and out was a third of the loop),
+        // and the triangle's point is summed inline (`weighted`, the
+        // iterator sum's operations).
         for k in 0..self.paired.len() {
             let v = self.paired[k];
-            let Some(mut pair) = self.pairs[v] else {
+            let Some(pair) = &self.pairs[v] else {
                 continue;
             };
+            let (weights, warm) = (pair.weights, pair.warm);
+            let mut force = pair.force;
             let tri = self.faces[pair.face].vertices;
-            if !(first && pair.warm) {
-                let compliance = h * h * self.shared_compliance(v, &tri, &pair.weights);
+            if !(first && warm) {
+                let compliance = h * h * self.shared_compliance(v, &tri, &weights);
                 if compliance > 0.0 {
                     let x = |i: usize| x_n[i] + dx[i];
-                    let r = x(v) - (0..3).map(|k| x(tri[k]) * pair.weights[k]).sum::<Point>();
-                    pair.force = self.update_force(&pair, &r, omega / compliance, thickness);
+                    let r = x(v) - weighted([x(tri[0]), x(tri[1]), x(tri[2])], &weights);
+                    if let Some(pair) = &self.pairs[v] {
+                        force = self.update_force(pair, &r, omega / compliance, thickness);
+                    }
                 }
             }
-            forces::add_pair_force(free_index, rhs, v, &tri, &pair);
-            // Only the force changed.
+            forces::add_pair_force(free_index, rhs, v, &tri, (&weights, force));
             if let Some(p) = &mut self.pairs[v] {
-                p.force = pair.force;
+                p.force = force;
             }
         }
     }
@@ -546,6 +553,15 @@ impl BodyContact {
         }
         (active, deepest)
     }
+}
+
+/// `sum_k p_k w_k` with the operations of the iterator sum
+/// `(0..3).map(|k| p[k] * w[k]).sum::<Point>()` (nalgebra's `Sum` folds
+/// from zero: `((0 + a) + b) + c`, the `0 +` kept: it turns a `-0` into
+/// `+0`), written out so that it is inlined.
+#[inline]
+fn weighted(p: [Point; 3], w: &[f64; 3]) -> Point {
+    Point::zeros() + p[0] * w[0] + p[1] * w[1] + p[2] * w[2]
 }
 
 /// The plane of triangle `t`: `(b - a) x (c - a)`, its squared length and

@@ -49,27 +49,28 @@ impl BodyContact {
         for (v, pair) in self.pairs.iter().enumerate() {
             let Some(pair) = pair else { continue };
             let tri = self.faces[pair.face].vertices;
-            add_pair_force(free_index, rhs, v, &tri, pair);
+            add_pair_force(free_index, rhs, v, &tri, (&pair.weights, pair.force));
         }
     }
 }
 
-/// A pair's force into `rhs` at the free vertices (`free_index`): `f` at
-/// vertex `v`, `-w_i f` at the triangle `tri`'s vertices.
+/// A pair's force `force` into `rhs` at the free vertices (`free_index`):
+/// `f` at vertex `v`, `-w_i f` at the triangle `tri`'s vertices (weights
+/// `w`).
 pub(super) fn add_pair_force(
     free_index: &[usize],
     rhs: &mut [Point],
     v: usize,
     tri: &[usize; 3],
-    pair: &Pair,
+    (weights, force): (&[f64; 3], Point),
 ) {
     let mut add = |i: usize, f: Point| {
         if free_index[i] != usize::MAX {
             rhs[free_index[i]] += f;
         }
     };
-    add(v, pair.force);
-    for (&i, &w) in tri.iter().zip(&pair.weights) {
-        add(i, -pair.force * w);
+    add(v, force);
+    for (&i, &w) in tri.iter().zip(weights) {
+        add(i, -force * w);
     }
 }

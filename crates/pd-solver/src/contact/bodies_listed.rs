@@ -122,6 +122,16 @@ impl BodyContact {
             // outlive the step.
             listed: |v: usize| self.body_of[v] != usize::MAX && !self.fixed[v],
             admits: |v: usize, f: usize| self.admits(v, f),
+            group: &|f| self.faces[f].body,
+            // `admits` with `f` of body `g`: another body's with `between`,
+            // its own with self-contact (then per triangle).
+            queried: |v: usize, g: usize| {
+                if g == self.body_of[v] {
+                    self.neighbourhood.is_some()
+                } else {
+                    self.between
+                }
+            },
         };
         let margin = thickness + self.reach;
         let covered = candidates.build(

@@ -425,7 +425,13 @@ fn listed_counts_and_pair_updates_are_a_pass_over_every_vertex() {
                         reference.update_force(&pair, &r, settings.1 / compliance, thickness);
                     updated += 1;
                 }
-                forces::add_pair_force(&free_index, &mut expected, v, &tri, &pair);
+                forces::add_pair_force(
+                    &free_index,
+                    &mut expected,
+                    v,
+                    &tri,
+                    (&pair.weights, pair.force),
+                );
                 reference.pairs[v] = Some(pair);
             }
             let mut rhs = vec![Point::new(0.1, 0.2, 0.3); rest.len()];
@@ -496,4 +502,36 @@ fn push_every_other_pair(pairs: &mut [Option<Pair>], parity: usize) {
             p.force = p.normal * f64::from(u8::from((v + parity) % 2 == 0));
         }
     }
+}
+
+/// The inline weighted sum of the pair updates is the iterator sum bit for
+/// bit, signed zeros included (a sum without the leading `0 +` gives `-0`
+/// where the iterator gives `+0`, and fails here).
+#[test]
+fn weighted_sum_is_the_iterator_sum_bit_for_bit() {
+    let values = [0.0, -0.0, 1.5, -2.25, 1e-300, -3.0e10, 0.1];
+    let mut compared = 0;
+    for (a, &x) in values.iter().enumerate() {
+        for &y in &values {
+            for &w in &[0.0, -0.0, 0.25, -1.0, 0.7] {
+                let p = [
+                    Point::new(x, y, -0.0),
+                    Point::new(y, -0.0, x),
+                    Point::new(-0.0, x * 0.5, y),
+                ];
+                let weights = [w, 1.0 - w, values[(a + 3) % values.len()]];
+                let iterator = (0..3).map(|k| p[k] * weights[k]).sum::<Point>();
+                let inline = weighted(p, &weights);
+                for k in 0..3 {
+                    assert_eq!(
+                        inline[k].to_bits(),
+                        iterator[k].to_bits(),
+                        "{p:?} {weights:?}"
+                    );
+                }
+                compared += 1;
+            }
+        }
+    }
+    assert_eq!(compared, 245);
 }

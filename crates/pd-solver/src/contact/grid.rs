@@ -41,9 +41,15 @@ pub(super) struct Grid {
 impl Grid {
     /// Rebuilds the grid over `boxes` (`(min, max)` per item, m).
     pub fn build(&mut self, boxes: &[(Point, Point)]) {
+        self.build_with_cell(boxes, cell_size(boxes));
+    }
+
+    /// [`Grid::build`] with a given cell size (m, positive and finite; at
+    /// least every box's extent for the overlap bound of the type's docs),
+    /// e.g. one shared by several grids.
+    pub fn build_with_cell(&mut self, boxes: &[(Point, Point)], cell: f64) {
         self.keys.clear();
-        self.cell = cell_size(boxes);
-        let cell = self.cell;
+        self.cell = cell;
         self.spans.clear();
         (self.spans).extend(
             boxes
@@ -64,11 +70,6 @@ impl Grid {
             }
         }
         self.keys.sort_unstable();
-    }
-
-    /// The cell size of the last build, m.
-    pub fn cell(&self) -> f64 {
-        self.cell
     }
 
     /// The dense table, if its range is small enough; `false` otherwise.
