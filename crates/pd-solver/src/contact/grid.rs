@@ -129,14 +129,23 @@ impl Grid {
 
     /// Calls `f(start, item, linear cell)` for every (cell, item) key, in
     /// item order.
+    ///
+    /// Every span lies in the table's range (its bounds were taken from the
+    /// spans), so the linear index of cell `a + (di, dj, dk)` is that of
+    /// `a` plus `(di n_1 + dj) n_2 + dk`, integers without overflow (the
+    /// range's cell count fits a `usize`): the values of
+    /// [`Grid::linear`] per cell, without its checks.
     fn for_each_key(&mut self, mut f: impl FnMut(&mut [u32], u32, usize)) {
+        let (n1, n2) = (self.dims[1] as usize, self.dims[2] as usize);
         for item in 0..self.spans.len() {
             let (a, b) = self.spans[item];
-            for i in a[0]..=b[0] {
-                for j in a[1]..=b[1] {
-                    for k in a[2]..=b[2] {
-                        let l = self.linear([i, j, k]).unwrap_or(0);
-                        f(&mut self.start, item as u32, l);
+            let base = self.linear(a).unwrap_or(0);
+            let span = |d: usize| (b[d] - a[d]) as usize;
+            for di in 0..=span(0) {
+                for dj in 0..=span(1) {
+                    let row = base + (di * n1 + dj) * n2;
+                    for dk in 0..=span(2) {
+                        f(&mut self.start, item as u32, row + dk);
                     }
                 }
             }
