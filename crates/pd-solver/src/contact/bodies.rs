@@ -118,6 +118,15 @@ pub(crate) struct BodyContact {
     /// step ([`listed::StartHit`]), filled with `start_planes`.
     start_hits: Vec<listed::StartHit>,
     start_planes_fresh: bool,
+    /// The counts and `paired` are those of the current pairs and
+    /// collider contacts (`bodies_counts.rs`): false at a step's start and
+    /// after a restore.
+    counted: bool,
+    /// Per vertex, whether its collider contact is in `count`.
+    has_collider: Vec<bool>,
+    /// The vertices that got a pair in this iteration's detection, in
+    /// increasing order.
+    found: Vec<usize>,
 }
 
 /// A body's surface for [`BodyContact::new`]: its triangles in global
@@ -190,6 +199,9 @@ impl BodyContact {
             start_planes: Vec::new(),
             start_hits: Vec::new(),
             start_planes_fresh: false,
+            counted: false,
+            has_collider: vec![false; rest.len()],
+            found: Vec::new(),
         }
     }
 
@@ -206,6 +218,7 @@ impl BodyContact {
         self.compliances.iter_mut().for_each(|c| *c = None);
         self.candidates.valid = false;
         self.start_planes_fresh = false;
+        self.counted = false;
         for c in saved {
             self.pairs[c.vertex] = Some(Pair {
                 face: c.other,
@@ -228,6 +241,7 @@ impl BodyContact {
     pub fn begin_step(&mut self, x_n: &[Point]) {
         self.candidates.begin_step(x_n, &self.on_surface);
         self.start_planes_fresh = false;
+        self.counted = false;
         self.compliances.iter_mut().for_each(|c| *c = None);
         for (v, pair) in self.pairs.iter_mut().enumerate() {
             let Some(p) = pair.filter(Pair::active) else {
@@ -265,23 +279,11 @@ impl BodyContact {
         (thickness, motion): (f64, f64),
         collider: &[usize],
     ) {
+        self.found.clear();
         if !self.detect_listed_fast(x_n, dx, (thickness, motion)) {
             self.detect_with_boxes(x_n, dx, thickness);
         }
-        // Counts are integers: the order they are taken in changes nothing.
-        self.count.iter_mut().for_each(|c| *c = 0);
-        for &v in collider {
-            self.count[v] = 1;
-        }
-        self.paired.clear();
-        for (v, pair) in self.pairs.iter().enumerate() {
-            let Some(p) = pair else { continue };
-            self.paired.push(v);
-            self.count[v] += 1;
-            for (&i, &w) in self.faces[p.face].vertices.iter().zip(&p.weights) {
-                self.count[i] += u32::from(w != 0.0);
-            }
-        }
+        self.count_contacts(collider);
     }
 
     /// The earliest admitted triangle ([`BodyContact::admits`]) that the segment `x_n[v] ->
@@ -596,6 +598,8 @@ fn project_onto(t: &[Point; 3], p: &Point) -> Option<([f64; 3], Point, f64)> {
     Some(([1.0 - w1 - w2, w1, w2], normal, distance))
 }
 
+#[path = "bodies_counts.rs"]
+mod counts;
 #[path = "bodies_forces.rs"]
 mod forces;
 #[path = "bodies_listed.rs"]

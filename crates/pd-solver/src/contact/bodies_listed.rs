@@ -48,6 +48,9 @@ impl BodyContact {
             for v in 0..x_n.len() {
                 if self.searching(v) {
                     self.pairs[v] = self.first_listed_hit(v, x_n, dx, (thickness, cell));
+                    if self.pairs[v].is_some() {
+                        self.found.push(v);
+                    }
                 }
             }
         } else {
@@ -55,6 +58,9 @@ impl BodyContact {
             for v in 0..x_n.len() {
                 if self.searching(v) {
                     self.pairs[v] = self.first_hit(v, x_n, dx, thickness);
+                    if self.pairs[v].is_some() {
+                        self.found.push(v);
+                    }
                 }
             }
         }
@@ -303,6 +309,7 @@ impl BodyContact {
             // store of a 100-byte `None` over `None` was a hot spot).
             if found.is_some() {
                 self.pairs[v] = found;
+                self.found.push(v);
             }
         }
         true
