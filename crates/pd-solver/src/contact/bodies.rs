@@ -127,6 +127,11 @@ pub(crate) struct BodyContact {
     /// The vertices that got a pair in this iteration's detection, in
     /// increasing order.
     found: Vec<usize>,
+    /// The step's live entries ([`live::LiveEntry`]): `v`'s in the range
+    /// `live_of[v]`; the vertices with any, in order, `live_vertices`.
+    live: Vec<live::LiveEntry>,
+    live_of: Vec<(u32, u32)>,
+    live_vertices: Vec<usize>,
 }
 
 /// A body's surface for [`BodyContact::new`]: its triangles in global
@@ -202,6 +207,9 @@ impl BodyContact {
             counted: false,
             has_collider: vec![false; rest.len()],
             found: Vec::new(),
+            live: Vec::new(),
+            live_of: Vec::new(),
+            live_vertices: Vec::new(),
         }
     }
 
@@ -604,6 +612,8 @@ mod counts;
 mod forces;
 #[path = "bodies_listed.rs"]
 mod listed;
+#[path = "bodies_live.rs"]
+mod live;
 #[cfg(test)]
 #[path = "bodies_tests.rs"]
 mod tests;

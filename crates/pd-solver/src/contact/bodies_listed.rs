@@ -289,9 +289,10 @@ impl BodyContact {
         }
         let mut cell = None;
         // A vertex with an empty list finds nothing; a listed one is on a
-        // surface and free, so it searches if it has no pair.
-        for k in 0..self.candidates.listed().len() {
-            let v = self.candidates.listed()[k];
+        // surface and free, so it searches if it has no pair. Only the
+        // vertices with a live entry (`fill_start_planes`) can find one.
+        for k in 0..self.live_vertices.len() {
+            let v = self.live_vertices[k];
             if self.pairs[v].is_some() {
                 continue;
             }
@@ -330,15 +331,11 @@ impl BodyContact {
         let query = (a.inf(&b) - m, a.sup(&b) + m);
         let widen = Point::repeat(thickness + self.reach);
         let mut best: Option<(f64, Pair)> = None;
-        for e in self.candidates.entries(v) {
-            let Some(start_plane) = self.start_planes[e] else {
-                continue;
-            };
-            let known = self.start_hits[e];
-            if let StartHit::Never = known {
-                continue;
-            }
-            let f = self.candidates.face(e);
+        // Only the live entries: the others (no start plane, or never hit)
+        // were skipped here entry by entry before (`fill_start_planes`).
+        let (from, to) = self.live_of[v];
+        for live in &self.live[from as usize..to as usize] {
+            let (f, start_plane, known) = (live.face, live.plane, live.known);
             let face = self.faces[f];
             let [i, j, k] = face.vertices;
             let [p, q, r] = [self.segments[i], self.segments[j], self.segments[k]];
@@ -374,50 +371,6 @@ impl BodyContact {
             }
         }
         Ok(best.map(|(_, p)| p))
-    }
-
-    /// Each candidate entry's start plane for this step
-    /// ([`BodyContact::start_plane`]: it depends on `x_n` only), for the
-    /// vertices with candidates and without a pair (pairs are dropped only
-    /// at a step's start or a restore, which clear `start_planes_fresh`,
-    /// so no other vertex searches before the next fill), and the
-    /// vertices of their candidates (`needed`).
-    fn fill_start_planes(&mut self, x_n: &[Point], thickness: f64) {
-        self.start_planes.clear();
-        self.start_planes
-            .resize(self.candidates.entry_count(), None);
-        self.start_hits.clear();
-        (self.start_hits).resize(self.candidates.entry_count(), StartHit::Unknown);
-        self.needed.clear();
-        for &v in self.candidates.listed() {
-            if self.pairs[v].is_some() {
-                continue;
-            }
-            for e in self.candidates.entries(v) {
-                let face = self.faces[self.candidates.face(e)];
-                let [i, j, k] = face.vertices;
-                let start = [x_n[i], x_n[j], x_n[k]];
-                let plane = self.start_plane(&face, &start, &x_n[v], thickness);
-                self.start_planes[e] = plane;
-                let Some(plane) = plane else { continue };
-                // An entry without a start plane or never hit reads no
-                // segment box.
-                self.start_hits[e] = start_hit(plane, &start, &x_n[v], thickness);
-                if let StartHit::Never = self.start_hits[e] {
-                    continue;
-                }
-                for i in face.vertices {
-                    if !self.in_needed[i] {
-                        self.in_needed[i] = true;
-                        self.needed.push(i);
-                    }
-                }
-            }
-        }
-        for &i in &self.needed {
-            self.in_needed[i] = false;
-        }
-        self.start_planes_fresh = true;
     }
 }
 
@@ -463,7 +416,12 @@ impl BodyContact {
 
 /// What the start plane `(n0, d0)` of the triangle `start` and the vertex
 /// at `a` tells of the step's crossings ([`StartHit`]).
-fn start_hit((n0, d0): (Point, f64), start: &[Point; 3], a: &Point, thickness: f64) -> StartHit {
+pub(super) fn start_hit(
+    (n0, d0): (Point, f64),
+    start: &[Point; 3],
+    a: &Point,
+    thickness: f64,
+) -> StartHit {
     let kept = |p: &Point| p.iter().all(|&c| c.to_bits() != (-0.0_f64).to_bits());
     if !(d0 <= thickness && kept(a) && start.iter().all(kept)) {
         return StartHit::Unknown;
