@@ -445,7 +445,7 @@ impl BodyContact {
                 let compliance = h * h * self.shared_compliance(v, &tri, &weights);
                 if compliance > 0.0 {
                     let x = |i: usize| x_n[i] + dx[i];
-                    let r = x(v) - weighted([x(tri[0]), x(tri[1]), x(tri[2])], &weights);
+                    let r = x(v) - forces::weighted([x(tri[0]), x(tri[1]), x(tri[2])], &weights);
                     if let Some(pair) = &self.pairs[v] {
                         force = self.update_force(pair, &r, omega / compliance, thickness);
                     }
@@ -545,33 +545,6 @@ impl BodyContact {
             }
         }
     }
-
-    /// Active pairs and the deepest penetration (below the thickness) of
-    /// a pair at `positions`, m.
-    pub fn report(&self, positions: &[Point], thickness: f64) -> (usize, f64) {
-        let mut deepest = 0.0_f64;
-        let mut active = 0;
-        for (v, pair) in self.pairs.iter().enumerate() {
-            let Some(pair) = pair else { continue };
-            active += usize::from(pair.active());
-            let tri = self.faces[pair.face].vertices;
-            let r = positions[v]
-                - (0..3)
-                    .map(|k| positions[tri[k]] * pair.weights[k])
-                    .sum::<Point>();
-            deepest = deepest.max(thickness - pair.normal.dot(&r));
-        }
-        (active, deepest)
-    }
-}
-
-/// `sum_k p_k w_k` with the operations of the iterator sum
-/// `(0..3).map(|k| p[k] * w[k]).sum::<Point>()` (nalgebra's `Sum` folds
-/// from zero: `((0 + a) + b) + c`, the `0 +` kept: it turns a `-0` into
-/// `+0`), written out so that it is inlined.
-#[inline]
-fn weighted(p: [Point; 3], w: &[f64; 3]) -> Point {
-    Point::zeros() + p[0] * w[0] + p[1] * w[1] + p[2] * w[2]
 }
 
 /// The plane of triangle `t`: `(b - a) x (c - a)`, its squared length and

@@ -13,7 +13,9 @@
 //! so adding the new contacts' terms to the last counts gives the full
 //! pass's integers; `paired` gets the new vertices merged in increasing
 //! order. The first detection of a step (and any after a restore) takes
-//! the full pass.
+//! the full pass. Also the active pairs of a step's report.
+
+use pd_mesh::Point;
 
 use super::BodyContact;
 
@@ -83,5 +85,23 @@ impl BodyContact {
         for (&i, &w) in self.faces[p.face].vertices.iter().zip(&p.weights) {
             self.count[i] += u32::from(w != 0.0);
         }
+    }
+
+    /// Active pairs and the deepest penetration (below the thickness) of
+    /// a pair at `positions`, m.
+    pub fn report(&self, positions: &[Point], thickness: f64) -> (usize, f64) {
+        let mut deepest = 0.0_f64;
+        let mut active = 0;
+        for (v, pair) in self.pairs.iter().enumerate() {
+            let Some(pair) = pair else { continue };
+            active += usize::from(pair.active());
+            let tri = self.faces[pair.face].vertices;
+            let r = positions[v]
+                - (0..3)
+                    .map(|k| positions[tri[k]] * pair.weights[k])
+                    .sum::<Point>();
+            deepest = deepest.max(thickness - pair.normal.dot(&r));
+        }
+        (active, deepest)
     }
 }

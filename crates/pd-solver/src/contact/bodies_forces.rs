@@ -74,3 +74,12 @@ pub(super) fn add_pair_force(
         add(i, -force * w);
     }
 }
+
+/// `sum_k p_k w_k` with the operations of the iterator sum
+/// `(0..3).map(|k| p[k] * w[k]).sum::<Point>()` (nalgebra's `Sum` folds
+/// from zero: `((0 + a) + b) + c`, the `0 +` kept: it turns a `-0` into
+/// `+0`), written out so that it is inlined.
+#[inline]
+pub(super) fn weighted(p: [Point; 3], w: &[f64; 3]) -> Point {
+    Point::zeros() + p[0] * w[0] + p[1] * w[1] + p[2] * w[2]
+}
