@@ -289,7 +289,7 @@ impl BodyContact {
     ) {
         self.found.clear();
         if !self.detect_listed_fast(x_n, dx, (thickness, motion)) {
-            self.detect_with_boxes(x_n, dx, thickness);
+            self.detect_with_boxes(x_n, dx, (thickness, motion));
         }
         self.count_contacts(collider);
     }

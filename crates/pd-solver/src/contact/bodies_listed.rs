@@ -38,12 +38,29 @@ pub(super) enum StartHit {
 impl BodyContact {
     /// The detection of [`BodyContact::detect`] over this iteration's
     /// triangle boxes: against the candidate lists (rebuilt if they do not
-    /// cover the iterate), or the grid if they cannot be built.
-    pub(super) fn detect_with_boxes(&mut self, x_n: &[Point], dx: &[Point], thickness: f64) {
+    /// cover the iterate), or the grid if they cannot be built. Lists just
+    /// rebuilt to cover the iterate go to the fast path
+    /// ([`BodyContact::detect_listed_fast`], the same pairs bit for bit,
+    /// without the sweep of every triangle's box and the cell arithmetic;
+    /// docs/contact.md, "Seventh round"), unless it declines (having
+    /// changed no pair); `motion` is the largest `|dx|_inf` (m).
+    pub(super) fn detect_with_boxes(
+        &mut self,
+        x_n: &[Point],
+        dx: &[Point],
+        (thickness, motion): (f64, f64),
+    ) {
+        // Neither the coverage test nor the build reads this iteration's
+        // boxes: they are swept after them, when needed.
+        let mut listed = self.candidates.covers(x_n, dx, &self.on_surface);
+        if !listed {
+            listed = self.build_candidates(x_n, dx, thickness);
+            if listed && self.detect_listed_fast(x_n, dx, (thickness, motion)) {
+                return;
+            }
+        }
         self.sweep_boxes(x_n, dx, thickness);
-        if self.candidates.covers(x_n, dx, &self.on_surface)
-            || self.build_candidates(x_n, dx, thickness)
-        {
+        if listed {
             let cell = cell_size(&self.boxes);
             for v in 0..x_n.len() {
                 if self.searching(v) {

@@ -257,7 +257,7 @@ fn fast_listed_detection_is_the_grid_detection_bit_for_bit() {
                     }
                 } else {
                     slow_runs += 1;
-                    bodies.detect_with_boxes(&x_n, &dx, thickness);
+                    bodies.detect_with_boxes(&x_n, &dx, (thickness, largest_motion(&dx)));
                 }
                 let context = format!("trial {trial}, step {step}, scale {scale}");
                 hits += matching_hits(&bodies.pairs, &expected, &context);
@@ -331,7 +331,7 @@ fn start_plane_verdicts_are_the_grid_detection_bit_for_bit() {
                         never += usize::from(matches!(known, listed::StartHit::Never));
                     }
                 } else {
-                    bodies.detect_with_boxes(&x_n, &dx, thickness);
+                    bodies.detect_with_boxes(&x_n, &dx, (thickness, largest_motion(&dx)));
                 }
                 let context = format!("trial {trial}, step {step}, scale {scale}");
                 hits += matching_hits(&bodies.pairs, &expected, &context);
