@@ -118,6 +118,20 @@ pub(crate) struct BodyContact {
     /// step ([`listed::StartHit`]), filled with `start_planes`.
     start_hits: Vec<listed::StartHit>,
     start_planes_fresh: bool,
+    /// The counts and `paired` are those of the current pairs and
+    /// collider contacts (`bodies_counts.rs`): false at a step's start and
+    /// after a restore.
+    counted: bool,
+    /// Per vertex, whether its collider contact is in `count`.
+    has_collider: Vec<bool>,
+    /// The vertices that got a pair in this iteration's detection, in
+    /// increasing order.
+    found: Vec<usize>,
+    /// The step's live entries ([`live::LiveEntry`]): `v`'s in the range
+    /// `live_of[v]`; the vertices with any, in order, `live_vertices`.
+    live: Vec<live::LiveEntry>,
+    live_of: Vec<(u32, u32)>,
+    live_vertices: Vec<usize>,
 }
 
 /// A body's surface for [`BodyContact::new`]: its triangles in global
@@ -190,6 +204,12 @@ impl BodyContact {
             start_planes: Vec::new(),
             start_hits: Vec::new(),
             start_planes_fresh: false,
+            counted: false,
+            has_collider: vec![false; rest.len()],
+            found: Vec::new(),
+            live: Vec::new(),
+            live_of: Vec::new(),
+            live_vertices: Vec::new(),
         }
     }
 
@@ -206,6 +226,7 @@ impl BodyContact {
         self.compliances.iter_mut().for_each(|c| *c = None);
         self.candidates.valid = false;
         self.start_planes_fresh = false;
+        self.counted = false;
         for c in saved {
             self.pairs[c.vertex] = Some(Pair {
                 face: c.other,
@@ -228,6 +249,7 @@ impl BodyContact {
     pub fn begin_step(&mut self, x_n: &[Point]) {
         self.candidates.begin_step(x_n, &self.on_surface);
         self.start_planes_fresh = false;
+        self.counted = false;
         self.compliances.iter_mut().for_each(|c| *c = None);
         for (v, pair) in self.pairs.iter_mut().enumerate() {
             let Some(p) = pair.filter(Pair::active) else {
@@ -265,23 +287,11 @@ impl BodyContact {
         (thickness, motion): (f64, f64),
         collider: &[usize],
     ) {
+        self.found.clear();
         if !self.detect_listed_fast(x_n, dx, (thickness, motion)) {
-            self.detect_with_boxes(x_n, dx, thickness);
+            self.detect_with_boxes(x_n, dx, (thickness, motion));
         }
-        // Counts are integers: the order they are taken in changes nothing.
-        self.count.iter_mut().for_each(|c| *c = 0);
-        for &v in collider {
-            self.count[v] = 1;
-        }
-        self.paired.clear();
-        for (v, pair) in self.pairs.iter().enumerate() {
-            let Some(p) = pair else { continue };
-            self.paired.push(v);
-            self.count[v] += 1;
-            for (&i, &w) in self.faces[p.face].vertices.iter().zip(&p.weights) {
-                self.count[i] += u32::from(w != 0.0);
-            }
-        }
+        self.count_contacts(collider);
     }
 
     /// The earliest admitted triangle ([`BodyContact::admits`]) that the segment `x_n[v] ->
@@ -419,24 +429,31 @@ impl BodyContact {
         free_index: &[usize],
         rhs: &mut [Point],
     ) {
+        // The pair is read in place and only its force written back (a
+        // copy of the 100-byte pair in and out was a third of the loop),
+        // and the triangle's point is summed inline (`weighted`, the
+        // iterator sum's operations).
         for k in 0..self.paired.len() {
             let v = self.paired[k];
-            let Some(mut pair) = self.pairs[v] else {
+            let Some(pair) = &self.pairs[v] else {
                 continue;
             };
+            let (weights, warm) = (pair.weights, pair.warm);
+            let mut force = pair.force;
             let tri = self.faces[pair.face].vertices;
-            if !(first && pair.warm) {
-                let compliance = h * h * self.shared_compliance(v, &tri, &pair.weights);
+            if !(first && warm) {
+                let compliance = h * h * self.shared_compliance(v, &tri, &weights);
                 if compliance > 0.0 {
                     let x = |i: usize| x_n[i] + dx[i];
-                    let r = x(v) - (0..3).map(|k| x(tri[k]) * pair.weights[k]).sum::<Point>();
-                    pair.force = self.update_force(&pair, &r, omega / compliance, thickness);
+                    let r = x(v) - forces::weighted([x(tri[0]), x(tri[1]), x(tri[2])], &weights);
+                    if let Some(pair) = &self.pairs[v] {
+                        force = self.update_force(pair, &r, omega / compliance, thickness);
+                    }
                 }
             }
-            forces::add_pair_force(free_index, rhs, v, &tri, &pair);
-            // Only the force changed.
+            forces::add_pair_force(free_index, rhs, v, &tri, (&weights, force));
             if let Some(p) = &mut self.pairs[v] {
-                p.force = pair.force;
+                p.force = force;
             }
         }
     }
@@ -528,24 +545,6 @@ impl BodyContact {
             }
         }
     }
-
-    /// Active pairs and the deepest penetration (below the thickness) of
-    /// a pair at `positions`, m.
-    pub fn report(&self, positions: &[Point], thickness: f64) -> (usize, f64) {
-        let mut deepest = 0.0_f64;
-        let mut active = 0;
-        for (v, pair) in self.pairs.iter().enumerate() {
-            let Some(pair) = pair else { continue };
-            active += usize::from(pair.active());
-            let tri = self.faces[pair.face].vertices;
-            let r = positions[v]
-                - (0..3)
-                    .map(|k| positions[tri[k]] * pair.weights[k])
-                    .sum::<Point>();
-            deepest = deepest.max(thickness - pair.normal.dot(&r));
-        }
-        (active, deepest)
-    }
 }
 
 /// The plane of triangle `t`: `(b - a) x (c - a)`, its squared length and
@@ -580,10 +579,14 @@ fn project_onto(t: &[Point; 3], p: &Point) -> Option<([f64; 3], Point, f64)> {
     Some(([1.0 - w1 - w2, w1, w2], normal, distance))
 }
 
+#[path = "bodies_counts.rs"]
+mod counts;
 #[path = "bodies_forces.rs"]
 mod forces;
 #[path = "bodies_listed.rs"]
 mod listed;
+#[path = "bodies_live.rs"]
+mod live;
 #[cfg(test)]
 #[path = "bodies_tests.rs"]
 mod tests;

@@ -49,27 +49,37 @@ impl BodyContact {
         for (v, pair) in self.pairs.iter().enumerate() {
             let Some(pair) = pair else { continue };
             let tri = self.faces[pair.face].vertices;
-            add_pair_force(free_index, rhs, v, &tri, pair);
+            add_pair_force(free_index, rhs, v, &tri, (&pair.weights, pair.force));
         }
     }
 }
 
-/// A pair's force into `rhs` at the free vertices (`free_index`): `f` at
-/// vertex `v`, `-w_i f` at the triangle `tri`'s vertices.
+/// A pair's force `force` into `rhs` at the free vertices (`free_index`):
+/// `f` at vertex `v`, `-w_i f` at the triangle `tri`'s vertices (weights
+/// `w`).
 pub(super) fn add_pair_force(
     free_index: &[usize],
     rhs: &mut [Point],
     v: usize,
     tri: &[usize; 3],
-    pair: &Pair,
+    (weights, force): (&[f64; 3], Point),
 ) {
     let mut add = |i: usize, f: Point| {
         if free_index[i] != usize::MAX {
             rhs[free_index[i]] += f;
         }
     };
-    add(v, pair.force);
-    for (&i, &w) in tri.iter().zip(&pair.weights) {
-        add(i, -pair.force * w);
+    add(v, force);
+    for (&i, &w) in tri.iter().zip(weights) {
+        add(i, -force * w);
     }
+}
+
+/// `sum_k p_k w_k` with the operations of the iterator sum
+/// `(0..3).map(|k| p[k] * w[k]).sum::<Point>()` (nalgebra's `Sum` folds
+/// from zero: `((0 + a) + b) + c`, the `0 +` kept: it turns a `-0` into
+/// `+0`), written out so that it is inlined.
+#[inline]
+pub(super) fn weighted(p: [Point; 3], w: &[f64; 3]) -> Point {
+    Point::zeros() + p[0] * w[0] + p[1] * w[1] + p[2] * w[2]
 }

@@ -6,7 +6,7 @@
 
 use pd_mesh::Point;
 
-use super::super::candidates::Surface;
+use super::super::candidates::{Surface, apart};
 use super::super::end_plane::surely_beyond;
 use super::super::grid::{cell_index, cell_size, query_end};
 use super::{BodyContact, Pair, inside, project_onto};
@@ -35,33 +35,39 @@ pub(super) enum StartHit {
     Inside([f64; 3], Point),
 }
 
-/// Whether two boxes `(min, max)` are apart (a strict gap on some axis):
-/// all six comparisons, combined without short-circuit, so that the test
-/// is one branch, not up to six that depend on the data (the most
-/// mispredicted of the candidate loop).
-pub(super) fn apart(a: &(Point, Point), b: &(Point, Point)) -> bool {
-    let ((a_lo, a_hi), (b_lo, b_hi)) = (a, b);
-    (a_hi[0] < b_lo[0])
-        | (a_lo[0] > b_hi[0])
-        | (a_hi[1] < b_lo[1])
-        | (a_lo[1] > b_hi[1])
-        | (a_hi[2] < b_lo[2])
-        | (a_lo[2] > b_hi[2])
-}
-
 impl BodyContact {
     /// The detection of [`BodyContact::detect`] over this iteration's
     /// triangle boxes: against the candidate lists (rebuilt if they do not
-    /// cover the iterate), or the grid if they cannot be built.
-    pub(super) fn detect_with_boxes(&mut self, x_n: &[Point], dx: &[Point], thickness: f64) {
+    /// cover the iterate), or the grid if they cannot be built. Lists just
+    /// rebuilt to cover the iterate go to the fast path
+    /// ([`BodyContact::detect_listed_fast`], the same pairs bit for bit,
+    /// without the sweep of every triangle's box and the cell arithmetic;
+    /// docs/contact.md, "Seventh round"), unless it declines (having
+    /// changed no pair); `motion` is the largest `|dx|_inf` (m).
+    pub(super) fn detect_with_boxes(
+        &mut self,
+        x_n: &[Point],
+        dx: &[Point],
+        (thickness, motion): (f64, f64),
+    ) {
+        // Neither the coverage test nor the build reads this iteration's
+        // boxes: they are swept after them, when needed.
+        let mut listed = self.candidates.covers(x_n, dx, &self.on_surface);
+        if !listed {
+            listed = self.build_candidates(x_n, dx, thickness);
+            if listed && self.detect_listed_fast(x_n, dx, (thickness, motion)) {
+                return;
+            }
+        }
         self.sweep_boxes(x_n, dx, thickness);
-        if self.candidates.covers(x_n, dx, &self.on_surface)
-            || self.build_candidates(x_n, dx, thickness)
-        {
+        if listed {
             let cell = cell_size(&self.boxes);
             for v in 0..x_n.len() {
                 if self.searching(v) {
                     self.pairs[v] = self.first_listed_hit(v, x_n, dx, (thickness, cell));
+                    if self.pairs[v].is_some() {
+                        self.found.push(v);
+                    }
                 }
             }
         } else {
@@ -69,6 +75,9 @@ impl BodyContact {
             for v in 0..x_n.len() {
                 if self.searching(v) {
                     self.pairs[v] = self.first_hit(v, x_n, dx, thickness);
+                    if self.pairs[v].is_some() {
+                        self.found.push(v);
+                    }
                 }
             }
         }
@@ -134,8 +143,18 @@ impl BodyContact {
             // Every vertex that may search while the lists last, pair or
             // not: a pair is dropped at a step's start, and the lists
             // outlive the step.
-            listed: &|v| self.body_of[v] != usize::MAX && !self.fixed[v],
-            admits: &|v, f| self.admits(v, f),
+            listed: |v: usize| self.body_of[v] != usize::MAX && !self.fixed[v],
+            admits: |v: usize, f: usize| self.admits(v, f),
+            group: &|f| self.faces[f].body,
+            // `admits` with `f` of body `g`: another body's with `between`,
+            // its own with self-contact (then per triangle).
+            queried: |v: usize, g: usize| {
+                if g == self.body_of[v] {
+                    self.neighbourhood.is_some()
+                } else {
+                    self.between
+                }
+            },
         };
         let margin = thickness + self.reach;
         let covered = candidates.build(
@@ -287,9 +306,10 @@ impl BodyContact {
         }
         let mut cell = None;
         // A vertex with an empty list finds nothing; a listed one is on a
-        // surface and free, so it searches if it has no pair.
-        for k in 0..self.candidates.listed().len() {
-            let v = self.candidates.listed()[k];
+        // surface and free, so it searches if it has no pair. Only the
+        // vertices with a live entry (`fill_start_planes`) can find one.
+        for k in 0..self.live_vertices.len() {
+            let v = self.live_vertices[k];
             if self.pairs[v].is_some() {
                 continue;
             }
@@ -307,6 +327,7 @@ impl BodyContact {
             // store of a 100-byte `None` over `None` was a hot spot).
             if found.is_some() {
                 self.pairs[v] = found;
+                self.found.push(v);
             }
         }
         true
@@ -327,15 +348,11 @@ impl BodyContact {
         let query = (a.inf(&b) - m, a.sup(&b) + m);
         let widen = Point::repeat(thickness + self.reach);
         let mut best: Option<(f64, Pair)> = None;
-        for e in self.candidates.entries(v) {
-            let Some(start_plane) = self.start_planes[e] else {
-                continue;
-            };
-            let known = self.start_hits[e];
-            if let StartHit::Never = known {
-                continue;
-            }
-            let f = self.candidates.face(e);
+        // Only the live entries: the others (no start plane, or never hit)
+        // were skipped here entry by entry before (`fill_start_planes`).
+        let (from, to) = self.live_of[v];
+        for live in &self.live[from as usize..to as usize] {
+            let (f, start_plane, known) = (live.face, live.plane, live.known);
             let face = self.faces[f];
             let [i, j, k] = face.vertices;
             let [p, q, r] = [self.segments[i], self.segments[j], self.segments[k]];
@@ -371,50 +388,6 @@ impl BodyContact {
             }
         }
         Ok(best.map(|(_, p)| p))
-    }
-
-    /// Each candidate entry's start plane for this step
-    /// ([`BodyContact::start_plane`]: it depends on `x_n` only), for the
-    /// vertices with candidates and without a pair (pairs are dropped only
-    /// at a step's start or a restore, which clear `start_planes_fresh`,
-    /// so no other vertex searches before the next fill), and the
-    /// vertices of their candidates (`needed`).
-    fn fill_start_planes(&mut self, x_n: &[Point], thickness: f64) {
-        self.start_planes.clear();
-        self.start_planes
-            .resize(self.candidates.entry_count(), None);
-        self.start_hits.clear();
-        (self.start_hits).resize(self.candidates.entry_count(), StartHit::Unknown);
-        self.needed.clear();
-        for &v in self.candidates.listed() {
-            if self.pairs[v].is_some() {
-                continue;
-            }
-            for e in self.candidates.entries(v) {
-                let face = self.faces[self.candidates.face(e)];
-                let [i, j, k] = face.vertices;
-                let start = [x_n[i], x_n[j], x_n[k]];
-                let plane = self.start_plane(&face, &start, &x_n[v], thickness);
-                self.start_planes[e] = plane;
-                let Some(plane) = plane else { continue };
-                // An entry without a start plane or never hit reads no
-                // segment box.
-                self.start_hits[e] = start_hit(plane, &start, &x_n[v], thickness);
-                if let StartHit::Never = self.start_hits[e] {
-                    continue;
-                }
-                for i in face.vertices {
-                    if !self.in_needed[i] {
-                        self.in_needed[i] = true;
-                        self.needed.push(i);
-                    }
-                }
-            }
-        }
-        for &i in &self.needed {
-            self.in_needed[i] = false;
-        }
-        self.start_planes_fresh = true;
     }
 }
 
@@ -460,7 +433,12 @@ impl BodyContact {
 
 /// What the start plane `(n0, d0)` of the triangle `start` and the vertex
 /// at `a` tells of the step's crossings ([`StartHit`]).
-fn start_hit((n0, d0): (Point, f64), start: &[Point; 3], a: &Point, thickness: f64) -> StartHit {
+pub(super) fn start_hit(
+    (n0, d0): (Point, f64),
+    start: &[Point; 3],
+    a: &Point,
+    thickness: f64,
+) -> StartHit {
     let kept = |p: &Point| p.iter().all(|&c| c.to_bits() != (-0.0_f64).to_bits());
     if !(d0 <= thickness && kept(a) && start.iter().all(kept)) {
         return StartHit::Unknown;

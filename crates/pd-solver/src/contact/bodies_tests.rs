@@ -257,7 +257,7 @@ fn fast_listed_detection_is_the_grid_detection_bit_for_bit() {
                     }
                 } else {
                     slow_runs += 1;
-                    bodies.detect_with_boxes(&x_n, &dx, thickness);
+                    bodies.detect_with_boxes(&x_n, &dx, (thickness, largest_motion(&dx)));
                 }
                 let context = format!("trial {trial}, step {step}, scale {scale}");
                 hits += matching_hits(&bodies.pairs, &expected, &context);
@@ -331,7 +331,7 @@ fn start_plane_verdicts_are_the_grid_detection_bit_for_bit() {
                         never += usize::from(matches!(known, listed::StartHit::Never));
                     }
                 } else {
-                    bodies.detect_with_boxes(&x_n, &dx, thickness);
+                    bodies.detect_with_boxes(&x_n, &dx, (thickness, largest_motion(&dx)));
                 }
                 let context = format!("trial {trial}, step {step}, scale {scale}");
                 hits += matching_hits(&bodies.pairs, &expected, &context);
@@ -425,7 +425,13 @@ fn listed_counts_and_pair_updates_are_a_pass_over_every_vertex() {
                         reference.update_force(&pair, &r, settings.1 / compliance, thickness);
                     updated += 1;
                 }
-                forces::add_pair_force(&free_index, &mut expected, v, &tri, &pair);
+                forces::add_pair_force(
+                    &free_index,
+                    &mut expected,
+                    v,
+                    &tri,
+                    (&pair.weights, pair.force),
+                );
                 reference.pairs[v] = Some(pair);
             }
             let mut rhs = vec![Point::new(0.1, 0.2, 0.3); rest.len()];
@@ -497,3 +503,6 @@ fn push_every_other_pair(pairs: &mut [Option<Pair>], parity: usize) {
         }
     }
 }
+
+#[path = "bodies_tests_kept.rs"]
+mod kept;

@@ -25,7 +25,7 @@
 
 use pd_mesh::Point;
 
-use super::grid::{Grid, cell_index};
+use super::grid::{Grid, cell_index, cell_size};
 
 /// The candidate lists, kept from step to step while they cover the
 /// iterates.
@@ -59,19 +59,56 @@ pub(super) struct Candidates {
     room: Option<f64>,
     /// The vertices with at least one candidate, in increasing order.
     nonempty: Vec<usize>,
-    grid: Grid,
+    /// Each triangle's box at the build, m.
     boxes: Vec<(Point, Point)>,
+    /// The triangles by group (body), each with its own grid: a vertex's
+    /// query skips the groups it admits no triangle of (its own body
+    /// without self-contact), most of the triangles near it.
+    groups: Vec<Group>,
 }
 
-/// What a build needs of the body-contact state.
-pub(super) struct Surface<'a> {
+/// One group's triangles in a grid of their own (cells of the size shared
+/// by every group: the size one grid of all the triangles would take).
+#[derive(Debug, Clone, Default)]
+struct Group {
+    grid: Grid,
+    /// The group's triangles, in increasing order (the grid's items).
+    faces: Vec<u32>,
+    boxes: Vec<(Point, Point)>,
+    /// The hull of `boxes`, m.
+    hull: (Point, Point),
+}
+
+/// Whether two boxes `(min, max)` are apart (a strict gap on some axis):
+/// all six comparisons, combined without short-circuit, so that the test
+/// is one branch, not up to six that depend on the data (the most
+/// mispredicted of the candidate loops).
+pub(super) fn apart(a: &(Point, Point), b: &(Point, Point)) -> bool {
+    let ((a_lo, a_hi), (b_lo, b_hi)) = (a, b);
+    (a_hi[0] < b_lo[0])
+        | (a_lo[0] > b_hi[0])
+        | (a_hi[1] < b_lo[1])
+        | (a_lo[1] > b_hi[1])
+        | (a_hi[2] < b_lo[2])
+        | (a_lo[2] > b_hi[2])
+}
+
+/// What a build needs of the body-contact state (generic over the two
+/// tests, so that they are inlined into the build's loop: as `dyn`
+/// calls they cost a call per visited triangle).
+pub(super) struct Surface<'a, L, A, Q> {
     /// Each triangle's vertices.
     pub faces: &'a [[usize; 3]],
+    /// Each triangle's group (its body).
+    pub group: &'a dyn Fn(usize) -> usize,
     /// Whether a vertex gets a list: every vertex that may look for new
     /// pairs while the lists last (on a surface, free).
-    pub listed: &'a dyn Fn(usize) -> bool,
+    pub listed: L,
     /// Whether vertex `v` may pair with triangle `f`.
-    pub admits: &'a dyn Fn(usize, usize) -> bool,
+    pub admits: A,
+    /// Whether vertex `v` may pair with some triangle of group `g`: when
+    /// `false`, `admits(v, f)` is `false` for every triangle `f` of `g`.
+    pub queried: Q,
 }
 
 impl Candidates {
@@ -157,16 +194,62 @@ impl Candidates {
             })
     }
 
+    /// Sorts the triangles' boxes into their groups (`group` of each
+    /// triangle) and builds each group's grid with cells of size `cell`
+    /// (m). Why the lists are those of one grid of all the triangles: the
+    /// query of a vertex is not clamped in any grid (the caller checks the
+    /// span of its cells, of the shared size), so each grid visits every
+    /// triangle of its group whose box is not apart from the query, and
+    /// only groups without an admitted triangle or apart from the query
+    /// are skipped; the lists are sorted and deduplicated. (A hull ignores
+    /// a NaN bound, but lists built at a NaN start are never used: they
+    /// do not cover it.)
+    fn build_groups(&mut self, group: &dyn Fn(usize) -> usize, cell: f64) {
+        for g in &mut self.groups {
+            g.faces.clear();
+            g.boxes.clear();
+        }
+        for (f, b) in self.boxes.iter().enumerate() {
+            let g = group(f);
+            if g >= self.groups.len() {
+                self.groups.resize_with(g + 1, Group::default);
+            }
+            let group = &mut self.groups[g];
+            if group.faces.is_empty() {
+                group.hull = *b;
+            }
+            group.hull = (group.hull.0.inf(&b.0), group.hull.1.sup(&b.1));
+            group.faces.push(f as u32);
+            group.boxes.push(*b);
+        }
+        for g in &mut self.groups {
+            if g.faces.is_empty() {
+                // Never queried: apart from everything (NaN compares false,
+                // so an inverted infinite hull).
+                g.hull = (
+                    Point::repeat(f64::INFINITY),
+                    Point::repeat(f64::NEG_INFINITY),
+                );
+            }
+            g.grid.build_with_cell(&g.boxes, cell);
+        }
+    }
+
     /// Builds the lists at `x_n` with inflation `delta` (m), widening the
     /// triangles by `margin` and the query boxes by `thickness` (m).
     /// Returns whether the lists cover `x_n + dx` ([`Candidates::covers`]);
     /// `false` leaves them invalid (the caller falls back to the grid).
-    pub fn build(
+    pub fn build<L, A, Q>(
         &mut self,
-        surface: &Surface<'_>,
+        surface: &Surface<'_, L, A, Q>,
         (x_n, dx, on_surface): (&[Point], &[Point], &[usize]),
         (delta, margin, thickness): (f64, f64, f64),
-    ) -> bool {
+    ) -> bool
+    where
+        L: Fn(usize) -> bool,
+        A: Fn(usize, usize) -> bool,
+        Q: Fn(usize, usize) -> bool,
+    {
         self.valid = false;
         self.room = None;
         if !delta.is_finite() {
@@ -188,8 +271,8 @@ impl Candidates {
             }
             self.boxes.push((lo - m, hi + m));
         }
-        self.grid.build(&self.boxes);
-        let cell = self.grid.cell();
+        let cell = cell_size(&self.boxes);
+        self.build_groups(surface.group, cell);
         let t = Point::repeat(thickness);
         self.start.clear();
         self.faces.clear();
@@ -206,14 +289,24 @@ impl Candidates {
                 return false;
             }
             let from = self.faces.len();
-            let (boxes, faces) = (&self.boxes, &mut self.faces);
-            self.grid.query(&lo, &hi, |f| {
-                let (f_lo, f_hi) = &boxes[f];
-                let apart = (0..3).any(|k| hi[k] < f_lo[k] || lo[k] > f_hi[k]);
-                if !apart && (surface.admits)(v, f) {
-                    faces.push(f as u32);
+            let query = (lo, hi);
+            for (g, group) in self.groups.iter().enumerate() {
+                // A group whose hull is apart from the query holds no
+                // triangle that is not.
+                if !(surface.queried)(v, g) || apart(&query, &group.hull) {
+                    continue;
                 }
-            });
+                let (boxes, faces) = (&group.boxes, &mut self.faces);
+                group.grid.query(&lo, &hi, |item| {
+                    // The six comparisons of the `any` they replace,
+                    // without its short circuit (one branch, not up to
+                    // six): the same verdict.
+                    let f = group.faces[item];
+                    if !apart(&query, &boxes[item]) && (surface.admits)(v, f as usize) {
+                        faces.push(f);
+                    }
+                });
+            }
             self.faces[from..].sort_unstable();
             let mut kept = from;
             for k in from..self.faces.len() {

@@ -31,19 +31,36 @@ pub(super) struct Grid {
     dims: [i64; 3],
     start: Vec<u32>,
     items: Vec<u32>,
+    /// Per item, the cells `(first, last)` its box spans, taken once per
+    /// build (`index` of its corners): the dense build reads them three
+    /// times, and recomputing them (six divisions and floors per box) was
+    /// most of a build's cost (docs/contact.md, "Seventh round").
+    spans: Vec<([i64; 3], [i64; 3])>,
 }
 
 impl Grid {
     /// Rebuilds the grid over `boxes` (`(min, max)` per item, m).
     pub fn build(&mut self, boxes: &[(Point, Point)]) {
+        self.build_with_cell(boxes, cell_size(boxes));
+    }
+
+    /// [`Grid::build`] with a given cell size (m, positive and finite; at
+    /// least every box's extent for the overlap bound of the type's docs),
+    /// e.g. one shared by several grids.
+    pub fn build_with_cell(&mut self, boxes: &[(Point, Point)], cell: f64) {
         self.keys.clear();
-        self.cell = cell_size(boxes);
-        self.dense = self.build_dense(boxes);
+        self.cell = cell;
+        self.spans.clear();
+        (self.spans).extend(
+            boxes
+                .iter()
+                .map(|(lo, hi)| (cell_index(lo, cell), cell_index(hi, cell))),
+        );
+        self.dense = self.build_dense(boxes.len());
         if self.dense {
             return;
         }
-        for (item, (lo, hi)) in boxes.iter().enumerate() {
-            let (a, b) = (self.index(lo), self.index(hi));
+        for (item, &(a, b)) in self.spans.iter().enumerate() {
             for i in a[0]..=b[0] {
                 for j in a[1]..=b[1] {
                     for k in a[2]..=b[2] {
@@ -55,17 +72,12 @@ impl Grid {
         self.keys.sort_unstable();
     }
 
-    /// The cell size of the last build, m.
-    pub fn cell(&self) -> f64 {
-        self.cell
-    }
-
     /// The dense table, if its range is small enough; `false` otherwise.
-    fn build_dense(&mut self, boxes: &[(Point, Point)]) -> bool {
+    /// `items` boxes, spanning the cells of `spans`.
+    fn build_dense(&mut self, items: usize) -> bool {
         let (mut low, mut high) = ([i64::MAX; 3], [i64::MIN; 3]);
         let mut keys = 0usize;
-        for (lo, hi) in boxes {
-            let (a, b) = (self.index(lo), self.index(hi));
+        for &(a, b) in &self.spans {
             let mut count = 1usize;
             for d in 0..3 {
                 low[d] = low[d].min(a[d]);
@@ -77,7 +89,7 @@ impl Grid {
             }
             keys = keys.saturating_add(count);
         }
-        if boxes.is_empty() {
+        if items == 0 {
             return false;
         }
         let mut cells = 1usize;
@@ -88,7 +100,7 @@ impl Grid {
             self.dims[d] = n;
             cells = cells.saturating_mul(usize::try_from(n).unwrap_or(usize::MAX));
         }
-        let limit = DENSE_FACTOR.saturating_mul(keys.max(boxes.len()));
+        let limit = DENSE_FACTOR.saturating_mul(keys.max(items));
         if cells > limit || keys > u32::MAX as usize {
             return false;
         }
@@ -99,7 +111,7 @@ impl Grid {
         self.items.resize(keys, 0);
         // Count per cell (shifted by one), prefix-sum, then place the items
         // in increasing order, using `start[l + 1]` as cell `l`'s cursor.
-        self.for_each_key(boxes, |start, _, l| start[l + 1] += 1);
+        self.for_each_key(|start, _, l| start[l + 1] += 1);
         for l in 0..cells {
             self.start[l + 1] += self.start[l];
         }
@@ -107,7 +119,7 @@ impl Grid {
             self.start[l + 1] = self.start[l];
         }
         let mut items = std::mem::take(&mut self.items);
-        self.for_each_key(boxes, |start, item, l| {
+        self.for_each_key(|start, item, l| {
             items[start[l + 1] as usize] = item;
             start[l + 1] += 1;
         });
@@ -117,18 +129,23 @@ impl Grid {
 
     /// Calls `f(start, item, linear cell)` for every (cell, item) key, in
     /// item order.
-    fn for_each_key(
-        &mut self,
-        boxes: &[(Point, Point)],
-        mut f: impl FnMut(&mut [u32], u32, usize),
-    ) {
-        for (item, (lo, hi)) in boxes.iter().enumerate() {
-            let (a, b) = (self.index(lo), self.index(hi));
-            for i in a[0]..=b[0] {
-                for j in a[1]..=b[1] {
-                    for k in a[2]..=b[2] {
-                        let l = self.linear([i, j, k]).unwrap_or(0);
-                        f(&mut self.start, item as u32, l);
+    ///
+    /// Every span lies in the table's range (its bounds were taken from the
+    /// spans), so the linear index of cell `a + (di, dj, dk)` is that of
+    /// `a` plus `(di n_1 + dj) n_2 + dk`, integers without overflow (the
+    /// range's cell count fits a `usize`): the values of
+    /// [`Grid::linear`] per cell, without its checks.
+    fn for_each_key(&mut self, mut f: impl FnMut(&mut [u32], u32, usize)) {
+        let (n1, n2) = (self.dims[1] as usize, self.dims[2] as usize);
+        for item in 0..self.spans.len() {
+            let (a, b) = self.spans[item];
+            let base = self.linear(a).unwrap_or(0);
+            let span = |d: usize| (b[d] - a[d]) as usize;
+            for di in 0..=span(0) {
+                for dj in 0..=span(1) {
+                    let row = base + (di * n1 + dj) * n2;
+                    for dk in 0..=span(2) {
+                        f(&mut self.start, item as u32, row + dk);
                     }
                 }
             }
