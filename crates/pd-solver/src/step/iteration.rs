@@ -248,12 +248,12 @@ impl StepProblem<'_> {
         self.local.project(&b.q, &mut b.projections);
         let t1 = Instant::now();
 
-        if next_q {
-            tail::keeping_a_thread_awake(|| self.rhs_and_solve());
-        } else {
-            self.rhs_and_solve();
-        }
+        self.rhs_from_projections();
         let b = &mut *self.buffers;
+        if let Some(contact) = self.contact.as_deref_mut() {
+            contact.apply(x_n, self.masses, &b.displacement, &mut b.rhs);
+        }
+        self.global.solve(&b.rhs);
         let change = if next_q {
             tail::take_solution_and_q(
                 self.global,
@@ -269,17 +269,6 @@ impl StepProblem<'_> {
         self.stats.local_seconds += (t1 - t0).as_secs_f64();
         self.stats.global_seconds += t1.elapsed().as_secs_f64();
         change
-    }
-
-    /// The global step up to its tail: the right-hand side from the
-    /// projections (with the contact forces), and the solve.
-    fn rhs_and_solve(&mut self) {
-        self.rhs_from_projections();
-        let b = &mut *self.buffers;
-        if let Some(contact) = self.contact.as_deref_mut() {
-            contact.apply(self.positions, self.masses, &b.displacement, &mut b.rhs);
-        }
-        self.global.solve(&b.rhs);
     }
 
     /// Whether the iteration that moved the displacement by `change` met the

@@ -84,47 +84,6 @@ pub(crate) fn take_solution_and_q(
     change
 }
 
-/// Runs `work` on this thread; on more threads, another thread meanwhile
-/// runs whatever rayon work `work` spawns (its parallel parts) and polls
-/// for more between them instead of falling asleep, until `work` returns
-/// or no work has come for [`MAX_WAIT`]. So that thread is awake when the
-/// step's next parallel pass starts: a sleeping rayon worker takes tens of
-/// microseconds to wake. Allocates nothing; the result does not depend on
-/// which thread ran what.
-pub(crate) fn keeping_a_thread_awake<R: Send>(work: impl FnOnce() -> R + Send) -> R {
-    if rayon::current_num_threads() <= 1 {
-        return work();
-    }
-    let done = AtomicBool::new(false);
-    let (result, ()) = rayon::join(
-        || {
-            let result = work();
-            done.store(true, Ordering::Release);
-            result
-        },
-        || help_until(&done),
-    );
-    result
-}
-
-/// Runs pending rayon jobs until `done` is set, or until none has come for
-/// [`MAX_WAIT`].
-fn help_until(done: &AtomicBool) {
-    let mut idle_since = Instant::now();
-    let mut spins = 0u32;
-    while !done.load(Ordering::Acquire) {
-        if rayon::yield_now() == Some(rayon::Yield::Executed) {
-            idle_since = Instant::now();
-            continue;
-        }
-        std::hint::spin_loop();
-        spins = spins.wrapping_add(1);
-        if spins % 64 == 0 && idle_since.elapsed() > MAX_WAIT {
-            return;
-        }
-    }
-}
-
 /// Spins until `done` is set or [`MAX_WAIT`] has passed.
 fn wait_for(done: &AtomicBool) {
     let start = Instant::now();
