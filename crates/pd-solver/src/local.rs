@@ -37,12 +37,24 @@ impl LocalStep {
         self.total_rows
     }
 
-    /// Projects every constraint at `q` into `projections`.
+    /// Projects every constraint at `q` into `projections`. On more than
+    /// one thread every chunk is a task of its own that an idle thread can
+    /// steal (rayon otherwise stops splitting after a few levels and runs
+    /// runs of some 50 chunks in one task, so a thread that starts late or
+    /// runs slower leaves the other idle at the end for up to a run:
+    /// docs/performance.md, "The local step on two threads in the step").
+    /// Each chunk writes its own rows, so the bits are the same either way.
     pub fn project(&self, q: &[Point], projections: &mut [Point]) {
+        let max_len = if rayon::current_num_threads() > 1 {
+            1
+        } else {
+            usize::MAX
+        };
         for (block, &offset) in self.blocks.iter().zip(&self.offsets) {
             let rows = block.rows_per_constraint();
             let mine = &mut projections[offset..offset + block.len() * rows];
             mine.par_chunks_mut(CHUNK * rows)
+                .with_max_len(max_len)
                 .enumerate()
                 .for_each(|(chunk, out)| block.project_range(q, chunk * CHUNK, out));
         }

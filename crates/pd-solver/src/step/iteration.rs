@@ -19,6 +19,7 @@ use pd_mesh::Point;
 use rayon::prelude::*;
 
 use super::ray::RayCheck;
+use super::tail;
 use crate::local::LocalStep;
 use crate::system::GlobalStep;
 use crate::{Settings, SolverError, StepStats};
@@ -75,15 +76,7 @@ impl PositionSolver for LocalGlobal {
 
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {
         step.record_objective();
-        let mut converged = false;
-        for _ in 0..step.iterations() {
-            let change = step.local_global_iteration();
-            step.record_objective();
-            if step.converged(change) {
-                converged = true;
-                break;
-            }
-        }
+        let converged = step.plain_iterations();
         // A predicted start can lie past the step objective's line minimum
         // in slow modes, and plain iterations from it stay past it: with
         // implicit midpoint the energy then grows (docs/solver.md, "A better
@@ -216,14 +209,42 @@ impl StepProblem<'_> {
     /// new displacement. Counts the iteration and its time in the step's
     /// statistics.
     pub fn local_global_iteration(&mut self) -> IterationChange {
+        self.iteration(false, false)
+    }
+
+    /// [`LocalGlobal`]'s iterations: up to [`StepProblem::iterations`],
+    /// stopping once [`StepProblem::converged`] says so (returns whether it
+    /// did). The same iterations as [`StepProblem::local_global_iteration`]
+    /// in a loop, bit for bit, but each global step's tail also writes the
+    /// next local step's `q` (step/tail.rs): between these iterations
+    /// nothing moves the displacement (the objective trace only reads it,
+    /// and writes `q` with the same expression).
+    pub(crate) fn plain_iterations(&mut self) -> bool {
+        let iterations = self.iterations();
+        for k in 0..iterations {
+            let change = self.iteration(k > 0, k + 1 < iterations);
+            self.record_objective();
+            if self.converged(change) {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// One local-global iteration; `q_current`: the buffers' `q` already
+    /// holds `x_n + c2 dx` (the last tail wrote it), `next_q`: the tail
+    /// writes it for the new displacement.
+    fn iteration(&mut self, q_current: bool, next_q: bool) -> IterationChange {
         let t0 = Instant::now();
         let c2 = self.coefficients.c2;
         let x_n = self.positions;
         let b = &mut *self.buffers;
-        let displacement = &b.displacement;
-        b.q.par_iter_mut()
-            .enumerate()
-            .for_each(|(v, q)| *q = x_n[v] + displacement[v] * c2);
+        if !q_current {
+            let displacement = &b.displacement;
+            b.q.par_iter_mut()
+                .enumerate()
+                .for_each(|(v, q)| *q = x_n[v] + displacement[v] * c2);
+        }
         self.local.project(&b.q, &mut b.projections);
         let t1 = Instant::now();
 
@@ -233,14 +254,17 @@ impl StepProblem<'_> {
             contact.apply(x_n, self.masses, &b.displacement, &mut b.rhs);
         }
         self.global.solve(&b.rhs);
-        let mut change = IterationChange::default();
-        for (f, &v) in self.global.free().iter().enumerate() {
-            let new = self.global.solution(f);
-            let m = self.masses[v];
-            change.change_squared += m * (new - b.displacement[v]).norm_squared();
-            change.displacement_squared += m * new.norm_squared();
-            b.displacement[v] = new;
-        }
+        let change = if next_q {
+            tail::take_solution_and_q(
+                self.global,
+                self.masses,
+                (x_n, c2),
+                &mut b.displacement,
+                &mut b.q,
+            )
+        } else {
+            tail::take_solution(self.global, self.masses, &mut b.displacement)
+        };
         self.stats.iterations += 1;
         self.stats.local_seconds += (t1 - t0).as_secs_f64();
         self.stats.global_seconds += t1.elapsed().as_secs_f64();

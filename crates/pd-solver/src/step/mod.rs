@@ -26,6 +26,7 @@ pub(crate) mod ops;
 pub(crate) mod predictor;
 pub(crate) mod predictor_fit;
 pub(crate) mod ray;
+pub(crate) mod tail;
 
 use std::time::Instant;
 
