@@ -36,11 +36,12 @@ use super::solve_tree::{TOP, TreeSplit};
 /// Either way gives the same bits.
 const WIDE_DIAGONAL: usize = 16;
 
-/// The narrowest diagonal block solved by tiles in both steps
-/// (`solve_diagonal.rs`: another summation order, so other round-off, than
-/// the column-by-column solve of narrower blocks). It depends only on the
-/// block's width, so every thread count gets the same bits.
-const BLOCKED_DIAGONAL: usize = 16;
+/// The narrowest diagonal block solved by tiles in the forward and in the
+/// backward step (`solve_diagonal.rs`: another summation order, so other
+/// round-off, than the column-by-column solve of narrower blocks). They
+/// depend only on the block's width, so every thread count gets the same
+/// bits.
+const BLOCKED_DIAGONAL: [usize; 2] = [16, 16];
 
 /// The smallest factor (bytes of stored values) whose solve prefetches its
 /// values (`Below::prefetch`; the same bits either way). On this machine
@@ -68,9 +69,9 @@ struct Structure<'a> {
     /// Whether the kernels prefetch the factor's values (a factor of at
     /// least [`PREFETCH_BYTES`]).
     prefetch: bool,
-    /// The narrowest diagonal block solved by tiles
-    /// ([`BLOCKED_DIAGONAL`]; tests turn it off).
-    blocked: usize,
+    /// The narrowest diagonal block solved by tiles, forward and backward
+    /// ([`BLOCKED_DIAGONAL`]; tests turn them off).
+    blocked: [usize; 2],
 }
 
 impl<'a> Structure<'a> {
@@ -116,9 +117,9 @@ pub(crate) struct SupernodalSolve {
     /// Whether the kernels prefetch the factor (at least
     /// [`PREFETCH_BYTES`] stored).
     prefetch: bool,
-    /// The narrowest diagonal block solved by tiles
+    /// The narrowest diagonal block solved by tiles, forward and backward
     /// ([`BLOCKED_DIAGONAL`]).
-    blocked: usize,
+    blocked: [usize; 2],
 }
 
 impl SupernodalSolve {
@@ -177,10 +178,10 @@ impl SupernodalSolve {
         })
     }
 
-    /// Sets the narrowest diagonal block solved by tiles (tests:
-    /// `usize::MAX` gives the column-by-column solve everywhere).
+    /// Sets the narrowest diagonal block solved by tiles, forward and
+    /// backward (tests: `usize::MAX` gives the column-by-column solve).
     #[cfg(test)]
-    pub fn set_blocked(&mut self, narrowest: usize) {
+    pub fn set_blocked(&mut self, narrowest: [usize; 2]) {
         self.blocked = narrowest;
     }
 
@@ -511,7 +512,7 @@ impl Structure<'_> {
         let ld = c + rows.len();
         let block = &values[self.value_ptr[s]..self.value_ptr[s] + ld * c];
         let top = &mut x[first..first + c];
-        if c >= self.blocked {
+        if c >= self.blocked[0] {
             below.solve_diagonal_blocked(block, ld, top);
         } else if c >= WIDE_DIAGONAL {
             below.solve_diagonal(block, ld, top);
@@ -570,7 +571,7 @@ impl Structure<'_> {
         }
         let top = &mut x[first..first + c];
         below.subtract_products(block, ld, c, top, r);
-        if c >= self.blocked {
+        if c >= self.blocked[1] {
             below.solve_diagonal_transposed_blocked(block, ld, top);
             return;
         }

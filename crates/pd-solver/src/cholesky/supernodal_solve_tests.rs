@@ -124,7 +124,9 @@ fn check_backward_error(label: &str, mesh: &pd_mesh::Mesh) {
         .max()
         .unwrap_or(0);
     assert!(
-        widest >= super::BLOCKED_DIAGONAL + super::super::solve_kernels::TILE,
+        widest
+            >= super::BLOCKED_DIAGONAL.into_iter().max().unwrap()
+                + super::super::solve_kernels::TILE,
         "{label}: a diagonal block of {widest} columns has no whole tile with rows below it"
     );
     let rhs: Vec<Point> = (0..n)
@@ -138,7 +140,7 @@ fn check_backward_error(label: &str, mesh: &pd_mesh::Mesh) {
         }
     };
     let u = f64::EPSILON / 2.0;
-    for blocked in [super::BLOCKED_DIAGONAL, usize::MAX] {
+    for blocked in [super::BLOCKED_DIAGONAL, [usize::MAX; 2]] {
         solve.set_blocked(blocked);
         let mut solved: Vec<Vec<Point>> = Vec::new();
         for threads in [1, 2] {
@@ -169,7 +171,7 @@ fn check_backward_error(label: &str, mesh: &pd_mesh::Mesh) {
                 let limit = 5.0 * g * bound[i][k] + u * b[i][k].abs();
                 assert!(
                     r[i][k].abs() <= limit,
-                    "{label}, tiles from {blocked} columns: row {i} coordinate {k}: \
+                    "{label}, tiles from {blocked:?} columns: row {i} coordinate {k}: \
                      residual {:e} above {limit:e}",
                     r[i][k]
                 );
@@ -177,7 +179,7 @@ fn check_backward_error(label: &str, mesh: &pd_mesh::Mesh) {
             }
         }
         println!(
-            "{label}, tiles from {blocked} columns: m = {m}, worst residual / bound {worst:.3e}"
+            "{label}, tiles from {blocked:?} columns: m = {m}, worst residual / bound {worst:.3e}"
         );
     }
 }
