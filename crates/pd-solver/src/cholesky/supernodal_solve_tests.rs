@@ -59,8 +59,8 @@ fn residual(
         let ld = c + rows.len();
         for j in 0..c {
             let column = &values[structure.value_ptr[s] + j * ld..][..ld];
-            for i in j..c {
-                entries.push((begin + i, begin + j, column[i]));
+            for (i, &l) in column[..c].iter().enumerate().skip(j) {
+                entries.push((begin + i, begin + j, l));
             }
             for (k, &row) in rows.iter().enumerate() {
                 entries.push((row, begin + j, column[c + k]));
