@@ -12,7 +12,9 @@
 //! permutation in, the forward and backward substitutions, the permutation
 //! out (docs/performance.md, "Where the global step's time goes"), and a
 //! hash of one solve's bits (a kernel change that keeps the summation
-//! order keeps it).
+//! order keeps it), then the minimum forward and backward times with the
+//! diagonal blocks tiled from several widths (`solve_diagonal.rs`;
+//! `usize::MAX`: never, the column-by-column order).
 
 use super::calibration::{laplacian_values, tet_pattern};
 use super::supernodal_solve::SupernodalSolve;
