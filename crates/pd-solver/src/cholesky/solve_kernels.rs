@@ -8,6 +8,11 @@
 
 use pd_mesh::Point;
 
+#[path = "solve_diagonal.rs"]
+mod diagonal;
+#[cfg(test)]
+pub(crate) use diagonal::TILE;
+
 /// The AVX2 instruction set, when the CPU has it.
 #[cfg(target_arch = "x86_64")]
 pub(crate) type Simd = pulp::x86::V3;

@@ -12,7 +12,9 @@
 //! permutation in, the forward and backward substitutions, the permutation
 //! out (docs/performance.md, "Where the global step's time goes"), and a
 //! hash of one solve's bits (a kernel change that keeps the summation
-//! order keeps it).
+//! order keeps it), then the minimum forward and backward times with the
+//! diagonal blocks tiled from several widths (`solve_diagonal.rs`;
+//! `usize::MAX`: never, the column-by-column order).
 
 use super::calibration::{laplacian_values, tet_pattern};
 use super::supernodal_solve::SupernodalSolve;
@@ -68,6 +70,30 @@ fn profile(label: &str, mesh: &pd_mesh::Mesh) {
             }
         }
     });
+    // The narrowest blocks solved by tiles (`solve_diagonal.rs`), swept.
+    let sweep: &[[usize; 2]] = &[
+        [usize::MAX, usize::MAX],
+        [8, usize::MAX],
+        [16, usize::MAX],
+        [32, usize::MAX],
+        [16, 16],
+        [16, 32],
+        [16, 64],
+        [16, 128],
+    ];
+    for &blocked in sweep {
+        solve.set_blocked(blocked);
+        let mut times: [Vec<f64>; 2] = Default::default();
+        pool.install(|| {
+            for _ in 0..rounds {
+                let t = solve.solve_timed(&factor.symbolic, &numeric.values, &mut rhs, &clock);
+                times[0].push(t[1]);
+                times[1].push(t[2]);
+            }
+        });
+        let [f, b] = times.map(|v| v.into_iter().fold(f64::INFINITY, f64::min) * 1e3);
+        println!("  tiles from {blocked:?} columns: min forward {f:.3} ms, backward {b:.3} ms");
+    }
     let [a, b, c, d] = parts.each_mut().map(|v| {
         v.sort_by(f64::total_cmp);
         (v[0] * 1e3, v[v.len() / 2] * 1e3)

@@ -36,6 +36,13 @@ use super::solve_tree::{TOP, TreeSplit};
 /// Either way gives the same bits.
 const WIDE_DIAGONAL: usize = 16;
 
+/// The narrowest diagonal block solved by tiles in the forward and in the
+/// backward step (`solve_diagonal.rs`: another summation order, so other
+/// round-off, than the column-by-column solve of narrower blocks). They
+/// depend only on the block's width, so every thread count gets the same
+/// bits.
+const BLOCKED_DIAGONAL: [usize; 2] = [16, 16];
+
 /// The smallest factor (bytes of stored values) whose solve prefetches its
 /// values (`Below::prefetch`; the same bits either way). On this machine
 /// (32 MiB L3) the 80 x 14 x 14 beam's 27.8 MB factor does not stay in
@@ -62,6 +69,9 @@ struct Structure<'a> {
     /// Whether the kernels prefetch the factor's values (a factor of at
     /// least [`PREFETCH_BYTES`]).
     prefetch: bool,
+    /// The narrowest diagonal block solved by tiles, forward and backward
+    /// ([`BLOCKED_DIAGONAL`]; tests turn them off).
+    blocked: [usize; 2],
 }
 
 impl<'a> Structure<'a> {
@@ -78,6 +88,7 @@ impl<'a> Structure<'a> {
             row_idx: s.row_idx(),
             value_ptr: s.col_ptr_for_val(),
             prefetch: s.col_ptr_for_val().last().copied().unwrap_or(0) * 8 >= PREFETCH_BYTES,
+            blocked: BLOCKED_DIAGONAL,
         })
     }
 }
@@ -106,6 +117,9 @@ pub(crate) struct SupernodalSolve {
     /// Whether the kernels prefetch the factor (at least
     /// [`PREFETCH_BYTES`] stored).
     prefetch: bool,
+    /// The narrowest diagonal block solved by tiles, forward and backward
+    /// ([`BLOCKED_DIAGONAL`]).
+    blocked: [usize; 2],
 }
 
 impl SupernodalSolve {
@@ -160,7 +174,15 @@ impl SupernodalSolve {
             split,
             x: vec![Point::zeros(); n],
             prefetch: structure.prefetch,
+            blocked: BLOCKED_DIAGONAL,
         })
+    }
+
+    /// Sets the narrowest diagonal block solved by tiles, forward and
+    /// backward (tests: `usize::MAX` gives the column-by-column solve).
+    #[cfg(test)]
+    pub fn set_blocked(&mut self, narrowest: [usize; 2]) {
+        self.blocked = narrowest;
     }
 
     /// Turns the kernels' prefetches on or off, whatever the factor's size
@@ -183,6 +205,7 @@ impl SupernodalSolve {
     pub fn solve(&mut self, symbolic: &SymbolicCholesky<usize>, values: &[f64], rhs: &mut [Point]) {
         let mut structure = Structure::of(symbolic).expect("the plan of a supernodal factor");
         structure.prefetch = self.prefetch;
+        structure.blocked = self.blocked;
         let forward = symbolic.perm().map(|p| p.arrays().0);
         self.permute_in(forward, rhs);
         self.forward_substitution(&structure, values);
@@ -227,6 +250,7 @@ impl SupernodalSolve {
     ) -> [f64; 4] {
         let mut structure = Structure::of(symbolic).expect("the plan of a supernodal factor");
         structure.prefetch = self.prefetch;
+        structure.blocked = self.blocked;
         let forward = symbolic.perm().map(|p| p.arrays().0);
         let t0 = clock();
         self.permute_in(forward, rhs);
@@ -488,7 +512,9 @@ impl Structure<'_> {
         let ld = c + rows.len();
         let block = &values[self.value_ptr[s]..self.value_ptr[s] + ld * c];
         let top = &mut x[first..first + c];
-        if c >= WIDE_DIAGONAL {
+        if c >= self.blocked[0] {
+            below.solve_diagonal_blocked(block, ld, top);
+        } else if c >= WIDE_DIAGONAL {
             below.solve_diagonal(block, ld, top);
         } else {
             for j in 0..c {
@@ -545,6 +571,10 @@ impl Structure<'_> {
         }
         let top = &mut x[first..first + c];
         below.subtract_products(block, ld, c, top, r);
+        if c >= self.blocked[1] {
+            below.solve_diagonal_transposed_blocked(block, ld, top);
+            return;
+        }
         for j in (0..c).rev() {
             // The next column's rows under the diagonal.
             if below.prefetches() && j > 0 && c >= WIDE_DIAGONAL {
