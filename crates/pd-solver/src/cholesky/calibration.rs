@@ -60,6 +60,27 @@ pub(super) fn laplacian_values(p: &LowerPattern) -> Vec<f64> {
     values
 }
 
+/// The TetGen armadillo read from `../shared/meshes/armadillo` beside the
+/// repository, or `None` (with a line saying so) when it is absent.
+pub(super) fn armadillo() -> Option<pd_mesh::Mesh> {
+    let base = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/meshes/armadillo/armadillo");
+    pd_io::tetgen::read_tetgen_base(&base)
+        .map_err(|e| println!("armadillo skipped: {e}"))
+        .ok()
+}
+
+/// `mesh`'s tet pattern analysed as pd analyses it (AMD against the
+/// dissection candidates) and factorised with [`laplacian_values`].
+pub(super) fn laplacian_factor(mesh: &pd_mesh::Mesh) -> (SymbolicFactor, NumericFactor) {
+    let pattern = tet_pattern(mesh);
+    let candidates = dissection_candidates(&pattern, mesh.vertices());
+    let mut factor = SymbolicFactor::analyse(pattern, &candidates).unwrap();
+    let values = laplacian_values(factor.pattern());
+    let numeric = factor.factorise(&values).expect("diagonally dominant");
+    (factor, numeric)
+}
+
 /// This thread's time on a CPU so far, in seconds (Linux's schedstat; wall
 /// time elsewhere): time spent waiting for a core on a loaded machine does
 /// not count, so the numbers stay comparable while other work runs.
@@ -145,12 +166,7 @@ fn solve_cost_calibration() {
             pd_mesh::generators::box_tets([1.0, 0.2, 0.2], [75, 15, 15]).unwrap(),
         ),
     ];
-    let armadillo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/meshes/armadillo/armadillo");
-    match pd_io::tetgen::read_tetgen_base(&armadillo) {
-        Ok(mesh) => meshes.push(("armadillo", mesh)),
-        Err(e) => println!("armadillo skipped: {e}"),
-    }
+    meshes.extend(armadillo().map(|mesh| ("armadillo", mesh)));
     for (label, mesh) in meshes {
         let pattern = tet_pattern(&mesh);
         println!("{label}: {} vertices", pattern.n);

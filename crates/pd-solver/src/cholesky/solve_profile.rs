@@ -16,16 +16,11 @@
 //! diagonal blocks tiled from several widths (`solve_diagonal.rs`;
 //! `usize::MAX`: never, the column-by-column order).
 
-use super::calibration::{laplacian_values, tet_pattern};
+use super::calibration::{armadillo, laplacian_factor};
 use super::supernodal_solve::SupernodalSolve;
-use super::*;
 
 fn profile(label: &str, mesh: &pd_mesh::Mesh) {
-    let pattern = tet_pattern(mesh);
-    let candidates = dissection_candidates(&pattern, mesh.vertices());
-    let mut factor = SymbolicFactor::analyse(pattern, &candidates).unwrap();
-    let values = laplacian_values(factor.pattern());
-    let numeric = factor.factorise(&values).expect("diagonally dominant");
+    let (mut factor, numeric) = laplacian_factor(mesh);
     let n = factor.pattern().n;
     println!(
         "{label}: {n} unknowns, {} stored values ({:.1} MB), {} supernodes",
@@ -121,10 +116,7 @@ fn bits_hash(points: &[pd_mesh::Point]) -> u64 {
 fn solve_profile() {
     let beam = pd_mesh::generators::box_tets([1.0, 0.2, 0.2], [80, 14, 14]).unwrap();
     profile("beam 80 x 14 x 14", &beam);
-    let armadillo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/meshes/armadillo/armadillo");
-    match pd_io::tetgen::read_tetgen_base(&armadillo) {
-        Ok(mesh) => profile("armadillo", &mesh),
-        Err(e) => println!("armadillo skipped: {e}"),
+    if let Some(mesh) = armadillo() {
+        profile("armadillo", &mesh);
     }
 }

@@ -1,8 +1,9 @@
 //! Tests of `supernodal_solve.rs` (kept apart so that file stays under
 //! 600 lines).
 
-use super::super::calibration::{laplacian_values, tet_pattern};
-use super::super::{SymbolicFactor, dissection_candidates};
+use super::super::calibration::{armadillo, laplacian_factor};
+use super::super::{NumericFactor, SymbolicFactor};
+use super::SupernodalSolve;
 use pd_mesh::Point;
 
 /// Prefetching changes no value: a beam's split solve (a factor below
@@ -11,11 +12,7 @@ use pd_mesh::Point;
 #[test]
 fn prefetches_change_no_bit() {
     let beam = pd_mesh::generators::box_tets([1.0, 0.2, 0.2], [40, 8, 8]).unwrap();
-    let pattern = tet_pattern(&beam);
-    let candidates = dissection_candidates(&pattern, beam.vertices());
-    let mut factor = SymbolicFactor::analyse(pattern, &candidates).unwrap();
-    let values = laplacian_values(factor.pattern());
-    let numeric = factor.factorise(&values).expect("diagonally dominant");
+    let (mut factor, numeric) = laplacian_factor(&beam);
     let n = factor.pattern().n;
     let mut solve = factor.fast_solve.take().expect("a supernodal factor");
     assert!(solve.is_split(), "the beam's tree splits");
@@ -24,15 +21,7 @@ fn prefetches_change_no_bit() {
         .collect();
     let mut solved = |prefetch: bool, threads: usize| {
         solve.set_prefetch(prefetch);
-        let mut x = rhs.clone();
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| solve.solve(&factor.symbolic, &numeric.values, &mut x));
-        x.iter()
-            .flat_map(|p| [p.x, p.y, p.z].map(f64::to_bits))
-            .collect::<Vec<_>>()
+        bits(&solved_on(threads, &mut solve, (&factor, &numeric), &rhs))
     };
     let plain = solved(false, 1);
     assert_eq!(plain, solved(true, 1));
@@ -102,20 +91,13 @@ fn residual(
 fn blocked_diagonal_solves_are_backward_stable() {
     let beam = pd_mesh::generators::box_tets([1.0, 0.2, 0.2], [40, 8, 8]).unwrap();
     check_backward_error("beam 40 x 8 x 8", &beam);
-    let armadillo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/meshes/armadillo/armadillo");
-    match pd_io::tetgen::read_tetgen_base(&armadillo) {
-        Ok(mesh) => check_backward_error("armadillo", &mesh),
-        Err(e) => println!("armadillo skipped: {e}"),
+    if let Some(mesh) = armadillo() {
+        check_backward_error("armadillo", &mesh);
     }
 }
 
 fn check_backward_error(label: &str, mesh: &pd_mesh::Mesh) {
-    let pattern = tet_pattern(mesh);
-    let candidates = dissection_candidates(&pattern, mesh.vertices());
-    let mut factor = SymbolicFactor::analyse(pattern, &candidates).unwrap();
-    let values = laplacian_values(factor.pattern());
-    let numeric = factor.factorise(&values).expect("diagonally dominant");
+    let (mut factor, numeric) = laplacian_factor(mesh);
     let n = factor.pattern().n;
     let mut solve = factor.fast_solve.take().expect("a supernodal factor");
     let structure = super::Structure::of(&factor.symbolic).unwrap();
@@ -142,21 +124,9 @@ fn check_backward_error(label: &str, mesh: &pd_mesh::Mesh) {
     let u = f64::EPSILON / 2.0;
     for blocked in [super::BLOCKED_DIAGONAL, [usize::MAX; 2]] {
         solve.set_blocked(blocked);
-        let mut solved: Vec<Vec<Point>> = Vec::new();
-        for threads in [1, 2] {
-            let mut x = rhs.clone();
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| solve.solve(&factor.symbolic, &numeric.values, &mut x));
-            solved.push(x);
-        }
-        let bits = |x: &[Point]| -> Vec<u64> {
-            x.iter()
-                .flat_map(|p| [p.x, p.y, p.z].map(f64::to_bits))
-                .collect()
-        };
+        let solved: Vec<Vec<Point>> = [1, 2]
+            .map(|threads| solved_on(threads, &mut solve, (&factor, &numeric), &rhs))
+            .into();
         assert_eq!(
             bits(&solved[0]),
             bits(&solved[1]),
@@ -182,4 +152,27 @@ fn check_backward_error(label: &str, mesh: &pd_mesh::Mesh) {
             "{label}, tiles from {blocked:?} columns: m = {m}, worst residual / bound {worst:.3e}"
         );
     }
+}
+
+/// `rhs` solved with `solve` and the factor on a pool of `threads` threads.
+fn solved_on(
+    threads: usize,
+    solve: &mut SupernodalSolve,
+    (factor, numeric): (&SymbolicFactor, &NumericFactor),
+    rhs: &[Point],
+) -> Vec<Point> {
+    let mut x = rhs.to_vec();
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(|| solve.solve(&factor.symbolic, &numeric.values, &mut x));
+    x
+}
+
+/// The bits of every coordinate of `x`, in order.
+fn bits(x: &[Point]) -> Vec<u64> {
+    x.iter()
+        .flat_map(|p| [p.x, p.y, p.z].map(f64::to_bits))
+        .collect()
 }

@@ -110,12 +110,11 @@ pub(crate) struct BodyContact {
     compliances: Vec<Option<([u32; 4], f64)>>,
     /// Each triangle's vertices (for the candidate lists).
     triangles: Vec<[usize; 3]>,
-    /// Per candidate-list entry, its start plane
-    /// ([`BodyContact::start_plane`]) for this step, valid while
-    /// `start_planes_fresh` (cleared at a step's start and by a build).
-    start_planes: Vec<Option<(Point, f64)>>,
-    /// Per entry, what its start plane tells of every crossing in the
-    /// step ([`listed::StartHit`]), filled with `start_planes`.
+    /// Per candidate-list entry, what its start plane
+    /// ([`BodyContact::start_plane`], from `x_n`) tells of every crossing
+    /// in the step ([`listed::StartHit`]), filled with the live entries
+    /// (`bodies_live.rs`); valid while `start_planes_fresh` (cleared at a
+    /// step's start and by a build).
     start_hits: Vec<listed::StartHit>,
     start_planes_fresh: bool,
     /// The counts and `paired` are those of the current pairs and
@@ -201,7 +200,6 @@ impl BodyContact {
             grid: Grid::default(),
             boxes: Vec::new(),
             segments: vec![(Point::zeros(), Point::zeros()); rest.len()],
-            start_planes: Vec::new(),
             start_hits: Vec::new(),
             start_planes_fresh: false,
             counted: false,

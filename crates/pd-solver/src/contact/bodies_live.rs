@@ -21,18 +21,16 @@ pub(super) struct LiveEntry {
 }
 
 impl BodyContact {
-    /// Each candidate entry's start plane for this step
+    /// Each candidate entry's start verdict for this step, from its start plane
     /// ([`BodyContact::start_plane`]: it depends on `x_n` only), for the
     /// vertices with candidates and without a pair (pairs are dropped only
     /// at a step's start or a restore, which clear `start_planes_fresh`,
     /// so no other vertex searches before the next fill), and the
     /// vertices of their candidates (`needed`).
     pub(super) fn fill_start_planes(&mut self, x_n: &[Point], thickness: f64) {
-        self.start_planes.clear();
-        self.start_planes
-            .resize(self.candidates.entry_count(), None);
         self.start_hits.clear();
-        (self.start_hits).resize(self.candidates.entry_count(), StartHit::Unknown);
+        self.start_hits
+            .resize(self.candidates.entry_count(), StartHit::Unknown);
         self.needed.clear();
         self.live.clear();
         self.live_vertices.clear();
@@ -47,9 +45,9 @@ impl BodyContact {
                 let face = self.faces[self.candidates.face(e)];
                 let [i, j, k] = face.vertices;
                 let start = [x_n[i], x_n[j], x_n[k]];
-                let plane = self.start_plane(&face, &start, &x_n[v], thickness);
-                self.start_planes[e] = plane;
-                let Some(plane) = plane else { continue };
+                let Some(plane) = self.start_plane(&face, &start, &x_n[v], thickness) else {
+                    continue;
+                };
                 // An entry without a start plane or never hit reads no
                 // segment box.
                 self.start_hits[e] = start_hit(plane, &start, &x_n[v], thickness);

@@ -51,7 +51,7 @@ impl Grid {
         self.keys.clear();
         self.cell = cell;
         self.spans.clear();
-        (self.spans).extend(
+        self.spans.extend(
             boxes
                 .iter()
                 .map(|(lo, hi)| (cell_index(lo, cell), cell_index(hi, cell))),

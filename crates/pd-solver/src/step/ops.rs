@@ -141,14 +141,7 @@ impl StepProblem<'_> {
         self.rhs_from_projections();
         let b = &mut *self.buffers;
         self.global.solve(&b.rhs);
-        let mut change = IterationChange::default();
-        for (f, &v) in self.global.free().iter().enumerate() {
-            let new = self.global.solution(f);
-            let m = self.masses[v];
-            change.change_squared += m * (new - b.displacement[v]).norm_squared();
-            change.displacement_squared += m * new.norm_squared();
-            b.displacement[v] = new;
-        }
+        let change = super::tail::take_solution(self.global, self.masses, &mut b.displacement);
         self.stats.iterations += 1;
         self.stats.objective_evaluations = self.stats.objective_evaluations.saturating_sub(1);
         self.stats.global_seconds += t0.elapsed().as_secs_f64();

@@ -15,6 +15,7 @@
 use pd_mesh::Point;
 
 use super::fitted::FitWorkspace;
+use super::ops::mass_dot;
 use super::predictor::{Predictor, PredictorState};
 use crate::Simulation;
 
@@ -37,7 +38,7 @@ pub(crate) struct FitScratch {
 /// corrections (index 0 the newest), kept from step to step.
 ///
 /// Same bits as recomputing them all ([`mass_gram`]): an entry `(p, q)`,
-/// `p <= q`, is computed once, by [`mass_inner`] of the `p`-th and `q`-th
+/// `p <= q`, is computed once, by [`mass_dot`] of the `p`-th and `q`-th
 /// corrections in that order (the newer one first), when the newer one
 /// arrives. When the next correction is stored, every correction moves one
 /// place back (`c_p` becomes `c_{p+1}`) and the oldest may leave; the
@@ -81,7 +82,7 @@ impl GramCache {
         }
         for (p, a) in state.correction_history().enumerate().take(self.stale) {
             for (q, b) in state.correction_history().enumerate().take(rows).skip(p) {
-                self.values[p * stride + q] = mass_inner(a, b, masses);
+                self.values[p * stride + q] = mass_dot(masses, a, b);
             }
         }
         self.stale = 0;
@@ -282,13 +283,6 @@ impl Simulation {
     }
 }
 
-/// `<a, b>_M = sum_v m_v a[v] . b[v]` (kg m^2), summed in vertex order.
-pub(crate) fn mass_inner(a: &[Point], b: &[Point], masses: &[f64]) -> f64 {
-    (a.iter().zip(b).zip(masses))
-        .map(|((a, b), m)| m * a.dot(b))
-        .sum()
-}
-
 /// `<c_p, c_q>_M` for every pair of `history`, row-major (kg m^2): each
 /// entry computed afresh ([`GramCache`] keeps them from step to step with
 /// the same bits).
@@ -298,7 +292,7 @@ pub(crate) fn mass_gram(history: &[&[Point]], masses: &[f64]) -> Vec<f64> {
     let mut gram = vec![0.0; len * len];
     for p in 0..len {
         for q in p..len {
-            let dot = mass_inner(history[p], history[q], masses);
+            let dot = mass_dot(masses, history[p], history[q]);
             gram[p * len + q] = dot;
             gram[q * len + p] = dot;
         }

@@ -31,6 +31,18 @@ pub(crate) fn take_solution(
     masses: &[f64],
     displacement: &mut [Point],
 ) -> IterationChange {
+    take_solution_with(global, masses, displacement, |_, _| {})
+}
+
+/// [`take_solution`], calling `also(v, new)` with each free vertex's new
+/// displacement after it is taken.
+#[inline(always)]
+fn take_solution_with(
+    global: &GlobalStep,
+    masses: &[f64],
+    displacement: &mut [Point],
+    mut also: impl FnMut(usize, Point),
+) -> IterationChange {
     let mut change = IterationChange::default();
     for (f, &v) in global.free().iter().enumerate() {
         let new = global.solution(f);
@@ -38,6 +50,7 @@ pub(crate) fn take_solution(
         change.change_squared += m * (new - displacement[v]).norm_squared();
         change.displacement_squared += m * new.norm_squared();
         displacement[v] = new;
+        also(v, new);
     }
     change
 }
@@ -56,16 +69,9 @@ pub(crate) fn take_solution_and_q(
     q: &mut [Point],
 ) -> IterationChange {
     if rayon::current_num_threads() <= 1 {
-        let mut change = IterationChange::default();
-        for (f, &v) in global.free().iter().enumerate() {
-            let new = global.solution(f);
-            let m = masses[v];
-            change.change_squared += m * (new - displacement[v]).norm_squared();
-            change.displacement_squared += m * new.norm_squared();
-            displacement[v] = new;
+        return take_solution_with(global, masses, displacement, |v, new| {
             q[v] = x_n[v] + new * c2;
-        }
-        return change;
+        });
     }
     let done = AtomicBool::new(false);
     let (change, ()) = rayon::join(
