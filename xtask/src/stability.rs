@@ -240,6 +240,16 @@ impl Start {
 
 /// The damping models of the matrix: every preset of the registry, named
 /// by its preset name, its strength parameter set to the coefficient.
+/// The cargo profile this xtask was built in, as the generated reports
+/// name it.
+pub(crate) fn profile_name() -> &'static str {
+    if cfg!(debug_assertions) {
+        "dev"
+    } else {
+        "release"
+    }
+}
+
 fn presets() -> &'static [Preset] {
     registry::presets()
 }

@@ -213,11 +213,7 @@ pub(super) fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
          ## Where a method does worse than plain PD\n\n\
          Cases where plain local-global PD with the same budget completed and the method did \
          not: {worse_count}.\n",
-        profile = if cfg!(debug_assertions) {
-            "dev"
-        } else {
-            "release"
-        },
+        profile = super::profile_name(),
     );
     if predictor != Predictor::Inertial {
         let _ = writeln!(
