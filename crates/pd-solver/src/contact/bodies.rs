@@ -247,9 +247,12 @@ impl BodyContact {
     pub fn begin_step(&mut self, x_n: &[Point]) {
         self.candidates.begin_step(x_n, &self.on_surface);
         self.start_planes_fresh = false;
+        let (listed, count) = self.pair_slots();
         self.counted = false;
         self.compliances.iter_mut().for_each(|c| *c = None);
-        for (v, pair) in self.pairs.iter_mut().enumerate() {
+        for k in 0..count {
+            let v = self.pair_slot(k, listed);
+            let pair = &mut self.pairs[v];
             let Some(p) = pair.filter(Pair::active) else {
                 *pair = None;
                 continue;
@@ -485,8 +488,9 @@ impl BodyContact {
     /// mass so that the centre of mass does not move. Returns the deepest
     /// correction, m.
     pub fn project(&mut self, positions: &mut [Point], thickness: f64) -> f64 {
-        let mut deepest = 0.0_f64;
-        for v in 0..self.pairs.len() {
+        let (mut deepest, (listed, count)) = (0.0_f64, self.pair_slots());
+        for k in 0..count {
+            let v = self.pair_slot(k, listed);
             let Some(mut pair) = self.pairs[v] else {
                 continue;
             };
@@ -526,8 +530,9 @@ impl BodyContact {
     /// impulse (momentum is kept; kinetic energy only falls, as in a
     /// perfectly inelastic contact).
     pub fn filter_velocities(&self, velocities: &mut [Point]) {
-        for (v, pair) in self.pairs.iter().enumerate() {
-            let Some(pair) = pair.filter(|p| p.active() || p.projected) else {
+        let (listed, count) = self.pair_slots();
+        for v in (0..count).map(|k| self.pair_slot(k, listed)) {
+            let Some(pair) = self.pairs[v].filter(|p| p.active() || p.projected) else {
                 continue;
             };
             let tri = self.faces[pair.face].vertices;

@@ -87,13 +87,36 @@ impl BodyContact {
         }
     }
 
+    /// The pair slots a pass over the pairs visits, in increasing order:
+    /// with `listed`, the `k`-th of the count is `paired[k]` (while the
+    /// counts are current, `paired` holds exactly the vertices with a
+    /// pair: pairs are added only by detection, which lists them, and
+    /// dropped only by a step's start or a restore, which clear
+    /// `counted`), otherwise `k` itself (every slot). The other slots are
+    /// empty, so a pass that skips empty slots does the same in the same
+    /// order ([`BodyContact::pair_slot`]).
+    pub(super) fn pair_slots(&self) -> (bool, usize) {
+        if self.counted {
+            (true, self.paired.len())
+        } else {
+            (false, self.pairs.len())
+        }
+    }
+
+    /// The `k`-th slot visited ([`BodyContact::pair_slots`]).
+    #[inline]
+    pub(super) fn pair_slot(&self, k: usize, listed: bool) -> usize {
+        if listed { self.paired[k] } else { k }
+    }
+
     /// Active pairs and the deepest penetration (below the thickness) of
     /// a pair at `positions`, m.
     pub fn report(&self, positions: &[Point], thickness: f64) -> (usize, f64) {
         let mut deepest = 0.0_f64;
         let mut active = 0;
-        for (v, pair) in self.pairs.iter().enumerate() {
-            let Some(pair) = pair else { continue };
+        let (listed, count) = self.pair_slots();
+        for v in (0..count).map(|k| self.pair_slot(k, listed)) {
+            let Some(pair) = &self.pairs[v] else { continue };
             active += usize::from(pair.active());
             let tri = self.faces[pair.face].vertices;
             let r = positions[v]

@@ -60,7 +60,13 @@ fn kept_counts_are_a_pass_over_every_vertex_in_every_iteration() {
             .map(|p| p + Point::new(rng.next(), rng.next(), rng.next()) * 1e-4)
             .collect();
         for _step in 0..2 {
+            // A step's start over the listed pairs (`pair_slots`) keeps
+            // the pairs a pass over every slot keeps.
+            let mut every_slot = bodies.clone();
+            every_slot.counted = false;
+            every_slot.begin_step(&x_n);
             bodies.begin_step(&x_n);
+            assert_eq!(bodies.pairs, every_slot.pairs, "trial {trial}");
             let mut collider = Vec::new();
             let mut dx = vec![Point::zeros(); rest.len()];
             for iteration in 0..8 {
@@ -97,7 +103,25 @@ fn kept_counts_are_a_pass_over_every_vertex_in_every_iteration() {
                 }
                 assert_eq!(bodies.count, count, "trial {trial} iteration {iteration}");
                 assert_eq!(bodies.paired, paired, "trial {trial} iteration {iteration}");
+                let (listed, slots) = bodies.pair_slots();
+                let visited: Vec<_> = (0..slots).map(|k| bodies.pair_slot(k, listed)).collect();
+                assert!(
+                    listed && visited == paired,
+                    "trial {trial} iteration {iteration}"
+                );
             }
+            // The projection over the listed pairs is the one over every
+            // slot, bit for bit.
+            let mut every_slot = bodies.clone();
+            every_slot.counted = false;
+            let mut x: Vec<Point> = x_n.iter().zip(&dx).map(|(x, d)| x + d).collect();
+            let mut y = x.clone();
+            let (deepest, expected) = (
+                bodies.project(&mut x, thickness),
+                every_slot.project(&mut y, thickness),
+            );
+            assert_eq!(deepest.to_bits(), expected.to_bits(), "trial {trial}");
+            assert!(x == y && bodies.pairs == every_slot.pairs, "trial {trial}");
             // The next step starts where this one ended, with forces that
             // keep every pair.
             for pair in bodies.pairs.iter_mut().flatten() {

@@ -290,13 +290,14 @@ impl ContactState {
             return;
         }
         let first = self.iteration == 0;
+        let motion = clearance::largest_motion(dx);
         if first {
-            (self.clearance).take(&self.settings, x_n, &self.free_index, &self.slots);
+            let (settings, slots) = (&self.settings, &self.slots);
+            (self.clearance).take(settings, (x_n, motion), &self.free_index, slots);
         }
         self.iteration += 1;
         let h = self.h;
         let with_bodies = self.bodies.is_some();
-        let motion = clearance::largest_motion(dx);
         let threshold = self.clearance.threshold(motion);
         if with_bodies {
             self.detect_bodies(x_n, dx, (motion, threshold));
@@ -304,13 +305,18 @@ impl ContactState {
         // With bodies, detection ran before (`detect_bodies`) and only the
         // vertices it left with a contact are visited (each adds to its own
         // entry of `rhs`: the order does not change a bit).
-        let count = if with_bodies {
-            self.occupied.len()
+        // Without bodies, the vertices near a collider (`Clearance::visits`).
+        let (near, count) = if with_bodies {
+            (false, self.occupied.len())
         } else {
-            x_n.len()
+            self.clearance.visits(threshold, x_n.len())
         };
         for k in 0..count {
-            let v = if with_bodies { self.occupied[k] } else { k };
+            let v = if with_bodies {
+                self.occupied[k]
+            } else {
+                self.clearance.vertex(k, near)
+            };
             if !with_bodies && self.clearance.skips(v, threshold) {
                 continue;
             }
