@@ -1,9 +1,8 @@
 //! `cargo run -p pd-benches --example predictor_gap -- [--integrator
 //! be|im|bdf2] [--damping D] [--steps N] [--cells NX,NY,NZ] [--fits
-//! K/M,K/M,...] [--windows M,M,...] [--reference-iterations I]
-//! [--history-iterations H]`: how good each start of a step is, for the
-//! fitted and subspace predictors (docs/solver.md, "Implicit midpoint's 3x:
-//! a fitted predictor", "... a subspace start").
+//! K/M,K/M,...] [--reference-iterations I] [--history-iterations H]`: how good each start of a step
+//! is, for the fitted predictor (docs/solver.md, "Implicit midpoint's 3x:
+//! a fitted predictor").
 //!
 //! The benchmark beam (one thread) runs `N` steps with Anderson at `I`
 //! iterations (40: the reference; or `H`, to fit the corrections a
@@ -14,8 +13,7 @@
 //! Anderson at `I` iterations: the gap `g(x^0) - g(x*)` over the inertial
 //! start's. Printed per step: `linear` (`2 c_n - c_{n-1}`) and the fitted
 //! recurrence of order `K` over `M` steps, with the fit's relative
-//! residual; then the subspace start over the last `M` corrections (a
-//! probe with `Predictor::Subspace`, restored to the same state). A start whose objective is not below `y`'s is replaced by `y`
+//! residual. A start whose objective is not below `y`'s is replaced by `y`
 //! (the predictor's safeguard), so ratios are at most 1.
 
 use pd_benches::Beam;
@@ -80,11 +78,6 @@ fn main() -> Result<(), String> {
             ))
         })
         .collect::<Result<_, String>>()?;
-    let windows: Vec<u8> = value(&args, "--windows")
-        .unwrap_or("4,8,12,16")
-        .split(',')
-        .map(|w| w.parse().map_err(|_| format!("--windows: {w:?}")))
-        .collect::<Result<_, String>>()?;
     let mut beam = Beam {
         iterations: reference,
         threads: 1,
@@ -115,22 +108,12 @@ fn main() -> Result<(), String> {
     let mut main = make(long, history_iterations)?;
     let mut inertial = make(Predictor::Inertial, reference)?;
     let mut probe = make(Predictor::Extrapolated, reference)?;
-    let mut subspace = windows
-        .iter()
-        .map(|&window| make(Predictor::Subspace { window }, reference))
-        .collect::<Result<Vec<_>, String>>()?;
     inertial.record_objective(true);
     probe.record_objective(true);
-    for s in &mut subspace {
-        s.record_objective(true);
-    }
     let masses = main.model().masses().to_vec();
     print!("step linear");
     for (k, m) in &fits {
         print!(" fit{k}/{m} (residual)");
-    }
-    for w in &windows {
-        print!(" subspace{w}");
     }
     println!();
     for step in 1..=steps {
@@ -161,13 +144,6 @@ fn main() -> Result<(), String> {
                     }
                     None => line += " none",
                 }
-            }
-            for (s, w) in subspace.iter_mut().zip(&windows) {
-                if history.len() < usize::from(*w) {
-                    line += " -";
-                    continue;
-                }
-                line += &format!(" {:.2e}", gap(s, &saved)? / at_y);
             }
             println!("{line}");
         }

@@ -119,7 +119,6 @@ pub fn measure(beam: &Beam, mesh: &Mesh, plan: &MethodsPlan) -> Result<Value, St
             Predictor::Fitted { order, equations } if predictor != Predictor::FITTED => {
                 format!("{}+fitted{order}/{equations}", method.name())
             }
-            Predictor::Subspace { window } => format!("{}+subspace{window}", method.name()),
             other => format!("{}+{}", method.name(), other.name()),
         };
         let budgets = if method == SolverMethod::Newton {

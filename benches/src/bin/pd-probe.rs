@@ -578,14 +578,9 @@ fn methods(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     pd_benches::methods::measure(beam, &mesh, &plan)
 }
 
-/// A predictor name, `fittedK/M` for the fitted predictor of order `K`
-/// over `M` steps (`fitted` alone: the default order and steps), or
-/// `subspaceM` for the subspace predictor over `M` corrections.
+/// A predictor name, or `fittedK/M` for the fitted predictor of order `K`
+/// over `M` steps (`fitted` alone: the default order and steps).
 fn parse_predictor(text: &str) -> Option<pd_solver::Predictor> {
-    if let Some(m) = text.strip_prefix("subspace") {
-        let window = m.parse().ok().filter(|m| (2..=24).contains(m))?;
-        return Some(pd_solver::Predictor::Subspace { window });
-    }
     let Some((k, m)) = text.strip_prefix("fitted").and_then(|t| t.split_once('/')) else {
         return pd_solver::Predictor::parse(text);
     };

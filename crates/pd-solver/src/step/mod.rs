@@ -26,7 +26,6 @@ pub(crate) mod ops;
 pub(crate) mod predictor;
 pub(crate) mod predictor_fit;
 pub(crate) mod ray;
-pub(crate) mod subspace;
 pub(crate) mod tail;
 
 use std::time::Instant;
@@ -74,8 +73,6 @@ pub(crate) struct Scratch {
     pub predicted_start: Vec<Point>,
     /// The fitted predictor's buffers and Gram cache (step/predictor_fit.rs).
     pub fit: predictor_fit::FitScratch,
-    /// The subspace predictor's buffers (step/subspace.rs).
-    pub subspace: subspace::SubspaceScratch,
 }
 
 impl Scratch {
@@ -91,7 +88,6 @@ impl Scratch {
             predicted: false,
             predicted_start: Vec::new(),
             fit: predictor_fit::FitScratch::default(),
-            subspace: subspace::SubspaceScratch::default(),
         }
     }
 }
@@ -253,14 +249,6 @@ impl Simulation {
             start_objective: None,
         };
         if problem.predicted {
-            if let Predictor::Subspace { window } = self.predictor {
-                let state = &self.predictor_state;
-                for _ in
-                    0..std::env::var("PD_SUBSPACE_PASSES").map_or(1, |p| p.parse().unwrap_or(1))
-                {
-                    (self.scratch.subspace).galerkin_start(&mut problem, state, window.into());
-                }
-            }
             predictor::keep_the_better_start(&mut problem, &mut self.scratch.predicted_start);
         }
         self.position_solver.find_positions(&mut problem)

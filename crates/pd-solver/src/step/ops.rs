@@ -8,8 +8,6 @@ use pd_constraints::EnergyBound;
 use pd_mesh::Point;
 
 use super::iteration::{IterationChange, StepProblem};
-use crate::global::MatrixCoefficients;
-use crate::system::SystemCoefficients;
 
 /// `sum_v m_v a_v . b_v` (kg m^2 for displacements), summed sequentially so
 /// that it does not depend on the thread count.
@@ -154,33 +152,5 @@ impl StepProblem<'_> {
     /// [`StepProblem::project_with_objective`]).
     pub(crate) fn local_chunks(&self) -> usize {
         self.local.num_chunks()
-    }
-}
-
-/// The step's scalar matrix `A` (free vertices) for products with it, its
-/// values combined over the lower pattern only when its coefficients (or the
-/// pattern) change. For a scalar step matrix only: not the lagged 3n system.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct ScalarMatrix {
-    /// `A`'s values over the scalar lower pattern.
-    values: Vec<f64>,
-    /// The coefficients `values` were combined for.
-    coefficients: Option<MatrixCoefficients>,
-}
-
-impl ScalarMatrix {
-    /// `out_f = (A w)_f` for every free vertex `f` of `step` (`w` one point
-    /// per vertex, `out` one per free vertex).
-    pub fn product(&mut self, step: &StepProblem<'_>, w: &[Point], out: &mut [Point]) {
-        let system = step.global.system();
-        let coefficients = SystemCoefficients::of(step.coefficients, step.damping, step.h).matrix;
-        if self.values.len() != system.pattern.row_idx.len()
-            || self.coefficients != Some(coefficients)
-        {
-            self.values.resize(system.pattern.row_idx.len(), 0.0);
-            system.values_into(coefficients, &mut self.values);
-            self.coefficients = Some(coefficients);
-        }
-        super::newton::symmetric_product(system, &self.values, w, out);
     }
 }

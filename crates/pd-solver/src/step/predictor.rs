@@ -58,15 +58,6 @@ pub enum Predictor {
         /// `m >= k`, the number of past steps it is fitted to (up to 24).
         equations: u8,
     },
-    /// At the minimiser of the local-global surrogate at the linear start
-    /// `x_lin` over `x_lin + span{c_n, ..., c_{n+1-window}}`, the last
-    /// `window` corrections of the same kind (step/subspace.rs; one more
-    /// local step a predicted step); as [`Predictor::Linear`] with fewer
-    /// than two.
-    Subspace {
-        /// `m`, the number of corrections spanning the subspace (2 to 24).
-        window: u8,
-    },
 }
 
 impl Predictor {
@@ -101,7 +92,6 @@ impl Predictor {
             Predictor::Extrapolated => "extrapolated",
             Predictor::Linear => "linear",
             Predictor::Fitted { .. } => "fitted",
-            Predictor::Subspace { .. } => "subspace",
         }
     }
 
@@ -118,7 +108,6 @@ impl Predictor {
             Predictor::Extrapolated => 1,
             Predictor::Linear => 2,
             Predictor::Fitted { order, equations } => usize::from(order) + usize::from(equations),
-            Predictor::Subspace { window } => usize::from(window).max(2),
         }
     }
 }
@@ -218,10 +207,7 @@ impl Simulation {
         let same_kind = state.key.map(f64::to_bits) == key.map(f64::to_bits);
         if self.predictor == Predictor::Linear && same_kind && !state.correction.is_empty() {
             std::mem::swap(&mut state.previous, &mut state.correction);
-        } else if matches!(
-            self.predictor,
-            Predictor::Fitted { .. } | Predictor::Subspace { .. }
-        ) {
+        } else if matches!(self.predictor, Predictor::Fitted { .. }) {
             self.shift_fitted_history(same_kind);
         } else {
             state.previous.clear();

@@ -30,13 +30,16 @@ use pd_constraints::EnergyBound;
 use pd_mesh::Point;
 
 use super::iteration::StepProblem;
-use super::ops::ScalarMatrix;
+use crate::global::MatrixCoefficients;
+use crate::system::SystemCoefficients;
 
-/// `A`, a product buffer and the end iterate under check.
+/// `A`'s values, a product buffer and the end iterate under check.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct RayCheck {
-    /// `A`, for the gradient.
-    matrix: ScalarMatrix,
+    /// `A`'s values over the scalar lower pattern.
+    values: Vec<f64>,
+    /// The coefficients `values` were combined for.
+    coefficients: Option<MatrixCoefficients>,
     /// `A dx` per free vertex.
     product: Vec<Point>,
     /// The end iterate before the check.
@@ -49,15 +52,9 @@ impl RayCheck {
     /// system) and PD energies only (the gradient of hyperelastic
     /// materials is not in the right-hand side).
     pub fn applies(step: &StepProblem<'_>) -> bool {
-        step.coefficients.c2 < 1.0 && Self::scalar_pd(step)
-    }
-
-    /// Whether `grad g = A dx - rhs(p)` holds with the scalar matrix `A`:
-    /// no lagged damping (whose matrix is the 3n system) and PD energies
-    /// only (the gradient of hyperelastic materials is not in the
-    /// right-hand side).
-    pub fn scalar_pd(step: &StepProblem<'_>) -> bool {
-        step.damping.lagged_stiffness == 0.0 && !super::materials::MaterialGradient::present(step)
+        step.coefficients.c2 < 1.0
+            && step.damping.lagged_stiffness == 0.0
+            && !super::materials::MaterialGradient::present(step)
     }
 
     /// Checks the current displacement, the step's end iterate, and moves
@@ -104,8 +101,18 @@ impl RayCheck {
         if self.product.len() != system.free.len() {
             self.product = vec![Point::zeros(); system.free.len()];
         }
-        self.matrix
-            .product(step, &step.buffers.displacement, &mut self.product);
+        // `A` is constant while its coefficients are: combine its values
+        // only when they (or the pattern) change.
+        let coefficients = SystemCoefficients::of(step.coefficients, step.damping, step.h).matrix;
+        if self.values.len() != system.pattern.row_idx.len()
+            || self.coefficients != Some(coefficients)
+        {
+            self.values.resize(system.pattern.row_idx.len(), 0.0);
+            system.values_into(coefficients, &mut self.values);
+            self.coefficients = Some(coefficients);
+        }
+        let dx = &step.buffers.displacement;
+        super::newton::symmetric_product(system, &self.values, dx, &mut self.product);
         step.rhs_from_projections();
         let b = &*step.buffers;
         let system = step.global.system();
