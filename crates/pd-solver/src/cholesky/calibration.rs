@@ -5,12 +5,15 @@
 //! cargo test --release -p pd-solver --lib calibration -- --ignored --nocapture
 //! ```
 //!
-//! For the 95,499- and 19,456-vertex beams and the TetGen armadillo (read
+//! For the 95,499-, 18,225- and 19,456-vertex beams and the TetGen armadillo (read
 //! from `../shared/meshes/armadillo` beside the repository, skipped if
 //! absent) it prints, for AMD, the geometric dissection and METIS, the
 //! stored values, the supernodes, the modelled cost, and the measured
-//! numeric factorisation and median 3-column solve. docs/performance.md
-//! fits the cost model to these numbers.
+//! numeric factorisation and 3-column solves: faer's hot, and pd's own
+//! (`solve_points`) hot and cold (64 MiB streamed through the caches
+//! first, as the local step does in a time step). It ends with the fit of
+//! `time = a stored + b supernodes` to pd's solves, hot and cold, that
+//! docs/performance.md quotes.
 
 use super::*;
 
@@ -117,39 +120,120 @@ fn forced(pattern: &LowerPattern, order: &[usize]) -> (Vec<usize>, SymbolicChole
     (inverse, symbolic)
 }
 
-/// Prints one ordering's line: structure, modelled cost, measured times.
-fn measure(name: &str, mut factor: SymbolicFactor) {
+/// MiB streamed through the caches before each cold solve, as `pd-probe
+/// phases --evict-mib 64` does: in a step the local step streams the
+/// elements between two solves, so the solve reads its factor cold.
+const EVICT_MIB: usize = 64;
+
+/// One ordering's solve measured: the factor's stored values and
+/// supernodes, and pd's 3-column solve (`solve_points`) median in ms, hot
+/// (repeated back to back) and cold (after [`EVICT_MIB`] MiB streamed).
+struct Sample {
+    stored: f64,
+    supernodes: f64,
+    hot: f64,
+    cold: f64,
+}
+
+/// (min, median) in ms of `reps` runs of `f`, which returns the time of
+/// the part it times, in seconds.
+fn timed(reps: usize, mut f: impl FnMut() -> f64) -> (f64, f64) {
+    let mut times: Vec<f64> = (0..reps).map(|_| f()).collect();
+    times.sort_by(f64::total_cmp);
+    (times[0] * 1e3, times[times.len() / 2] * 1e3)
+}
+
+/// The wall time of `f`, in seconds. Not [`cpu_seconds`]: this machine's
+/// schedstat advances in 4 ms ticks, and pd's solve may hand half the tree
+/// to a rayon worker, whose time this thread's clock would not count (the
+/// fit runs on a 1-thread pool, as a 1-thread step does).
+fn wall_time(f: impl FnOnce()) -> f64 {
+    let start = std::time::Instant::now();
+    f();
+    start.elapsed().as_secs_f64()
+}
+
+/// Prints one ordering's line: structure, modelled cost, measured times
+/// (faer's solve hot; pd's `solve_points` hot and cold), and returns the
+/// sample for the fit.
+fn measure(name: &str, mut factor: SymbolicFactor, evict: &mut [f64]) -> Sample {
     let values = laplacian_values(factor.pattern());
     let n = factor.pattern().n;
     let start = cpu_seconds();
     let numeric = factor.factorise(&values).expect("diagonally dominant");
     let factorise = cpu_seconds() - start;
     let mut rhs = faer::Mat::<f64>::from_fn(n, 3, |i, j| ((i * 7 + j) % 13) as f64);
-    let mut median = |factor: &mut SymbolicFactor| {
-        let mut times: Vec<f64> = (0..15)
-            .map(|_| {
-                let start = cpu_seconds();
-                factor.solve_in_place(&numeric, rhs.as_mut());
-                cpu_seconds() - start
-            })
-            .collect();
-        times.sort_by(f64::total_cmp);
-        (times[0] * 1e3, times[times.len() / 2] * 1e3)
-    };
-    let ours = median(&mut factor);
     let fast = factor.fast_solve.take();
-    let faer = median(&mut factor);
+    let faer = timed(15, || {
+        wall_time(|| factor.solve_in_place(&numeric, rhs.as_mut()))
+    });
     factor.fast_solve = fast;
+    let b: Vec<pd_mesh::Point> = (0..n)
+        .map(|i| pd_mesh::Point::new((i % 13) as f64, (i % 7) as f64, 1.0))
+        .collect();
+    let mut x = b.clone();
+    let hot = timed(15, || {
+        x.copy_from_slice(&b);
+        wall_time(|| factor.solve_points(&numeric, &mut x))
+    });
+    let cold = timed(15, || {
+        x.copy_from_slice(&b);
+        for v in evict.iter_mut() {
+            *v = std::hint::black_box(*v + 1.0);
+        }
+        wall_time(|| factor.solve_points(&numeric, &mut x))
+    });
     println!(
-        "  {name:<10} stored {:>10} supernodes {:>6} cost {:>10}  factorise {:>8.1} ms  solve min/median: faer {:>7.2}/{:>7.2} ms, pd {:>7.2}/{:>7.2} ms",
+        "  {name:<10} stored {:>10} supernodes {:>6} cost {:>10}  factorise {:>8.1} ms  solve min/median: faer hot {:>7.2}/{:>7.2}, pd hot {:>7.2}/{:>7.2}, pd cold {:>7.2}/{:>7.2} ms",
         factor.factor_len(),
         factor.supernodes(),
         solve_cost(&factor.symbolic),
         factorise * 1e3,
         faer.0,
         faer.1,
-        ours.0,
-        ours.1,
+        hot.0,
+        hot.1,
+        cold.0,
+        cold.1,
+    );
+    Sample {
+        stored: factor.factor_len() as f64,
+        supernodes: factor.supernodes() as f64,
+        hot: hot.1,
+        cold: cold.1,
+    }
+}
+
+/// The least-squares fit, in relative errors, of `time = a stored + b
+/// supernodes` to `samples` (`time` picked by `pick`, ms): prints a (ns
+/// per stored value), b (us per supernode), b / a (the `SUPERNODE_COST`
+/// it implies) and each sample's relative residual.
+fn fit(regime: &str, samples: &[Sample], pick: fn(&Sample) -> f64) {
+    // Rows (stored / t, supernodes / t) against 1: the normal equations.
+    let (mut ss, mut sk, mut kk, mut s1, mut k1) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for sample in samples {
+        let t = pick(sample);
+        let (s, k) = (sample.stored / t, sample.supernodes / t);
+        (ss, sk, kk, s1, k1) = (ss + s * s, sk + s * k, kk + k * k, s1 + s, k1 + k);
+    }
+    let det = ss * kk - sk * sk;
+    let a = (s1 * kk - k1 * sk) / det;
+    let b = (ss * k1 - sk * s1) / det;
+    let residuals: Vec<String> = samples
+        .iter()
+        .map(|x| {
+            format!(
+                "{:+.0}%",
+                100.0 * ((a * x.stored + b * x.supernodes) / pick(x) - 1.0)
+            )
+        })
+        .collect();
+    println!(
+        "fit {regime}: a = {:.3} ns per stored value, b = {:.3} us per supernode, b / a = {:.0} values; residuals {}",
+        a * 1e6,
+        b * 1e3,
+        b / a,
+        residuals.join(" ")
     );
 }
 
@@ -162,25 +246,33 @@ fn solve_cost_calibration() {
             pd_mesh::generators::box_tets([1.0, 0.2, 0.2], [130, 26, 26]).unwrap(),
         ),
         (
+            "beam 80 x 14 x 14",
+            pd_mesh::generators::box_tets([1.0, 0.2, 0.2], [80, 14, 14]).unwrap(),
+        ),
+        (
             "beam 75 x 15 x 15",
             pd_mesh::generators::box_tets([1.0, 0.2, 0.2], [75, 15, 15]).unwrap(),
         ),
     ];
     meshes.extend(armadillo().map(|mesh| ("armadillo", mesh)));
+    let mut evict = vec![1.0f64; EVICT_MIB * 1024 * 1024 / 8];
+    let mut samples = Vec::new();
+    let one_thread = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
     for (label, mesh) in meshes {
         let pattern = tet_pattern(&mesh);
         println!("{label}: {} vertices", pattern.n);
         let candidates = dissection_candidates(&pattern, mesh.vertices());
         let names = ["geometric", "metis"];
-        measure(
-            "amd",
-            SymbolicFactor::analyse(pattern.clone(), &[]).unwrap(),
-        );
+        let amd = SymbolicFactor::analyse(pattern.clone(), &[]).unwrap();
+        samples.push(one_thread.install(|| measure("amd", amd, &mut evict)));
         for (name, order) in names.iter().zip(&candidates) {
             // Forced: the candidate alone, even where AMD is cheaper.
             let (_, symbolic) = forced(&pattern, order);
             let factor = SymbolicFactor::with_symbolic(pattern.clone().into(), symbolic);
-            measure(name, factor);
+            samples.push(one_thread.install(|| measure(name, factor, &mut evict)));
         }
         let chosen = SymbolicFactor::analyse(pattern.clone(), &candidates).unwrap();
         println!(
@@ -189,6 +281,8 @@ fn solve_cost_calibration() {
             chosen.supernodes()
         );
     }
+    fit("hot", &samples, |s| s.hot);
+    fit("cold", &samples, |s| s.cold);
 }
 
 /// How much METIS's fill depends on its random seed and on the number of
