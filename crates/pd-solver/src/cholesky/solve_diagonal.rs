@@ -56,7 +56,7 @@ impl Below<'_> {
             }
             for j in j0..j1 {
                 // Column j from its diagonal: row i is column[i - j].
-                let column = &block.column(j)[..j1 - j];
+                let column = block.rows(j, j, j1 - j);
                 let d = column[0];
                 let (xj, yj, zj) = (tx[j] / d, ty[j] / d, tz[j] / d);
                 (tx[j], ty[j], tz[j]) = (xj, yj, zj);
@@ -68,8 +68,7 @@ impl Below<'_> {
             }
             if j1 < c {
                 // A tile with rows below it is a whole one.
-                let l: [&[f64]; TILE] =
-                    std::array::from_fn(|i| &block.column(j0 + i)[j1 - j0 - i..][..c - j1]);
+                let l: [&[f64]; TILE] = std::array::from_fn(|i| block.rows(j0 + i, j1, c - j1));
                 let p = |t: &[f64]| -> [f64; TILE] { std::array::from_fn(|i| t[j0 + i]) };
                 let (px, py, pz) = (p(tx), p(ty), p(tz));
                 subtract_tile(&l, &px, &mut tx[j1..]);
@@ -110,7 +109,7 @@ impl Below<'_> {
                 let (hy, ry) = ty.split_at_mut(j1);
                 let (hz, rz) = tz.split_at_mut(j1);
                 let (rx, ry, rz) = (&*rx, &*ry, &*rz);
-                let column = |j: usize| &block.column(j)[j1 - j..][..c - j1];
+                let column = |j: usize| block.rows(j, j1, c - j1);
                 for j in (j0..j1).step_by(2) {
                     let (la, lb) = (column(j), column(j + 1));
                     #[cfg(target_arch = "x86_64")]
@@ -128,7 +127,7 @@ impl Below<'_> {
             }
             for j in (j0..j1).rev() {
                 // Column j from its diagonal: row i is column[i - j].
-                let column = &block.column(j)[..j1 - j];
+                let column = block.rows(j, j, j1 - j);
                 let (mut sx, mut sy, mut sz) = (tx[j], ty[j], tz[j]);
                 for i in j + 1..j1 {
                     sx -= tx[i] * column[i - j];

@@ -108,7 +108,13 @@ impl<'a> Block<'a> {
     /// Column `j`'s rows below the diagonal block (`r` values).
     #[inline(always)]
     pub fn below(&self, j: usize) -> &'a [f64] {
-        &self.column(j)[self.c - j..]
+        self.rows(j, self.c, self.ld - self.c)
+    }
+
+    /// Column `j`'s `len` rows from row `row` (`>= j`), sliced once.
+    #[inline(always)]
+    pub fn rows(&self, j: usize, row: usize, len: usize) -> &'a [f64] {
+        &self.values[self.start(j) + row - j..][..len]
     }
 
     /// [`prefetch`] of column `j`'s `len` values from row `row` (`>= j`).
@@ -185,7 +191,7 @@ impl<'a> Below<'a> {
             if fetch.is_some() && j + 1 < c {
                 block.prefetch(fetch, j + 1, j + 1, c - j - 1);
             }
-            let column = &block.column(j)[..c - j];
+            let column = block.rows(j, j, c - j);
             let d = column[0];
             let (xj, yj, zj) = (tx[j] / d, ty[j] / d, tz[j] / d);
             (tx[j], ty[j], tz[j]) = (xj, yj, zj);
@@ -218,7 +224,7 @@ impl<'a> Below<'a> {
         bx.fill(0.0);
         by.fill(0.0);
         bz.fill(0.0);
-        let column = |j: usize| &block.below(j)[..r];
+        let column = |j: usize| block.rows(j, c, r);
         let mut j = 0;
         while j + 8 <= c {
             let l: [&[f64]; 8] = std::array::from_fn(|i| column(j + i));
@@ -269,7 +275,7 @@ impl<'a> Below<'a> {
         let (bx, by, bz) = (&self.x[..r], &self.y[..r], &self.z[..r]);
         #[cfg(target_arch = "x86_64")]
         if let Some(s) = self.simd {
-            let column = |j: usize| &block.below(j)[..r];
+            let column = |j: usize| block.rows(j, c, r);
             let mut pairs = top.chunks_exact_mut(2);
             for (j, pair) in (0..).step_by(2).zip(&mut pairs) {
                 // The next pair's columns.
@@ -293,7 +299,7 @@ impl<'a> Below<'a> {
         let x4 = quads(bx);
         let y4 = quads(by);
         let z4 = quads(bz);
-        let column = |j: usize| &block.below(j)[..r];
+        let column = |j: usize| block.rows(j, c, r);
         let mut pairs = top.chunks_exact_mut(2);
         let mut j = 0;
         for pair in &mut pairs {
