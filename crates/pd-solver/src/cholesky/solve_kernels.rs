@@ -57,8 +57,6 @@ pub(super) struct Block<'a> {
     values: &'a [f64],
     /// Rows of the supernode, `c + r`.
     ld: usize,
-    /// Its columns.
-    c: usize,
     packed: bool,
 }
 
@@ -71,7 +69,6 @@ impl<'a> Block<'a> {
         Self {
             values: &values[..len],
             ld,
-            c,
             packed,
         }
     }
@@ -103,12 +100,6 @@ impl<'a> Block<'a> {
     #[inline(always)]
     pub fn column(&self, j: usize) -> &'a [f64] {
         &self.values[self.start(j)..][..self.ld - j]
-    }
-
-    /// Column `j`'s rows below the diagonal block (`r` values).
-    #[inline(always)]
-    pub fn below(&self, j: usize) -> &'a [f64] {
-        self.rows(j, self.c, self.ld - self.c)
     }
 
     /// Column `j`'s `len` rows from row `row` (`>= j`), sliced once.
