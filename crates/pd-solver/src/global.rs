@@ -216,8 +216,10 @@ impl GlobalSystem {
         }
         // The matrix's values live only while they are factorised.
         let values = self.values(coefficients);
-        let factor = self.symbolic.factorise(&values)?;
+        let mut factor = self.symbolic.factorise(&values)?;
         drop(values);
+        // Solved three columns at a time, so packed (`SymbolicFactor::pack`).
+        self.symbolic.pack(&mut factor);
         // Constant coefficients factorise once (a new value is rare): the
         // factorisation's scratch is not kept through the steps.
         self.symbolic.release_factor_scratch();

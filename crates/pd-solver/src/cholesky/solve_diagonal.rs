@@ -27,7 +27,7 @@ use pd_mesh::Point;
 
 #[cfg(target_arch = "x86_64")]
 use super::wide_lanes;
-use super::{Below, Lanes, prefetch, quads};
+use super::{Below, Block, Lanes, quads};
 
 /// The width of a tile: eight columns are two groups of four products per
 /// row in the forward step and four pairs of dot products in the backward
@@ -38,7 +38,7 @@ impl Below<'_> {
     /// `top <- L_diag^-1 top` by tiles (module documentation), on a copy
     /// of `top` in the three arrays (free until [`Self::update`]).
     #[inline(always)]
-    pub fn solve_diagonal_blocked(&mut self, block: &[f64], ld: usize, top: &mut [Point]) {
+    pub fn solve_diagonal_blocked(&mut self, block: &Block, top: &mut [Point]) {
         let c = top.len();
         let fetch = self.fetch;
         let (tx, ty, tz) = (&mut self.x[..c], &mut self.y[..c], &mut self.z[..c]);
@@ -51,24 +51,24 @@ impl Below<'_> {
             if fetch.is_some() {
                 // The next tile's columns, from its diagonal down.
                 for j in j1..(j1 + TILE).min(c) {
-                    prefetch(fetch, block, j * ld + j, c - j);
+                    block.prefetch(fetch, j, j, c - j);
                 }
             }
             for j in j0..j1 {
-                let column = &block[j * ld..j * ld + j1];
-                let d = column[j];
+                // Column j from its diagonal: row i is column[i - j].
+                let column = block.rows(j, j, j1 - j);
+                let d = column[0];
                 let (xj, yj, zj) = (tx[j] / d, ty[j] / d, tz[j] / d);
                 (tx[j], ty[j], tz[j]) = (xj, yj, zj);
                 for i in j + 1..j1 {
-                    tx[i] -= xj * column[i];
-                    ty[i] -= yj * column[i];
-                    tz[i] -= zj * column[i];
+                    tx[i] -= xj * column[i - j];
+                    ty[i] -= yj * column[i - j];
+                    tz[i] -= zj * column[i - j];
                 }
             }
             if j1 < c {
                 // A tile with rows below it is a whole one.
-                let l: [&[f64]; TILE] =
-                    std::array::from_fn(|i| &block[(j0 + i) * ld + j1..][..c - j1]);
+                let l: [&[f64]; TILE] = std::array::from_fn(|i| block.rows(j0 + i, j1, c - j1));
                 let p = |t: &[f64]| -> [f64; TILE] { std::array::from_fn(|i| t[j0 + i]) };
                 let (px, py, pz) = (p(tx), p(ty), p(tz));
                 subtract_tile(&l, &px, &mut tx[j1..]);
@@ -86,12 +86,7 @@ impl Below<'_> {
     /// first, on a copy of `top` in the three arrays (free once
     /// [`Self::subtract_products`] is done).
     #[inline(always)]
-    pub fn solve_diagonal_transposed_blocked(
-        &mut self,
-        block: &[f64],
-        ld: usize,
-        top: &mut [Point],
-    ) {
+    pub fn solve_diagonal_transposed_blocked(&mut self, block: &Block, top: &mut [Point]) {
         let c = top.len();
         let fetch = self.fetch;
         #[cfg(target_arch = "x86_64")]
@@ -106,7 +101,7 @@ impl Below<'_> {
             if fetch.is_some() && j0 > 0 {
                 // The previous tile's columns, from the diagonal down.
                 for j in j0 - TILE..j0 {
-                    prefetch(fetch, block, j * ld + j, c - j);
+                    block.prefetch(fetch, j, j, c - j);
                 }
             }
             if j1 < c {
@@ -114,7 +109,7 @@ impl Below<'_> {
                 let (hy, ry) = ty.split_at_mut(j1);
                 let (hz, rz) = tz.split_at_mut(j1);
                 let (rx, ry, rz) = (&*rx, &*ry, &*rz);
-                let column = |j: usize| &block[j * ld + j1..][..c - j1];
+                let column = |j: usize| block.rows(j, j1, c - j1);
                 for j in (j0..j1).step_by(2) {
                     let (la, lb) = (column(j), column(j + 1));
                     #[cfg(target_arch = "x86_64")]
@@ -131,14 +126,15 @@ impl Below<'_> {
                 }
             }
             for j in (j0..j1).rev() {
-                let column = &block[j * ld..j * ld + j1];
+                // Column j from its diagonal: row i is column[i - j].
+                let column = block.rows(j, j, j1 - j);
                 let (mut sx, mut sy, mut sz) = (tx[j], ty[j], tz[j]);
                 for i in j + 1..j1 {
-                    sx -= tx[i] * column[i];
-                    sy -= ty[i] * column[i];
-                    sz -= tz[i] * column[i];
+                    sx -= tx[i] * column[i - j];
+                    sy -= ty[i] * column[i - j];
+                    sz -= tz[i] * column[i - j];
                 }
-                let d = column[j];
+                let d = column[0];
                 (tx[j], ty[j], tz[j]) = (sx / d, sy / d, sz / d);
             }
             if j0 == 0 {

@@ -45,6 +45,76 @@ pub(crate) fn vectorized(f: impl FnOnce(Option<Simd>)) {
     f(None)
 }
 
+/// One supernode's columns of the factor, in either of its two layouts:
+/// faer's, a dense column-major `(c + r) x c` block whose diagonal block's
+/// upper triangle is padding, or packed (`SymbolicFactor::pack`), where
+/// column `j` holds only rows `j..c + r`, so that every column is one
+/// contiguous run and no solve loads the padding's cache lines. The kernels
+/// read column `j` from its diagonal down ([`Self::column`]); both layouts
+/// give them the same values in the same order, so the same bits.
+#[derive(Clone, Copy)]
+pub(super) struct Block<'a> {
+    values: &'a [f64],
+    /// Rows of the supernode, `c + r`.
+    ld: usize,
+    packed: bool,
+}
+
+impl<'a> Block<'a> {
+    /// The supernode of `c` columns and `ld` rows stored from the start of
+    /// `values` (which may run on).
+    #[inline(always)]
+    pub fn new(values: &'a [f64], ld: usize, c: usize, packed: bool) -> Self {
+        let len = Self::stored(ld, c, packed);
+        Self {
+            values: &values[..len],
+            ld,
+            packed,
+        }
+    }
+
+    /// The values a supernode of `ld` rows and `c` columns stores.
+    #[inline(always)]
+    pub fn stored(ld: usize, c: usize, packed: bool) -> usize {
+        if packed {
+            c * ld - c * (c - 1) / 2
+        } else {
+            c * ld
+        }
+    }
+
+    /// Where column `j`'s diagonal entry is stored: `j ld + j` in faer's
+    /// layout, after the `ld - k` values of each earlier column `k` when
+    /// packed.
+    #[inline(always)]
+    pub fn start(&self, j: usize) -> usize {
+        let start = j * (self.ld + 1);
+        if self.packed {
+            start - j * (j + 1) / 2
+        } else {
+            start
+        }
+    }
+
+    /// Column `j` from its diagonal entry down (`ld - j` values).
+    #[inline(always)]
+    pub fn column(&self, j: usize) -> &'a [f64] {
+        &self.values[self.start(j)..][..self.ld - j]
+    }
+
+    /// Column `j`'s `len` rows from row `row` (`>= j`), sliced once.
+    #[inline(always)]
+    pub fn rows(&self, j: usize, row: usize, len: usize) -> &'a [f64] {
+        &self.values[self.start(j) + row - j..][..len]
+    }
+
+    /// [`prefetch`] of column `j`'s `len` values from row `row` (`>= j`).
+    #[inline(always)]
+    fn prefetch(&self, fetch: Option<Simd>, j: usize, row: usize, len: usize) {
+        prefetch(fetch, self.values, self.start(j) + row - j, len);
+    }
+}
+
 /// One supernode's below-diagonal rows, one array per coordinate, so that
 /// the loops over rows run four rows per instruction.
 pub(super) struct Below<'a> {
@@ -76,10 +146,11 @@ impl<'a> Below<'a> {
         }
     }
 
-    /// [`prefetch`], if this solve prefetches.
+    /// [`prefetch`] of `block`'s column `j`, `len` values from row `row`,
+    /// if this solve prefetches.
     #[inline(always)]
-    pub fn prefetch(&self, values: &[f64], start: usize, len: usize) {
-        prefetch(self.fetch, values, start, len);
+    pub fn prefetch(&self, block: &Block, j: usize, row: usize, len: usize) {
+        block.prefetch(self.fetch, j, row, len);
     }
 
     /// Whether this solve prefetches: callers test it before working out
@@ -99,7 +170,7 @@ impl<'a> Below<'a> {
     /// as on points: its value divided by the diagonal once its earlier
     /// columns have been subtracted, column by column.
     #[inline(always)]
-    pub fn solve_diagonal(&mut self, block: &[f64], ld: usize, top: &mut [Point]) {
+    pub fn solve_diagonal(&mut self, block: &Block, top: &mut [Point]) {
         let c = top.len();
         let fetch = self.fetch;
         let (tx, ty, tz) = (&mut self.x[..c], &mut self.y[..c], &mut self.z[..c]);
@@ -109,13 +180,13 @@ impl<'a> Below<'a> {
         for j in 0..c {
             // The next column's rows under the diagonal.
             if fetch.is_some() && j + 1 < c {
-                prefetch(fetch, block, (j + 1) * ld + j + 1, c - j - 1);
+                block.prefetch(fetch, j + 1, j + 1, c - j - 1);
             }
-            let column = &block[j * ld..j * ld + c];
-            let d = column[j];
+            let column = block.rows(j, j, c - j);
+            let d = column[0];
             let (xj, yj, zj) = (tx[j] / d, ty[j] / d, tz[j] / d);
             (tx[j], ty[j], tz[j]) = (xj, yj, zj);
-            let l = &column[j + 1..];
+            let l = &column[1..];
             for (t, &l) in tx[j + 1..].iter_mut().zip(l) {
                 *t -= xj * l;
             }
@@ -139,12 +210,12 @@ impl<'a> Below<'a> {
     /// one after the other (loading and storing the row's sums once instead
     /// of twice, with the same bits).
     #[inline(always)]
-    pub fn update(&mut self, block: &[f64], ld: usize, c: usize, top: &[Point], r: usize) {
+    pub fn update(&mut self, block: &Block, c: usize, top: &[Point], r: usize) {
         let (bx, by, bz) = (&mut self.x[..r], &mut self.y[..r], &mut self.z[..r]);
         bx.fill(0.0);
         by.fill(0.0);
         bz.fill(0.0);
-        let column = |j: usize| &block[j * ld + c..(j + 1) * ld][..r];
+        let column = |j: usize| block.rows(j, c, r);
         let mut j = 0;
         while j + 8 <= c {
             let l: [&[f64]; 8] = std::array::from_fn(|i| column(j + i));
@@ -191,24 +262,17 @@ impl<'a> Below<'a> {
     /// operations in the same order as one column at a time); with AVX2,
     /// [`wide_lanes`] does the same additions on explicit 4-wide vectors.
     #[inline(always)]
-    pub fn subtract_products(
-        &self,
-        block: &[f64],
-        ld: usize,
-        c: usize,
-        top: &mut [Point],
-        r: usize,
-    ) {
+    pub fn subtract_products(&self, block: &Block, c: usize, top: &mut [Point], r: usize) {
         let (bx, by, bz) = (&self.x[..r], &self.y[..r], &self.z[..r]);
         #[cfg(target_arch = "x86_64")]
         if let Some(s) = self.simd {
-            let column = |j: usize| &block[j * ld + c..(j + 1) * ld][..r];
+            let column = |j: usize| block.rows(j, c, r);
             let mut pairs = top.chunks_exact_mut(2);
             for (j, pair) in (0..).step_by(2).zip(&mut pairs) {
                 // The next pair's columns.
                 if self.prefetches() {
                     for i in j + 2..c.min(j + 4) {
-                        self.prefetch(block, i * ld + c, r);
+                        self.prefetch(block, i, c, r);
                     }
                 }
                 let (la, lb) = (column(j), column(j + 1));
@@ -226,7 +290,7 @@ impl<'a> Below<'a> {
         let x4 = quads(bx);
         let y4 = quads(by);
         let z4 = quads(bz);
-        let column = |j: usize| &block[j * ld + c..(j + 1) * ld][..r];
+        let column = |j: usize| block.rows(j, c, r);
         let mut pairs = top.chunks_exact_mut(2);
         let mut j = 0;
         for pair in &mut pairs {

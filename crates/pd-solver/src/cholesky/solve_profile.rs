@@ -40,7 +40,7 @@ fn profile(label: &str, mesh: &pd_mesh::Mesh) {
     println!("  stored values: top of the tree {top}, bins {bin0} and {bin1}");
     // The bits of one solve, to compare kernels that must not change them.
     let mut once = rhs.clone();
-    solve.solve(&factor.symbolic, &numeric.values, &mut once);
+    solve.solve(&factor.symbolic, &numeric, &mut once);
     println!("  solution bits: {:016x}", bits_hash(&once));
     // `PD_SOLVE_ROUNDS` solves (41 unless set): more rounds find quieter
     // moments on a busy machine.
@@ -59,7 +59,7 @@ fn profile(label: &str, mesh: &pd_mesh::Mesh) {
         .unwrap();
     pool.install(|| {
         for _ in 0..rounds {
-            let timed = solve.solve_timed(&factor.symbolic, &numeric.values, &mut rhs, &clock);
+            let timed = solve.solve_timed(&factor.symbolic, &numeric, &mut rhs, &clock);
             for (part, t) in parts.iter_mut().zip(timed) {
                 part.push(t);
             }
@@ -81,7 +81,7 @@ fn profile(label: &str, mesh: &pd_mesh::Mesh) {
         let mut times: [Vec<f64>; 2] = Default::default();
         pool.install(|| {
             for _ in 0..rounds {
-                let t = solve.solve_timed(&factor.symbolic, &numeric.values, &mut rhs, &clock);
+                let t = solve.solve_timed(&factor.symbolic, &numeric, &mut rhs, &clock);
                 times[0].push(t[1]);
                 times[1].push(t[2]);
             }

@@ -9,12 +9,14 @@
 //! costs a few loop set-ups, and the right-hand side is stored as points,
 //! so each row's gather and scatter touches one cache line instead of three.
 //!
-//! The factor's layout is faer's: supernode `s` holds columns
-//! `begin[s]..end[s]` (`c` of them) and the below-diagonal rows
-//! `row_idx[row_ptr[s]..row_ptr[s + 1]]` (`r` of them), stored column-major
-//! as a dense `(c + r) x c` block at `values[value_ptr[s]..]`, the diagonal
-//! block (lower triangle meaningful) on top. The arithmetic order is fixed,
-//! so results do not depend on the thread count.
+//! Supernode `s` holds columns `begin[s]..end[s]` (`c` of them) and the
+//! below-diagonal rows `row_idx[row_ptr[s]..row_ptr[s + 1]]` (`r` of
+//! them), stored column-major at `values[value_ptr[s]..]`: in faer's
+//! layout as a dense `(c + r) x c` block, the diagonal block (lower
+//! triangle meaningful) on top, or packed, each column from its diagonal
+//! entry down (`SymbolicFactor::pack`; `Block` reads both). The arithmetic
+//! order is fixed, so results depend neither on the thread count nor on
+//! the layout.
 //!
 //! Both cores: disjoint subtrees of the elimination tree touch disjoint
 //! columns, so two bins of them (`solve_tree.rs`) are solved at once, each
@@ -26,8 +28,13 @@ use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
 use pd_mesh::Point;
 
+use super::NumericFactor;
 use super::solve_kernels::{Below, vectorized};
+
+#[path = "packed_layout.rs"]
+mod packed_layout;
 use super::solve_tree::{TOP, TreeSplit};
+pub(in crate::cholesky) use packed_layout::{pack, unpack};
 
 /// The narrowest diagonal block whose forward solve runs on coordinate
 /// arrays ([`Below::solve_diagonal`]; narrower ones stay on points, where
@@ -65,7 +72,10 @@ struct Structure<'a> {
     /// How many there are.
     row_len: &'a [usize],
     row_idx: &'a [usize],
+    /// Where supernode `s`'s values start, in the factor's layout.
     value_ptr: &'a [usize],
+    /// Whether the factor is packed (`value_ptr` is then its own).
+    packed: bool,
     /// Whether the kernels prefetch the factor's values (a factor of at
     /// least [`PREFETCH_BYTES`]).
     prefetch: bool,
@@ -87,6 +97,7 @@ impl<'a> Structure<'a> {
             row_len: s.nnz_per_super(),
             row_idx: s.row_idx(),
             value_ptr: s.col_ptr_for_val(),
+            packed: false,
             prefetch: s.col_ptr_for_val().last().copied().unwrap_or(0) * 8 >= PREFETCH_BYTES,
             blocked: BLOCKED_DIAGONAL,
         })
@@ -200,10 +211,18 @@ impl SupernodalSolve {
     }
 
     /// Solves `L L^T x = b` in place, `b` given and returned as one point
-    /// per row of the (unpermuted) system.
+    /// per row of the (unpermuted) system, with `factor` in either layout.
     /// `symbolic` is the factor's symbolic analysis this plan was made for.
-    pub fn solve(&mut self, symbolic: &SymbolicCholesky<usize>, values: &[f64], rhs: &mut [Point]) {
-        let mut structure = Structure::of(symbolic).expect("the plan of a supernodal factor");
+    pub fn solve(
+        &mut self,
+        symbolic: &SymbolicCholesky<usize>,
+        factor: &NumericFactor,
+        rhs: &mut [Point],
+    ) {
+        let values = &factor.values[..];
+        let mut structure = Structure::of(symbolic)
+            .expect("the plan of a supernodal factor")
+            .in_layout_of(factor);
         structure.prefetch = self.prefetch;
         structure.blocked = self.blocked;
         let forward = symbolic.perm().map(|p| p.arrays().0);
@@ -244,11 +263,14 @@ impl SupernodalSolve {
     pub fn solve_timed(
         &mut self,
         symbolic: &SymbolicCholesky<usize>,
-        values: &[f64],
+        factor: &NumericFactor,
         rhs: &mut [Point],
         clock: &dyn Fn() -> f64,
     ) -> [f64; 4] {
-        let mut structure = Structure::of(symbolic).expect("the plan of a supernodal factor");
+        let values = &factor.values[..];
+        let mut structure = Structure::of(symbolic)
+            .expect("the plan of a supernodal factor")
+            .in_layout_of(factor);
         structure.prefetch = self.prefetch;
         structure.blocked = self.blocked;
         let forward = symbolic.perm().map(|p| p.arrays().0);
@@ -483,11 +505,9 @@ impl Structure<'_> {
     #[inline(always)]
     fn prefetch_backward_start(&self, values: &[f64], s: usize, below: &Below) {
         let c = self.end[s] - self.begin[s];
-        let r = self.row_len[s];
-        let ld = c + r;
-        let start = self.value_ptr[s];
+        let block = self.block(values, s);
         for j in 0..c.min(2) {
-            below.prefetch(values, start + j * ld + c, r);
+            below.prefetch(&block, j, c, self.row_len[s]);
         }
     }
 
@@ -509,25 +529,25 @@ impl Structure<'_> {
     ) {
         let c = self.end[s] - self.begin[s];
         let rows = &self.row_idx[self.row_ptr[s]..self.row_ptr[s] + self.row_len[s]];
-        let ld = c + rows.len();
-        let block = &values[self.value_ptr[s]..self.value_ptr[s] + ld * c];
+        let block = self.block(values, s);
         let top = &mut x[first..first + c];
         if c >= self.blocked[0] {
-            below.solve_diagonal_blocked(block, ld, top);
+            below.solve_diagonal_blocked(&block, top);
         } else if c >= WIDE_DIAGONAL {
-            below.solve_diagonal(block, ld, top);
+            below.solve_diagonal(&block, top);
         } else {
             for j in 0..c {
-                let column = &block[j * ld..(j + 1) * ld];
-                let xj = top[j] / column[j];
+                // Column j from its diagonal: row j + 1 + i is column[1 + i].
+                let column = block.column(j);
+                let xj = top[j] / column[0];
                 top[j] = xj;
-                for (i, &l) in column[j + 1..c].iter().enumerate() {
+                for (i, &l) in column[1..c - j].iter().enumerate() {
                     top[j + 1 + i] -= xj * l;
                 }
             }
         }
         let r = rows.len();
-        below.update(block, ld, c, top, r);
+        below.update(&block, c, top, r);
         let updates = below.x[..r].iter().zip(&below.y[..r]).zip(&below.z[..r]);
         for (&row, ((&ux, &uy), &uz)) in rows.iter().zip(updates) {
             let update = Point::new(ux, uy, uz);
@@ -555,8 +575,7 @@ impl Structure<'_> {
     ) {
         let c = self.end[s] - self.begin[s];
         let rows = &self.row_idx[self.row_ptr[s]..self.row_ptr[s] + self.row_len[s]];
-        let ld = c + rows.len();
-        let block = &values[self.value_ptr[s]..self.value_ptr[s] + ld * c];
+        let block = self.block(values, s);
         let r = rows.len();
         let gathered = below.x[..r]
             .iter_mut()
@@ -570,22 +589,23 @@ impl Structure<'_> {
             (*bx, *by, *bz) = (p.x, p.y, p.z);
         }
         let top = &mut x[first..first + c];
-        below.subtract_products(block, ld, c, top, r);
+        below.subtract_products(&block, c, top, r);
         if c >= self.blocked[1] {
-            below.solve_diagonal_transposed_blocked(block, ld, top);
+            below.solve_diagonal_transposed_blocked(&block, top);
             return;
         }
         for j in (0..c).rev() {
             // The next column's rows under the diagonal.
             if below.prefetches() && j > 0 && c >= WIDE_DIAGONAL {
-                below.prefetch(block, (j - 1) * ld + j, c - j);
+                below.prefetch(&block, j - 1, j, c - j);
             }
-            let column = &block[j * ld..(j + 1) * ld];
+            // Column j from its diagonal: row j + 1 + i is column[1 + i].
+            let column = block.column(j);
             let mut sum = top[j];
-            for (i, &l) in column[j + 1..c].iter().enumerate() {
+            for (i, &l) in column[1..c - j].iter().enumerate() {
                 sum -= top[j + 1 + i] * l;
             }
-            top[j] = sum / column[j];
+            top[j] = sum / column[0];
         }
     }
 }

@@ -98,6 +98,17 @@ fn blocked_diagonal_solves_are_backward_stable() {
 
 fn check_backward_error(label: &str, mesh: &pd_mesh::Mesh) {
     let (mut factor, numeric) = laplacian_factor(mesh);
+    let mut packed = laplacian_factor(mesh).1;
+    factor.pack(&mut packed);
+    assert!(
+        packed.values.len() < numeric.values.len(),
+        "{label}: packing drops the diagonal blocks' upper triangles"
+    );
+    println!(
+        "{label}: {} stored values in faer's layout, {} packed",
+        numeric.values.len(),
+        packed.values.len()
+    );
     let n = factor.pattern().n;
     let mut solve = factor.fast_solve.take().expect("a supernodal factor");
     let structure = super::Structure::of(&factor.symbolic).unwrap();
@@ -132,6 +143,14 @@ fn check_backward_error(label: &str, mesh: &pd_mesh::Mesh) {
             bits(&solved[1]),
             "{label}: 1 and 2 threads"
         );
+        // The packed layout: the same values read in the same order.
+        for threads in [1, 2] {
+            assert_eq!(
+                bits(&solved[0]),
+                bits(&solved_on(threads, &mut solve, (&factor, &packed), &rhs)),
+                "{label}: packed, {threads} threads"
+            );
+        }
         let (b, x) = (permuted(&rhs), permuted(&solved[0]));
         let (r, bound, m) = residual(&structure, &numeric.values, &b, &x);
         let g = m as f64 * u / (1.0 - m as f64 * u);
@@ -166,7 +185,7 @@ fn solved_on(
         .num_threads(threads)
         .build()
         .unwrap()
-        .install(|| solve.solve(&factor.symbolic, &numeric.values, &mut x));
+        .install(|| solve.solve(&factor.symbolic, numeric, &mut x));
     x
 }
 
