@@ -419,6 +419,18 @@ impl SymbolicFactor {
         self.symbolic.len_val()
     }
 
+    /// Number of values a factor stores once [`Self::pack`]ed (what the
+    /// global system keeps and a solve reads): [`Self::factor_len`] less the
+    /// upper triangles of the supernodes' diagonal blocks, which faer's
+    /// layout stores as padding; [`Self::factor_len`] when the factor would
+    /// not be packed.
+    pub fn packed_len(&self) -> usize {
+        match self.fast_solve {
+            Some(_) => supernodal_solve::packed_len(&self.symbolic).unwrap_or(self.factor_len()),
+            None => self.factor_len(),
+        }
+    }
+
     /// Structural non-zeros of `L` in the chosen order, diagonal included,
     /// without the explicit zeros that supernode amalgamation stores: the
     /// count CHOLMOD reports as `lnz`, comparable across solvers (the
@@ -742,6 +754,30 @@ mod tests {
                     assert_eq!(one[(r, c)].to_bits(), two[(r, c)].to_bits(), "row {r}");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn packed_len_is_what_pack_keeps() {
+        // The count the global system reports (`GlobalSystem::factor_len`)
+        // must be the packed factor's length, and below faer's stored count
+        // by exactly the diagonal blocks' strict upper triangles.
+        let (pattern, values, coordinates) = grid(14);
+        for order in dissection_candidates(&pattern, &coordinates) {
+            let mut factor = SymbolicFactor::analyse(pattern.clone(), &[order]).unwrap();
+            let mut numeric = factor.factorise(&values).unwrap();
+            assert_eq!(numeric.values.len(), factor.factor_len());
+            factor.pack(&mut numeric);
+            assert!(numeric.is_packed());
+            assert_eq!(numeric.values.len(), factor.packed_len());
+            let SymbolicCholeskyRaw::Supernodal(supernodal) = factor.symbolic.raw() else {
+                panic!("a dissection order of a 2,744-unknown grid is supernodal");
+            };
+            let padding: usize = (supernodal.supernode_begin().iter())
+                .zip(supernodal.supernode_end())
+                .map(|(begin, end)| (end - begin) * (end - begin - 1) / 2)
+                .sum();
+            assert_eq!(factor.packed_len() + padding, factor.factor_len());
         }
     }
 

@@ -193,9 +193,10 @@ impl GlobalSystem {
         })
     }
 
-    /// Number of stored values of one Cholesky factor.
+    /// Number of stored values of one Cholesky factor (packed, as
+    /// [`Self::prepare_factor`] keeps it: what a solve reads).
     pub fn factor_len(&self) -> usize {
-        self.symbolic.factor_len()
+        self.symbolic.packed_len()
     }
 
     /// Structural non-zeros of one Cholesky factor (see

@@ -67,6 +67,12 @@ pub(in crate::cholesky) fn pack(
     Some(packed_ptr)
 }
 
+/// How many values [`pack`] leaves of a factor with `symbolic`'s
+/// structure; `None` for a simplicial factor (never packed).
+pub(in crate::cholesky) fn packed_len(symbolic: &SymbolicCholesky<usize>) -> Option<usize> {
+    Structure::of(symbolic).map(|structure| structure.packed_ptr()[structure.begin.len()])
+}
+
 /// The inverse of [`pack`]: `packed`'s values in faer's layout, the
 /// padding zero (for faer's solves of a packed factor).
 pub(in crate::cholesky) fn unpack(

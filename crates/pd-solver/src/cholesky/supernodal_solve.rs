@@ -34,7 +34,7 @@ use super::solve_kernels::{Below, vectorized};
 #[path = "packed_layout.rs"]
 mod packed_layout;
 use super::solve_tree::{TOP, TreeSplit};
-pub(in crate::cholesky) use packed_layout::{pack, unpack};
+pub(in crate::cholesky) use packed_layout::{pack, packed_len, unpack};
 
 /// The narrowest diagonal block whose forward solve runs on coordinate
 /// arrays ([`Below::solve_diagonal`]; narrower ones stay on points, where
