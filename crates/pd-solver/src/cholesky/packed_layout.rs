@@ -12,9 +12,9 @@ use super::Structure;
 impl<'a> Structure<'a> {
     /// This view for `factor`'s layout.
     pub(super) fn in_layout_of(self, factor: &'a NumericFactor) -> Self {
-        match factor.packed_ptr.is_empty() {
-            true => self,
-            false => Self {
+        match factor.is_packed() {
+            false => self,
+            true => Self {
                 value_ptr: &factor.packed_ptr,
                 packed: true,
                 ..self

@@ -30,10 +30,11 @@ use pd_mesh::Point;
 
 use super::NumericFactor;
 use super::solve_kernels::{Below, vectorized};
+use super::solve_tree::{TOP, TreeSplit};
 
+// A child of this module (it reads `Structure`'s fields), kept beside it.
 #[path = "packed_layout.rs"]
 mod packed_layout;
-use super::solve_tree::{TOP, TreeSplit};
 pub(in crate::cholesky) use packed_layout::{pack, packed_len, unpack};
 
 /// The narrowest diagonal block whose forward solve runs on coordinate
