@@ -394,25 +394,7 @@ impl BodyContact {
         thickness: f64,
     ) -> Option<(f64, Pair)> {
         let s = self.end_fraction((n0, d0), end, b, thickness)?;
-        let lerp = |p: &Point, q: &Point| p + (q - p) * s;
-        let tri = [0, 1, 2].map(|k| lerp(&start[k], &end[k]));
-        let (weights, normal, _) = project_onto(&tri, &lerp(a, b))?;
-        let normal = if normal.dot(&n0) >= 0.0 {
-            normal
-        } else {
-            -normal
-        };
-        inside(&weights).then_some((
-            s,
-            Pair {
-                face: 0,
-                weights,
-                normal,
-                force: Point::zeros(),
-                projected: false,
-                warm: false,
-            },
-        ))
+        Some((s, listed::crossing_at(s, &n0, (start, end), (a, b))?))
     }
 
     /// Updates every pair's force (one projected Uzawa step at the iterate

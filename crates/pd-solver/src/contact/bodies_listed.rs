@@ -360,26 +360,28 @@ impl BodyContact {
             if apart(&query, &(lo - widen, hi + widen)) {
                 continue;
             }
-            let start = [x_n[i], x_n[j], x_n[k]];
+            // `crossing_from` in two halves: most entries end beyond the
+            // thickness, and only the others read the start triangle.
             let end = [x_n[i] + dx[i], x_n[j] + dx[j], x_n[k] + dx[k]];
-            let crossing = match known {
-                StartHit::Inside(weights, normal) => {
-                    (self.end_fraction(start_plane, &end, &b, thickness)).map(|s| {
-                        let pair = Pair {
-                            face: f,
-                            weights,
-                            normal,
-                            force: Point::zeros(),
-                            projected: false,
-                            warm: false,
-                        };
-                        (s, pair)
-                    })
-                }
-                _ => self.crossing_from(start_plane, (&start, &end), (&a, &b), thickness),
-            };
-            let Some((s, pair)) = crossing else {
+            let Some(s) = self.end_fraction(start_plane, &end, &b, thickness) else {
                 continue;
+            };
+            let pair = match known {
+                StartHit::Inside(weights, normal) => Pair {
+                    face: f,
+                    weights,
+                    normal,
+                    force: Point::zeros(),
+                    projected: false,
+                    warm: false,
+                },
+                _ => {
+                    let start = [x_n[i], x_n[j], x_n[k]];
+                    match crossing_at(s, &start_plane.0, (&start, &end), (&a, &b)) {
+                        Some(pair) => pair,
+                        None => continue,
+                    }
+                }
             };
             match best {
                 Some((t, _)) if s > t => {}
@@ -429,6 +431,34 @@ impl BodyContact {
             0.0
         })
     }
+}
+
+/// The second half of [`BodyContact::crossing_from`], once the fraction
+/// `s` of [`BodyContact::end_fraction`] is known: the pair where the
+/// vertex segment `a -> b` at `s` projects inside the triangle moving from
+/// `start` to `end` (its normal turned to `n0`'s side; `face` left 0).
+pub(super) fn crossing_at(
+    s: f64,
+    n0: &Point,
+    (start, end): (&[Point; 3], &[Point; 3]),
+    (a, b): (&Point, &Point),
+) -> Option<Pair> {
+    let lerp = |p: &Point, q: &Point| p + (q - p) * s;
+    let tri = [0, 1, 2].map(|k| lerp(&start[k], &end[k]));
+    let (weights, normal, _) = project_onto(&tri, &lerp(a, b))?;
+    let normal = if normal.dot(n0) >= 0.0 {
+        normal
+    } else {
+        -normal
+    };
+    inside(&weights).then_some(Pair {
+        face: 0,
+        weights,
+        normal,
+        force: Point::zeros(),
+        projected: false,
+        warm: false,
+    })
 }
 
 /// What the start plane `(n0, d0)` of the triangle `start` and the vertex

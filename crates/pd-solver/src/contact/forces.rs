@@ -24,6 +24,7 @@ impl ContactState {
 }
 
 /// One projected Uzawa step of a contact force at the iterate `x`.
+#[inline]
 pub(super) fn update_force(slot: &Slot, collider: &Collider, x: &Point, rho: f64, h: f64) -> Point {
     let n = slot.hit.normal;
     let anchor = slot.hit.point + collider.velocity(&slot.hit.point) * h;
