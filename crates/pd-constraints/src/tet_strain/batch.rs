@@ -176,15 +176,8 @@ fn gradients<S: Lanes>(s: S, elements: &[TetStrain], q: &[Point]) -> Batch<S> {
     // `k = 0..4`, and only one vertex's three position lanes are live.
     let mut f = [zero; 9];
     for k in 0..4 {
-        let mut positions = [S::Values::default(); 3];
-        for (l, e) in elements.iter().enumerate().take(S::WIDTH) {
-            let p = q[e.vertices[k] as usize];
-            for (r, lanes) in positions.iter_mut().enumerate() {
-                lanes.as_mut()[l] = p[r];
-            }
-        }
+        let positions: [S::F; 3] = s.transpose(elements, |e| q[e.vertices[k] as usize].as_slice());
         for (r, p) in positions.into_iter().enumerate() {
-            let p = s.pack(p);
             for (column, g) in operator.iter().enumerate() {
                 let acc = &mut f[3 * column + r];
                 *acc = s.add(*acc, s.mul(p, g[k]));
@@ -204,19 +197,12 @@ fn gradients<S: Lanes>(s: S, elements: &[TetStrain], q: &[Point]) -> Batch<S> {
 /// every lane holds the scalar `operator(c, k)` to the bit.
 #[inline(always)]
 fn operator_lanes<S: Lanes>(s: S, elements: &[TetStrain]) -> [[S::F; 4]; 3] {
-    let mut lanes = [S::Values::default(); 9];
-    for (l, e) in elements.iter().enumerate().take(S::WIDTH) {
-        for (i, lanes) in lanes.iter_mut().enumerate() {
-            lanes.as_mut()[l] = e.inverse_t[i / 3][i % 3];
-        }
-    }
+    let lanes: [S::F; 9] = s.transpose(elements, |e| e.inverse_t.as_flattened());
     // `Iterator::sum`'s start value (the fold's first operand).
     let start = s.splat(std::iter::empty::<f64>().sum());
     let mut g = [[s.splat(0.0); 4]; 3];
     for (row, g) in g.iter_mut().enumerate() {
-        let b0 = s.pack(lanes[3 * row]);
-        let b1 = s.pack(lanes[3 * row + 1]);
-        let b2 = s.pack(lanes[3 * row + 2]);
+        let [b0, b1, b2] = [lanes[3 * row], lanes[3 * row + 1], lanes[3 * row + 2]];
         let sum = s.add(s.add(s.add(start, b0), b1), b2);
         *g = [s.neg(sum), b0, b1, b2];
     }
