@@ -8,7 +8,7 @@ use pd_mesh::Point;
 use crate::constraint::apply_operator;
 use crate::polar::closest_rotation;
 #[cfg(target_arch = "x86_64")]
-use crate::polar_batch::Simd;
+use crate::polar_batch::lane_sets::vectorize;
 use crate::signed_svd::signed_svd;
 use crate::{Constraint, ConstraintError, Stencil};
 
@@ -168,22 +168,19 @@ impl Constraint for TetStrain {
         crate::tet_hessian::strain_hessian(self, gx, project_psd, out);
     }
 
-    /// Batches of [`LANES`](crate::polar_batch::LANES) elements without strain limits go through the
-    /// SIMD polar iteration of [`crate::polar_batch`] (bit-identical to
+    /// Batches of elements without strain limits (as many as the CPU has
+    /// f64 lanes) go through the SIMD polar iteration of [`crate::polar_batch`] (bit-identical to
     /// [`Self::project`]); the rest, one at a time.
     fn project_many(constraints: &[Self], q: &[Point], out: &mut [Point]) {
         #[cfg(target_arch = "x86_64")]
-        if let Some(simd) = Simd::try_new() {
-            pulp::Simd::vectorize(
-                simd,
-                batch::ProjectBatched::<false> {
-                    simd,
-                    constraints,
-                    q,
-                    out,
-                    energies: &mut [],
-                },
-            );
+        if vectorize(batch::ProjectBatched::<false> {
+            constraints,
+            q,
+            out: &mut *out,
+            energies: &mut [],
+        })
+        .is_some()
+        {
             return;
         }
         project_one_by_one(constraints, q, out);
@@ -199,39 +196,33 @@ impl Constraint for TetStrain {
         energies: &mut [f64],
     ) {
         #[cfg(target_arch = "x86_64")]
-        if let Some(simd) = Simd::try_new() {
-            pulp::Simd::vectorize(
-                simd,
-                batch::ProjectBatched::<true> {
-                    simd,
-                    constraints,
-                    q,
-                    out,
-                    energies,
-                },
-            );
+        if vectorize(batch::ProjectBatched::<true> {
+            constraints,
+            q,
+            out: &mut *out,
+            energies: &mut *energies,
+        })
+        .is_some()
+        {
             return;
         }
         project_one_by_one(constraints, q, out);
         energies_one_by_one(constraints, q, out, energies);
     }
 
-    /// Batches of [`LANES`](crate::polar_batch::LANES) elements gather
+    /// Batches of SIMD-lane width gather
     /// `G q` into SIMD lanes as [`Self::project_many`] does (bit-identical
     /// to the default's sums); the rest, one at a time.
     fn energies_many(constraints: &[Self], q: &[Point], projections: &[Point], out: &mut [f64]) {
         #[cfg(target_arch = "x86_64")]
-        if let Some(simd) = Simd::try_new() {
-            pulp::Simd::vectorize(
-                simd,
-                batch::EnergiesBatched {
-                    simd,
-                    constraints,
-                    q,
-                    projections,
-                    out,
-                },
-            );
+        if vectorize(batch::EnergiesBatched {
+            constraints,
+            q,
+            projections,
+            out: &mut *out,
+        })
+        .is_some()
+        {
             return;
         }
         energies_one_by_one(constraints, q, projections, out);
