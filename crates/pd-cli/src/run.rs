@@ -218,7 +218,7 @@ fn execute(
                     failure = Some(Failure::Output(e.to_string()));
                     break;
                 }
-                if checkpoint_every > 0 && sim.steps() % checkpoint_every == 0 {
+                if checkpoint_every > 0 && sim.steps().is_multiple_of(checkpoint_every) {
                     let file = CheckpointFile {
                         scene: loaded.text.clone(),
                         steps_requested: scene.steps,

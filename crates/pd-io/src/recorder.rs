@@ -182,7 +182,7 @@ impl Recorder {
         self.local_ms.push(stats.local_seconds * 1e3);
         self.global_ms.push(stats.global_seconds * 1e3);
         self.write_rows(sim, Some(stats))?;
-        if self.output.every > 0 && sim.steps() % self.output.every == 0 {
+        if self.output.every > 0 && sim.steps().is_multiple_of(self.output.every) {
             self.write_frame(sim)?;
         }
         Ok(())

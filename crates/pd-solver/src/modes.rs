@@ -313,19 +313,18 @@ fn sparse(
     let clock = Instant::now();
     let mut factor = ShiftedFactor::new(stiffness)?;
     phases.factorisation = clock.elapsed().as_secs_f64();
-    if method != Method::Subspace {
-        if let lanczos::Outcome::Converged(found) =
+    if method != Method::Subspace
+        && let lanczos::Outcome::Converged(found) =
             lanczos::solve(stiffness, rigid, count, &mut factor, phases)
-        {
-            return Ok(Solved {
-                pairs: found.pairs,
-                mechanisms: 0,
-                iterations: found.blocks,
-                columns: found.columns,
-                restarts: found.restarts,
-                method: "shift-invert block Lanczos",
-            });
-        }
+    {
+        return Ok(Solved {
+            pairs: found.pairs,
+            mechanisms: 0,
+            iterations: found.blocks,
+            columns: found.columns,
+            restarts: found.restarts,
+            method: "shift-invert block Lanczos",
+        });
     }
     let result = subspace::solve(stiffness, rigid, count, &factor, phases)?;
     Ok(Solved {

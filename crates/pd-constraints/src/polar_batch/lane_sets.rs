@@ -16,13 +16,9 @@
 //! workspace's only `unsafe` besides the METIS FFI): each is sound because
 //! an [`Avx512`] token exists only after the CPU has been checked.
 //!
-//! The `_mm512_*` intrinsics are stable since Rust 1.89, above the
-//! workspace's declared `rust-version` (1.85, already below what the code
-//! needs: its let-chains need 1.88). Raising it to 1.89 makes clippy ask
-//! for let-chains across `pd-solver`, so that is left to a change of its
-//! own; until then this module allows `clippy::incompatible_msrv`.
+//! The `_mm512_*` intrinsics are stable since Rust 1.89, the workspace's
+//! declared `rust-version`.
 #![allow(unsafe_code)]
-#![allow(clippy::incompatible_msrv)]
 
 use core::arch::x86_64::{
     __m256d, __m512d, __mmask8, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ,

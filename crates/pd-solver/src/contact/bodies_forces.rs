@@ -24,10 +24,10 @@ impl BodyContact {
             self.count[tri[1]],
             self.count[tri[2]],
         ];
-        if let Some((stored, value)) = self.compliances[v] {
-            if stored == counts {
-                return value;
-            }
+        if let Some((stored, value)) = self.compliances[v]
+            && stored == counts
+        {
+            return value;
         }
         let value = self.compliance(v, tri, w, true);
         self.compliances[v] = Some((counts, value));

@@ -499,7 +499,7 @@ fn matching_hits(
 fn push_every_other_pair(pairs: &mut [Option<Pair>], parity: usize) {
     for (v, pair) in pairs.iter_mut().enumerate() {
         if let Some(p) = pair {
-            p.force = p.normal * f64::from(u8::from((v + parity) % 2 == 0));
+            p.force = p.normal * f64::from(u8::from((v + parity).is_multiple_of(2)));
         }
     }
 }

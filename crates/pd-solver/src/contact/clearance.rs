@@ -237,12 +237,12 @@ impl ContactState {
             }
             let (a, b) = (x_n[v], x_n[v] + dx[v]);
             // The slot is empty: written only when a contact is found.
-            if !self.misses_all(&a, &b) {
-                if let Some(slot) = self.detect(v, &a, &b) {
-                    self.slots[v] = Some(slot);
-                    self.clearance.hold(v);
-                    self.occupied.push(v);
-                }
+            if !self.misses_all(&a, &b)
+                && let Some(slot) = self.detect(v, &a, &b)
+            {
+                self.slots[v] = Some(slot);
+                self.clearance.hold(v);
+                self.occupied.push(v);
             }
         }
         // `occupied` holds every vertex with a slot: fixed vertices never

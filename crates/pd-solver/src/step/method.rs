@@ -126,10 +126,10 @@ impl SolverSpec {
                 ),
             );
         }
-        if let SpectralRadius::Fixed(rho) = self.rho {
-            if !(rho > 0.0 && rho < 1.0) {
-                return bad("rho", format!("must be in (0, 1) or \"auto\", got {rho}"));
-            }
+        if let SpectralRadius::Fixed(rho) = self.rho
+            && !(rho > 0.0 && rho < 1.0)
+        {
+            return bad("rho", format!("must be in (0, 1) or \"auto\", got {rho}"));
         }
         if self.start < 2 {
             return bad("start", format!("must be at least 2, got {}", self.start));

@@ -171,11 +171,11 @@ impl Simulation {
         {
             return key;
         }
-        if let Predictor::Fitted { order, equations } = self.predictor {
-            if self.fit_corrections(order.into(), equations.into()) {
-                self.apply_fitted();
-                return key;
-            }
+        if let Predictor::Fitted { order, equations } = self.predictor
+            && self.fit_corrections(order.into(), equations.into())
+        {
+            self.apply_fitted();
+            return key;
         }
         let state = &self.predictor_state;
         let fixed = self.model.fixed();

@@ -179,10 +179,10 @@ impl PredictorState {
             return;
         }
         // The oldest correction leaves when the history is full.
-        if self.history.len() + 3 > len {
-            if let Some(oldest) = self.history.pop() {
-                spares.push(oldest);
-            }
+        if self.history.len() + 3 > len
+            && let Some(oldest) = self.history.pop()
+        {
+            spares.push(oldest);
         }
         let previous = std::mem::take(&mut self.previous);
         if !previous.is_empty() && len > 2 {

@@ -98,7 +98,7 @@ fn wait_for(done: &AtomicBool) {
         std::hint::spin_loop();
         spins = spins.wrapping_add(1);
         // The clock is read once per 64 spins (a few hundred ns).
-        if spins % 64 == 0 && start.elapsed() > MAX_WAIT {
+        if spins.is_multiple_of(64) && start.elapsed() > MAX_WAIT {
             return;
         }
     }

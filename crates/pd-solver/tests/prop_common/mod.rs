@@ -104,7 +104,7 @@ impl Scene {
     /// for an odd seed.
     fn cloth(&self, cells: [usize; 2]) -> Mesh {
         let flat = generators::cloth([1.0, 0.7], cells).unwrap();
-        if self.seed % 2 == 0 {
+        if self.seed.is_multiple_of(2) {
             return flat;
         }
         let phase = self.seed as f64 * 0.37;
