@@ -2,7 +2,7 @@
 //! of [`crate::polar`] on structure-of-arrays lanes, one matrix per lane,
 //! run with the widest instruction set the CPU offers (detected at run time:
 //! 8 lanes with AVX-512, 4 with AVX2, otherwise one matrix at a time; see
-//! [`lane_sets`]).
+//! the private module `lane_sets`).
 //!
 //! Every lane performs exactly the floating-point operations of the scalar
 //! iteration, in the same order (no fused multiply-add: Rust never contracts
