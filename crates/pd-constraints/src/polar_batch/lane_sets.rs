@@ -21,12 +21,12 @@
 #![allow(unsafe_code)]
 
 use core::arch::x86_64::{
-    __m256d, __m512d, __mmask8, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ,
-    _mm256_maskz_loadu_pd, _mm256_setzero_pd, _mm512_abs_pd, _mm512_add_pd, _mm512_castpd256_pd512,
-    _mm512_cmp_pd_mask, _mm512_div_pd, _mm512_insertf64x4, _mm512_loadu_pd, _mm512_mask_blend_pd,
-    _mm512_max_pd, _mm512_mul_pd, _mm512_permutex2var_pd, _mm512_set1_pd, _mm512_setr_epi64,
-    _mm512_setr_pd, _mm512_shuffle_f64x2, _mm512_sqrt_pd, _mm512_storeu_pd, _mm512_sub_pd,
-    _mm512_unpackhi_pd, _mm512_unpacklo_pd, _mm512_xor_pd,
+    __m256d, __m512d, __mmask8, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _MM_HINT_ET0,
+    _MM_HINT_T0, _mm_prefetch, _mm256_maskz_loadu_pd, _mm256_setzero_pd, _mm512_abs_pd,
+    _mm512_add_pd, _mm512_castpd256_pd512, _mm512_cmp_pd_mask, _mm512_div_pd, _mm512_insertf64x4,
+    _mm512_loadu_pd, _mm512_mask_blend_pd, _mm512_max_pd, _mm512_mul_pd, _mm512_permutex2var_pd,
+    _mm512_set1_pd, _mm512_setr_epi64, _mm512_setr_pd, _mm512_shuffle_f64x2, _mm512_sqrt_pd,
+    _mm512_storeu_pd, _mm512_sub_pd, _mm512_unpackhi_pd, _mm512_unpacklo_pd, _mm512_xor_pd,
 };
 
 use pulp::x86::V3;
@@ -90,6 +90,12 @@ pub(crate) trait Lanes: Copy {
     ) -> [Self::F; N] {
         transpose_by_value(self, items, row)
     }
+
+    /// A hint that the cache lines of the bytes `range` will be read
+    /// (`WRITE`: written) soon; no effect on any value, and the addresses
+    /// need not be valid. Nothing by default.
+    #[inline(always)]
+    fn prefetch<const WRITE: bool>(self, _range: core::ops::Range<*const u8>) {}
 }
 
 /// [`Lanes::transpose`] one value at a time.
@@ -296,6 +302,24 @@ impl Lanes for Avx512 {
     #[inline(always)]
     fn bits(self, mask: __mmask8) -> u32 {
         u32::from(mask)
+    }
+
+    #[inline(always)]
+    fn prefetch<const WRITE: bool>(self, range: core::ops::Range<*const u8>) {
+        let (start, end) = (range.start.cast::<i8>(), range.end.cast::<i8>());
+        // From the start of the first cache line, one prefetch per line.
+        let mut at = start.wrapping_sub(start as usize % 64);
+        while at < end {
+            // SAFETY: a prefetch never faults and changes no value.
+            unsafe {
+                if WRITE {
+                    _mm_prefetch::<_MM_HINT_ET0>(at);
+                } else {
+                    _mm_prefetch::<_MM_HINT_T0>(at);
+                }
+            }
+            at = at.wrapping_add(64);
+        }
     }
 
     /// 8 x 8 and 8 x 3 transposes in registers for the two shapes the

@@ -13,12 +13,22 @@
 //! dispatcher's `#[target_feature]` function: no closure the compiler could
 //! keep out of line (std's `array::from_fn` did) sits on the hot path.
 
+use std::ops::Range;
+
 use pd_mesh::Point;
 
 use super::{TetStrain, energies_one_by_one, project_one_by_one};
 use crate::polar::closest_rotation;
 use crate::polar_batch::lane_sets::{Lanes, WithLanes};
 use crate::polar_batch::{Batch, batch_values, lane_matrix, newton_polar_lanes};
+
+/// Batches ahead of the one projected whose elements are prefetched, and
+/// whose output rows are prefetched for writing (docs/performance.md,
+/// "Prefetching the next batches (issue 18, sixth round)": the elements
+/// arrive from memory at 527,280 tets, and the hardware prefetcher alone
+/// left the loop waiting).
+const ELEMENTS_AHEAD: usize = 2;
+const ROWS_AHEAD: usize = 1;
 
 /// [`TetStrain`]'s [`project_many`](crate::Constraint::project_many) loop
 /// as a lane operation.
@@ -45,9 +55,15 @@ impl<const ENERGIES: bool> WithLanes for ProjectBatched<'_, ENERGIES> {
         } = self;
         let batches = constraints.chunks_exact(S::WIDTH);
         let rest = batches.remainder();
+        let (elements, rows_out) = (constraints.as_ptr(), out.as_ptr());
+        let (n_elements, n_rows) = (constraints.len(), out.len());
         let mut out_batches = out.chunks_exact_mut(S::WIDTH * 3);
         let mut energy_batches = energies.chunks_exact_mut(S::WIDTH);
-        for (batch, rows) in batches.zip(&mut out_batches) {
+        for (b, (batch, rows)) in batches.zip(&mut out_batches).enumerate() {
+            let ahead = b + ELEMENTS_AHEAD;
+            s.prefetch::<false>(batch_bytes(elements, n_elements, ahead, S::WIDTH));
+            let ahead = b + ROWS_AHEAD;
+            s.prefetch::<true>(batch_bytes(rows_out, n_rows, ahead, 3 * S::WIDTH));
             if batch.iter().any(TetStrain::has_limits) {
                 project_one_by_one(batch, q, rows);
                 if ENERGIES && let Some(energy) = energy_batches.next() {
@@ -68,6 +84,15 @@ impl<const ENERGIES: bool> WithLanes for ProjectBatched<'_, ENERGIES> {
             energies_one_by_one(rest, q, rows, energy_batches.into_remainder());
         }
     }
+}
+
+/// The bytes of items `k * len..(k + 1) * len` of the `n` items from
+/// `start`, cut at their end (empty past it), for a prefetch: only the
+/// addresses are computed, nothing is read.
+#[inline(always)]
+fn batch_bytes<T>(start: *const T, n: usize, k: usize, len: usize) -> Range<*const u8> {
+    let (from, to) = ((k * len).min(n), ((k + 1) * len).min(n));
+    start.wrapping_add(from).cast()..start.wrapping_add(to).cast()
 }
 
 /// The energies `w/2 |F - P|^2` of a batch from its lanes of `F = G q` and
