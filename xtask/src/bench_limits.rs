@@ -199,6 +199,27 @@ pub fn measure(
     }))
 }
 
+/// Adds the 2-thread speed-ups measured outside [`measure`] (the report's
+/// alternating local-step pairs) to the noise check of `limits`: any above
+/// [`SPEEDUP_NOISY`] flags the whole report, so that no section's verdict
+/// rests on a run the limits section alone would have passed.
+pub fn flag_speedups(limits: &mut Value, what: &str, speedups: &[f64]) {
+    let mut reasons: Vec<Value> = limits["noise_reasons"]
+        .as_array()
+        .cloned()
+        .unwrap_or_default();
+    for (i, &speedup) in speedups.iter().enumerate() {
+        if speedup > SPEEDUP_NOISY {
+            reasons.push(json!(format!(
+                "2-thread {what} speed-up {speedup:.2} in pair {} (> {SPEEDUP_NOISY})",
+                i + 1
+            )));
+        }
+    }
+    limits["noisy"] = json!(!reasons.is_empty());
+    limits["noise_reasons"] = Value::Array(reasons);
+}
+
 /// The Markdown of the two sections.
 pub fn markdown(limits: &Value) -> String {
     let mut md = String::new();
@@ -220,7 +241,7 @@ pub fn markdown(limits: &Value) -> String {
         let _ = writeln!(
             md,
             "Noise check passed (CPU pressure at most {PRESSURE_NOISY} %, 2-thread speed-ups at \
-             most {SPEEDUP_NOISY}, spread of repeated runs at most {:.0} %).\n",
+             most {SPEEDUP_NOISY} here and in the local step's alternating pairs, spread of repeated runs at most {:.0} %).\n",
             100.0 * SPREAD_NOISY
         );
     }
@@ -358,6 +379,21 @@ mod tests {
         assert!((f(&two["solve_bound_ms"]) - 1.0).abs() < 1e-12);
         assert!((f(&two["solve_ratio_to_bound"]) - 1.8).abs() < 1e-12);
         assert!(markdown(&limits).contains("16.0 GB/s on 2"));
+    }
+
+    #[test]
+    fn a_superlinear_pair_elsewhere_flags_the_report() {
+        let mut limits = measure(&fake(1.5), true, &[]).unwrap();
+        assert_eq!(limits["noisy"], false);
+        flag_speedups(&mut limits, "local step", &[1.9, 2.0]);
+        assert_eq!(limits["noisy"], false);
+        flag_speedups(&mut limits, "local step", &[1.9, 2.1]);
+        assert_eq!(limits["noisy"], true);
+        let md = markdown(&limits);
+        assert!(
+            md.contains("NOISY RUN") && md.contains("2.10 in pair 2"),
+            "{md}"
+        );
     }
 
     #[test]
