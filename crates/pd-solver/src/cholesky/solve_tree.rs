@@ -9,10 +9,10 @@
 //! of threads: with one thread the two bins run one after the other, so the
 //! arithmetic, and the result, is the same bit for bit.
 
-/// Fixed cost of a supernode in stored values (the fitted
-/// `SUPERNODE_COST` of the ordering's cost model, docs/performance.md):
-/// the split balances stored values read plus this per supernode.
-const SUPERNODE_COST: usize = 70;
+// The split balances stored values read plus the ordering's fitted fixed
+// cost of a supernode (`SUPERNODE_COST`, docs/performance.md), the same
+// model that chose the order.
+use super::SUPERNODE_COST;
 
 /// How many supernodes may be moved from the bins to the top while the
 /// split is searched: each move takes the largest subtree apart.
