@@ -306,6 +306,34 @@ fn metis_option_fill() {
     let mut runs: Vec<(String, Vec<(i32, i32)>)> = vec![("default".into(), vec![])];
     runs.extend((1..9).map(|s| (format!("seed {s}"), vec![(seed, s)])));
     runs.extend((2..4).map(|k| (format!("nseps {k}"), vec![(nseps, k)])));
+    // METIS's other ordering options (defaults: niter 10, ufactor 200,
+    // iptype EDGE, rtype SEP1SIDED, ctype SHEM, compress 1, ccorder 0).
+    let niter = metis_sys::moptions_et_METIS_OPTION_NITER;
+    let ufactor = metis_sys::moptions_et_METIS_OPTION_UFACTOR;
+    runs.extend([20, 50].map(|k| (format!("niter {k}"), vec![(niter, k)])));
+    runs.extend([30, 100, 400].map(|k| (format!("ufactor {k}"), vec![(ufactor, k)])));
+    runs.extend([
+        (
+            "iptype node".to_string(),
+            vec![(metis_sys::moptions_et_METIS_OPTION_IPTYPE, 3)],
+        ),
+        (
+            "rtype 2-sided".to_string(),
+            vec![(metis_sys::moptions_et_METIS_OPTION_RTYPE, 2)],
+        ),
+        (
+            "ctype rm".to_string(),
+            vec![(metis_sys::moptions_et_METIS_OPTION_CTYPE, 0)],
+        ),
+        (
+            "ccorder 1".to_string(),
+            vec![(metis_sys::moptions_et_METIS_OPTION_CCORDER, 1)],
+        ),
+        (
+            "compress 0".to_string(),
+            vec![(metis_sys::moptions_et_METIS_OPTION_COMPRESS, 0)],
+        ),
+    ]);
     for (name, overrides) in runs {
         let start_time = std::time::Instant::now();
         let order = super::metis::node_nd_with(&start, &neighbours, &overrides).unwrap();
