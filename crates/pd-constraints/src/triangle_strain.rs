@@ -8,7 +8,7 @@ use pd_mesh::Point;
 
 use crate::tet_strain::check_stiffness;
 use crate::triangle_frame::{
-    IsotropicProjection, gradient_of, isotropic_hessian, rest_frame, thin_svd,
+    IsotropicProjection, closest_orthonormal, gradient_of, isotropic_hessian, rest_frame, thin_svd,
 };
 use crate::{Constraint, ConstraintError, TetStrain};
 
@@ -18,8 +18,10 @@ use crate::{Constraint, ConstraintError, TetStrain};
 /// triangle's own plane, so the rows of `G x` are the columns of the 3 x 2
 /// gradient `F` (`crate::triangle_frame`). The projection is `U V^T` from
 /// the thin SVD `F = U S V^T` (the closest matrix with orthonormal columns:
-/// a rigid motion of the rest triangle), or with limits `[min, max]` the
-/// matrix `U clamp(S, min, max) V^T`. The weight is `stiffness * rest area`
+/// a rigid motion of the rest triangle), computed as `Q Rot` from the
+/// factors `F = Q R` and the rotation closest to `R`, without
+/// trigonometry; or with limits `[min, max]` the matrix
+/// `U clamp(S, min, max) V^T`. The weight is `stiffness * rest area`
 /// with `stiffness = E t` in N/m: for small strains this is plane-stress
 /// linear elasticity with Young's modulus `E`, thickness `t` and Poisson
 /// ratio 0.
@@ -90,10 +92,11 @@ impl Constraint for TriangleStrain {
     }
 
     fn project(&self, gx: &[Point], out: &mut [Point]) {
-        let svd = thin_svd(&gradient_of(gx));
+        let f = gradient_of(gx);
         let target: Matrix3x2<f64> = match self.limits {
-            None => svd.closest,
+            None => closest_orthonormal(&f),
             Some((min, max)) => {
+                let svd = thin_svd(&f);
                 let c = svd.s.map(|s| s.clamp(min, max));
                 svd.u * Matrix2::from_diagonal(&c) * svd.v.transpose()
             }
