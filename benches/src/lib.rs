@@ -251,6 +251,88 @@ impl Beam {
     }
 }
 
+/// The cloth benchmark of `pd-probe --cloth`: a square sheet of side
+/// [`Sheet::side`] in the `xz` plane, meshed by
+/// [`pd_mesh::generators::cloth`] (`2 cells[0] cells[1]` triangles),
+/// triangle strain on every triangle, lumped masses, the edge `x = 0`
+/// fixed; released from horizontal under gravity it swings down, so the
+/// triangles rotate and stretch a little, as in `scenes/cloth_*.toml`.
+/// Bending is optional, so that the triangle-strain pass can be measured
+/// alone.
+///
+/// ```
+/// let sheet = pd_benches::Sheet { cells: [4, 3], ..pd_benches::Sheet::default() };
+/// let mut sim = sheet.simulation(&pd_benches::Beam::default().settings()).unwrap();
+/// assert_eq!(sim.model().num_vertices(), 20);
+/// sim.step().unwrap();
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sheet {
+    /// Cells along x and z (2 triangles each).
+    pub cells: [usize; 2],
+    /// Side length in m.
+    pub side: f64,
+    /// Membrane stiffness `E t` in N/m (weight = stiffness x rest area).
+    pub stiffness: f64,
+    /// Area density in kg/m^2.
+    pub density: f64,
+    /// Flexural rigidity `D` in N m of the bending constraints, or `None`
+    /// for none.
+    pub bending: Option<f64>,
+}
+
+impl Default for Sheet {
+    /// The material of `scenes/cloth_hanging_sheet.toml`: `E t = 5e3` N/m,
+    /// 0.2 kg/m^2; 224 x 224 cells (100,352 triangles) on a 1 m side.
+    fn default() -> Self {
+        Self {
+            cells: [224, 224],
+            side: 1.0,
+            stiffness: 5e3,
+            density: 0.2,
+            bending: None,
+        }
+    }
+}
+
+impl Sheet {
+    /// A simulation of the sheet with `settings` (undamped, backward
+    /// Euler).
+    ///
+    /// # Errors
+    /// Invalid cell counts or parameters, or a model the solver rejects.
+    pub fn simulation(&self, settings: &Settings) -> Result<Simulation, String> {
+        let mesh =
+            pd_mesh::generators::cloth([self.side; 2], self.cells).map_err(|e| e.to_string())?;
+        let masses = mesh
+            .lumped_masses(self.density)
+            .map_err(|e| e.to_string())?;
+        let fixed: Vec<usize> = (0..mesh.num_vertices())
+            .filter(|&v| mesh.vertices()[v].x <= 1e-9)
+            .collect();
+        let mut model = Model::new();
+        let body = model.add_body(mesh, masses).map_err(|e| e.to_string())?;
+        model
+            .add_triangle_strain(body, self.stiffness, None)
+            .map_err(|e| e.to_string())?;
+        if let Some(rigidity) = self.bending {
+            model
+                .add_bending(body, rigidity)
+                .map_err(|e| e.to_string())?;
+        }
+        model
+            .fix_vertices(body, &fixed)
+            .map_err(|e| e.to_string())?;
+        Simulation::new(
+            model,
+            integrator("be")?,
+            damping(registry::UNDAMPED)?,
+            settings.clone(),
+        )
+        .map_err(|e| e.to_string())
+    }
+}
+
 /// Peak resident memory of this process so far (`VmHWM` in
 /// `/proc/self/status`), in bytes; `None` where that file does not exist.
 pub fn peak_memory_bytes() -> Option<u64> {

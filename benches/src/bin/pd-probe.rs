@@ -14,11 +14,17 @@
 //!                   [--predicted anderson,lbfgs:linear,...]   (those methods again with a predictor, default extrapolated)
 //! beam options: --cells NX,NY,NZ --iters K --threads T --dt H --stiffness PA --soft-clamp
 //! ```
+//!
+//! `step` and `phases` take `--cloth NX,NZ [--bending D]` instead of a beam
+//! or mesh: the cloth sheet of `pd_benches::Sheet` with that many cells
+//! (triangle strain only, or with bending of rigidity `D` in N m), stepped
+//! with the beam options' `--iters`, `--threads` and `--dt` (undamped,
+//! backward Euler); the output then also has `n_triangles`.
 
 use std::process::ExitCode;
 use std::time::Instant;
 
-use pd_benches::{Beam, Clamp, damping_models, peak_memory_bytes};
+use pd_benches::{Beam, Clamp, Sheet, damping_models, peak_memory_bytes};
 use pd_damping::registry::UNDAMPED;
 use pd_io::recorder::median;
 use pd_mesh::Point;
@@ -101,6 +107,35 @@ impl Options<'_> {
             ..defaults
         })
     }
+
+    /// The cloth sheet of `--cloth NX,NZ [--bending D]`, if asked for.
+    fn sheet(&self) -> Result<Option<Sheet>, String> {
+        if self.value("--cloth").is_none() {
+            return Ok(None);
+        }
+        let cells = self.list("--cloth", &[])?;
+        let cells: [usize; 2] = cells
+            .try_into()
+            .map_err(|_| "--cloth needs two counts NX,NZ".to_string())?;
+        let bending = match self.value("--bending") {
+            None => None,
+            Some(_) => Some(self.parse("--bending", 0.0)?),
+        };
+        Ok(Some(Sheet {
+            cells,
+            bending,
+            ..Sheet::default()
+        }))
+    }
+}
+
+/// `value` with `n_triangles` added for a cloth run (beam and mesh runs
+/// keep their output as it was).
+fn with_triangles(mut value: Value, sim: &Simulation, cloth: bool) -> Value {
+    if cloth {
+        value["n_triangles"] = json!(sim.model().bodies()[0].mesh.triangles().len());
+    }
+    value
 }
 
 fn run(args: &[String]) -> Result<Value, String> {
@@ -209,13 +244,20 @@ fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     let model = options.value("--model").unwrap_or(UNDAMPED);
     let integrator = options.value("--integrator").unwrap_or("be");
     let steps: usize = options.parse("--steps", 10)?;
-    let mesh = match options.value("--mesh") {
-        Some(base) => pd_io::tetgen::read_tetgen_base(std::path::Path::new(base))
-            .map_err(|e| e.to_string())?,
-        None => beam.mesh()?,
+    let sheet = options.sheet()?;
+    let sim = match &sheet {
+        Some(sheet) => sheet.simulation(&beam.settings())?,
+        None => {
+            let mesh = match options.value("--mesh") {
+                Some(base) => pd_io::tetgen::read_tetgen_base(std::path::Path::new(base))
+                    .map_err(|e| e.to_string())?,
+                None => beam.mesh()?,
+            };
+            beam.simulation_on(mesh, model, integrator)?
+        }
     };
+    let mesh = &sim.model().bodies()[0].mesh;
     let (n_verts, n_tets) = (mesh.num_vertices(), mesh.tets().len());
-    let sim = beam.simulation_on(mesh, model, integrator)?;
     let setup = sim.setup_stats();
     // The peak so far is the setup's (mesh, model, operators, analysis,
     // first factorisation); `peak_bytes` below adds the steps.
@@ -244,7 +286,7 @@ fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     let positions = &sim.state().positions;
     let centroid = positions.iter().sum::<Point>() / positions.len() as f64;
     let min_y = positions.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
-    Ok(json!({
+    let value = json!({
         "n_verts": n_verts,
         "n_tets": n_tets,
         "n_free": sim.num_free_vertices(),
@@ -269,7 +311,8 @@ fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         "peak_bytes": peak_memory_bytes(),
         "setup_peak_bytes": setup_peak_bytes,
         "state_hash": state_hash(sim.state()),
-    }))
+    });
+    Ok(with_triangles(value, &sim, sheet.is_some()))
 }
 
 /// FNV-1a over the bits of every position and velocity, as hex: two runs
@@ -349,13 +392,15 @@ fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
             std::thread::sleep(std::time::Duration::from_micros(idle_us));
         }
     };
-    let mut sim = match options.value("--mesh") {
-        Some(base) => {
+    let sheet = options.sheet()?;
+    let mut sim = match (&sheet, options.value("--mesh")) {
+        (Some(sheet), _) => sheet.simulation(&beam.settings())?,
+        (None, Some(base)) => {
             let mesh = pd_io::tetgen::read_tetgen_base(std::path::Path::new(base))
                 .map_err(|e| e.to_string())?;
             beam.simulation_on(mesh, model, "be")?
         }
-        None => beam.simulation(model, "be")?,
+        (None, None) => beam.simulation(model, "be")?,
     };
     sim.run(2).map_err(|e| e.to_string())?;
     let mut time = |reps: usize, f: &mut dyn FnMut() -> Result<(), String>| {
@@ -379,7 +424,7 @@ fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     let factor = time(factor_reps, &mut || {
         sim.profile_factorise().map_err(|e| e.to_string())
     })?;
-    Ok(json!({
+    let value = json!({
         "n_verts": sim.model().num_vertices(),
         "n_tets": sim.model().bodies()[0].mesh.tets().len(),
         "threads": beam.threads,
@@ -392,11 +437,13 @@ fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         "numeric_factor_ms_median": factor,
         "nnz_L_factor": sim.factor_len(),
         "peak_bytes": peak_memory_bytes(),
-    }))
+    });
+    Ok(with_triangles(value, &sim, sheet.is_some()))
 }
 
 /// With `--parts P` (diagnostic, issue 18): the first constraint block
-/// (the tet strain of a beam or mesh) cut into `P` equal contiguous parts,
+/// (the tet strain of a beam or mesh, the triangle strain of a `--cloth`
+/// sheet) cut into `P` equal contiguous parts,
 /// each projected on this thread alone `reps` times; the fastest pass per
 /// part in ns per constraint. Unequal parts would show a load imbalance of
 /// a fixed split (rayon's chunks are stolen, so they balance whatever the

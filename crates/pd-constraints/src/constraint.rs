@@ -46,11 +46,7 @@ pub trait Constraint: Clone + std::fmt::Debug + Send + Sync + 'static {
     /// projects one at a time; a kind overrides it to batch several into
     /// SIMD lanes (tet strain), with results identical to the default.
     fn project_many(constraints: &[Self], q: &[Point], out: &mut [Point]) {
-        let mut gx = [Point::zeros(); crate::MAX_ROWS];
-        for (c, rows) in constraints.iter().zip(out.chunks_exact_mut(Self::ROWS)) {
-            apply_operator(c, q, &mut gx[..Self::ROWS]);
-            c.project(&gx[..Self::ROWS], rows);
-        }
+        project_one_by_one(constraints, q, out);
     }
 
     /// The energies `w/2 |G q - p|^2` of a run of constraints at the
@@ -60,16 +56,7 @@ pub trait Constraint: Clone + std::fmt::Debug + Send + Sync + 'static {
     /// several into SIMD lanes (tet strain), with results identical to the
     /// default to the bit.
     fn energies_many(constraints: &[Self], q: &[Point], projections: &[Point], out: &mut [f64]) {
-        let mut gx = [Point::zeros(); crate::MAX_ROWS];
-        for ((c, p), e) in constraints
-            .iter()
-            .zip(projections.chunks_exact(Self::ROWS))
-            .zip(out)
-        {
-            apply_operator(c, q, &mut gx[..Self::ROWS]);
-            let distance2: f64 = (0..Self::ROWS).map(|r| (gx[r] - p[r]).norm_squared()).sum();
-            *e = 0.5 * c.weight() * distance2;
-        }
+        energies_one_by_one(constraints, q, projections, out);
     }
 
     /// [`Constraint::project_many`] and then [`Constraint::energies_many`]
@@ -91,6 +78,37 @@ pub trait Constraint: Clone + std::fmt::Debug + Send + Sync + 'static {
     /// are clamped to zero (`docs/constraints.md`). The weight `w` is
     /// included.
     fn gx_hessian(&self, gx: &[Point], project_psd: bool, out: &mut [f64]);
+}
+
+/// The default [`Constraint::project_many`]: one [`Constraint::project`]
+/// at a time (also what a batched kind does with the elements its lanes
+/// leave over).
+pub(crate) fn project_one_by_one<C: Constraint>(constraints: &[C], q: &[Point], out: &mut [Point]) {
+    let mut gx = [Point::zeros(); crate::MAX_ROWS];
+    for (c, rows) in constraints.iter().zip(out.chunks_exact_mut(C::ROWS)) {
+        apply_operator(c, q, &mut gx[..C::ROWS]);
+        c.project(&gx[..C::ROWS], rows);
+    }
+}
+
+/// The default [`Constraint::energies_many`]: `w/2 |G q - p|^2` one
+/// constraint at a time.
+pub(crate) fn energies_one_by_one<C: Constraint>(
+    constraints: &[C],
+    q: &[Point],
+    projections: &[Point],
+    out: &mut [f64],
+) {
+    let mut gx = [Point::zeros(); crate::MAX_ROWS];
+    for ((c, p), e) in constraints
+        .iter()
+        .zip(projections.chunks_exact(C::ROWS))
+        .zip(out)
+    {
+        apply_operator(c, q, &mut gx[..C::ROWS]);
+        let distance2: f64 = (0..C::ROWS).map(|r| (gx[r] - p[r]).norm_squared()).sum();
+        *e = 0.5 * c.weight() * distance2;
+    }
 }
 
 /// Computes the `ROWS` rows of `G q` for one constraint into `gx`.

@@ -32,6 +32,8 @@ pub mod assembly;
 mod attachment;
 pub mod bending;
 mod constraint;
+#[cfg(target_arch = "x86_64")]
+mod lane_rows;
 pub mod material;
 mod material_set;
 pub mod plate_bending;

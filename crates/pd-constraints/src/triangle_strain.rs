@@ -6,11 +6,17 @@
 use nalgebra::{Matrix2, Matrix3x2};
 use pd_mesh::Point;
 
+use crate::constraint::{energies_one_by_one, project_one_by_one};
+#[cfg(target_arch = "x86_64")]
+use crate::polar_batch::lane_sets::vectorize;
 use crate::tet_strain::check_stiffness;
 use crate::triangle_frame::{
-    IsotropicProjection, gradient_of, isotropic_hessian, rest_frame, thin_svd,
+    IsotropicProjection, closest_orthonormal, gradient_of, isotropic_hessian, rest_frame, thin_svd,
 };
 use crate::{Constraint, ConstraintError, TetStrain};
+
+#[cfg(target_arch = "x86_64")]
+mod batch;
 
 /// A triangle membrane-strain constraint.
 ///
@@ -18,8 +24,12 @@ use crate::{Constraint, ConstraintError, TetStrain};
 /// triangle's own plane, so the rows of `G x` are the columns of the 3 x 2
 /// gradient `F` (`crate::triangle_frame`). The projection is `U V^T` from
 /// the thin SVD `F = U S V^T` (the closest matrix with orthonormal columns:
-/// a rigid motion of the rest triangle), or with limits `[min, max]` the
-/// matrix `U clamp(S, min, max) V^T`. The weight is `stiffness * rest area`
+/// a rigid motion of the rest triangle), computed as `Q Rot` from the
+/// factors `F = Q R` and the rotation closest to `R`, without
+/// trigonometry; or with limits `[min, max]` the matrix
+/// `U clamp(S, min, max) V^T`. [`Constraint::project_many`] projects
+/// triangles without limits several at a time in SIMD lanes, with the same
+/// bits. The weight is `stiffness * rest area`
 /// with `stiffness = E t` in N/m: for small strains this is plane-stress
 /// linear elasticity with Young's modulus `E`, thickness `t` and Poisson
 /// ratio 0.
@@ -90,16 +100,77 @@ impl Constraint for TriangleStrain {
     }
 
     fn project(&self, gx: &[Point], out: &mut [Point]) {
-        let svd = thin_svd(&gradient_of(gx));
+        let f = gradient_of(gx);
         let target: Matrix3x2<f64> = match self.limits {
-            None => svd.closest,
+            None => closest_orthonormal(&f),
             Some((min, max)) => {
+                let svd = thin_svd(&f);
                 let c = svd.s.map(|s| s.clamp(min, max));
                 svd.u * Matrix2::from_diagonal(&c) * svd.v.transpose()
             }
         };
         out[0] = target.column(0).into_owned();
         out[1] = target.column(1).into_owned();
+    }
+
+    /// Batches of triangles without limits (as many as the CPU has f64
+    /// lanes) in SIMD lanes, bit-identical to [`Self::project`]; the rest,
+    /// one at a time.
+    fn project_many(constraints: &[Self], q: &[Point], out: &mut [Point]) {
+        #[cfg(target_arch = "x86_64")]
+        if vectorize(batch::ProjectBatched::<false> {
+            constraints,
+            q,
+            out: &mut *out,
+            energies: &mut [],
+        })
+        .is_some()
+        {
+            return;
+        }
+        project_one_by_one(constraints, q, out);
+    }
+
+    /// As [`Self::project_many`], each SIMD batch's energies from its lanes
+    /// of `G q` and of the projection (no second gather); the rest, one at
+    /// a time. Bit-identical to the default.
+    fn project_many_with_energies(
+        constraints: &[Self],
+        q: &[Point],
+        out: &mut [Point],
+        energies: &mut [f64],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if vectorize(batch::ProjectBatched::<true> {
+            constraints,
+            q,
+            out: &mut *out,
+            energies: &mut *energies,
+        })
+        .is_some()
+        {
+            return;
+        }
+        project_one_by_one(constraints, q, out);
+        energies_one_by_one(constraints, q, out, energies);
+    }
+
+    /// Batches of SIMD-lane width gather `G q` into lanes as
+    /// [`Self::project_many`] does (bit-identical to the default's sums);
+    /// the rest, one at a time.
+    fn energies_many(constraints: &[Self], q: &[Point], projections: &[Point], out: &mut [f64]) {
+        #[cfg(target_arch = "x86_64")]
+        if vectorize(batch::EnergiesBatched {
+            constraints,
+            q,
+            projections,
+            out: &mut *out,
+        })
+        .is_some()
+        {
+            return;
+        }
+        energies_one_by_one(constraints, q, projections, out);
     }
 
     fn gx_hessian(&self, gx: &[Point], project_psd: bool, out: &mut [f64]) {

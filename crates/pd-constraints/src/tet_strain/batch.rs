@@ -13,11 +13,10 @@
 //! dispatcher's `#[target_feature]` function: no closure the compiler could
 //! keep out of line (std's `array::from_fn` did) sits on the hot path.
 
-use std::ops::Range;
-
 use pd_mesh::Point;
 
 use super::{TetStrain, energies_one_by_one, project_one_by_one};
+use crate::lane_rows::{batch_bytes, distances, gather_rows};
 use crate::polar::closest_rotation;
 use crate::polar_batch::lane_sets::{Lanes, WithLanes};
 use crate::polar_batch::{Batch, batch_values, lane_matrix, newton_polar_lanes};
@@ -86,15 +85,6 @@ impl<const ENERGIES: bool> WithLanes for ProjectBatched<'_, ENERGIES> {
     }
 }
 
-/// The bytes of items `k * len..(k + 1) * len` of the `n` items from
-/// `start`, cut at their end (empty past it), for a prefetch: only the
-/// addresses are computed, nothing is read.
-#[inline(always)]
-fn batch_bytes<T>(start: *const T, n: usize, k: usize, len: usize) -> Range<*const u8> {
-    let (from, to) = ((k * len).min(n), ((k + 1) * len).min(n));
-    start.wrapping_add(from).cast()..start.wrapping_add(to).cast()
-}
-
 /// The energies `w/2 |F - P|^2` of a batch from its lanes of `F = G q` and
 /// of the projection: the converged iterate `x`, or (when a lane was
 /// projected by the scalar fallback) the rows just written. Summed as
@@ -117,38 +107,6 @@ fn lane_energies<S: Lanes>(
     for ((e, c), d) in out.iter_mut().zip(batch).zip(distance2.as_ref()) {
         *e = 0.5 * c.weight * d;
     }
-}
-
-/// Rows `3 l..3 l + 3` of `rows` as lane `l` of a batch (entry `3 r + j`
-/// is coordinate `j` of row `r`, as in [`gradients`]).
-#[inline(always)]
-fn gather_rows<S: Lanes>(s: S, p: &[Point]) -> Batch<S> {
-    let mut lanes = [s.splat(0.0); 9];
-    for r in 0..3 {
-        for j in 0..3 {
-            let mut v = S::Values::default();
-            for (l, v) in v.as_mut().iter_mut().enumerate() {
-                *v = p[3 * l + r][j];
-            }
-            lanes[3 * r + j] = s.pack(v);
-        }
-    }
-    lanes
-}
-
-/// `sum_r |F_r - P_r|^2` per lane, summed in the scalar order: per row
-/// `((0 + dx^2) + dy^2) + dz^2`, then the rows in order.
-#[inline(always)]
-fn distances<S: Lanes>(s: S, f: &Batch<S>, p: &Batch<S>) -> S::Values {
-    let zero = s.splat(0.0);
-    let mut rows = [zero; 3];
-    for (r, row) in rows.iter_mut().enumerate() {
-        for j in 0..3 {
-            let d = s.sub(f[3 * r + j], p[3 * r + j]);
-            *row = s.add(*row, s.mul(d, d));
-        }
-    }
-    s.values(s.add(s.add(rows[0], rows[1]), rows[2]))
 }
 
 /// [`TetStrain`]'s [`energies_many`](crate::Constraint::energies_many)
@@ -266,137 +224,7 @@ mod tests {
     use proptest::prelude::*;
 
     use super::*;
-    use crate::Constraint;
-    use crate::constraint::apply_operator;
-
-    /// The three checks below with the lanes of every SIMD width this CPU
-    /// has (and the scalar path's own results for reference).
-    fn assert_all_bit_identical(constraints: &[TetStrain], q: &[Point]) {
-        crate::polar_batch::lane_sets::for_each_width(|_| {
-            assert_bit_identical(constraints, q);
-            assert_energy_bit_identical(constraints, q);
-            assert_energies_bit_identical(constraints, q);
-        });
-    }
-
-    /// Every element's rows from `project_many` equal `project` of its
-    /// `G q` to the bit.
-    fn assert_bit_identical(constraints: &[TetStrain], q: &[Point]) {
-        let mut batched = vec![Point::zeros(); 3 * constraints.len()];
-        TetStrain::project_many(constraints, q, &mut batched);
-        let mut gx = [Point::zeros(); 3];
-        for (i, (c, rows)) in constraints.iter().zip(batched.chunks_exact(3)).enumerate() {
-            apply_operator(c, q, &mut gx);
-            let mut one = [Point::zeros(); 3];
-            c.project(&gx, &mut one);
-            let same = rows
-                .iter()
-                .flat_map(|p| p.iter())
-                .zip(one.iter().flat_map(|p| p.iter()))
-                .all(|(a, b)| a.to_bits() == b.to_bits());
-            assert!(same, "element {i}: batched {rows:?} vs one {one:?}");
-        }
-    }
-
-    /// `ConstraintSet::energy_range`, which projects in batches, gives the
-    /// one-at-a-time sum `sum w/2 |G q - P(G q)|^2` to the bit; the list is
-    /// taken three times so that the range spans several energy batches
-    /// and ends in a partial one.
-    fn assert_energy_bit_identical(constraints: &[TetStrain], q: &[Point]) {
-        use crate::{ConstraintBlock, ConstraintSet};
-        let repeated: Vec<TetStrain> = (0..3).flat_map(|_| constraints.iter().cloned()).collect();
-        let mut gx = [Point::zeros(); 3];
-        let one_by_one: f64 = repeated
-            .iter()
-            .map(|c| {
-                apply_operator(c, q, &mut gx);
-                let mut p = [Point::zeros(); 3];
-                c.project(&gx, &mut p);
-                let distance2: f64 = (0..3).map(|r| (gx[r] - p[r]).norm_squared()).sum();
-                0.5 * c.weight() * distance2
-            })
-            .sum();
-        let n = repeated.len();
-        let batched = ConstraintSet::new(repeated).energy_range(q, 0..n);
-        assert_eq!(
-            batched.to_bits(),
-            one_by_one.to_bits(),
-            "{batched} vs {one_by_one}"
-        );
-    }
-
-    /// `energies_many` (SIMD lanes and the remainder) equals the
-    /// one-at-a-time `w/2 |G q - p|^2` of each element to the bit, from
-    /// the elements' own projections and from unrelated rows;
-    /// `project_many_with_energies` and `project_energy_range` give the
-    /// projections and energies of the two passes to the bit; and
-    /// `ConstraintSet::energy_bound_range`, which sums them a batch at a
-    /// time, equals `energy_range`'s sum and names the same largest term
-    /// as a one-by-one scan (the list taken three times, so that several
-    /// batches and a partial one are summed).
-    fn assert_energies_bit_identical(constraints: &[TetStrain], q: &[Point]) {
-        use crate::{ConstraintBlock, ConstraintSet};
-        let repeated: Vec<TetStrain> = (0..3).flat_map(|_| constraints.iter().cloned()).collect();
-        let n = repeated.len();
-        let mut projected = vec![Point::zeros(); 3 * n];
-        TetStrain::project_many(&repeated, q, &mut projected);
-        let unrelated: Vec<Point> = (0..3 * n)
-            .map(|i| Point::new(i as f64 * 0.37 - 1.0, 0.5, -(i as f64) * 0.11))
-            .collect();
-        for p in [&projected, &unrelated] {
-            let mut batched = vec![0.0; n];
-            TetStrain::energies_many(&repeated, q, p, &mut batched);
-            let mut gx = [Point::zeros(); 3];
-            for (i, (c, rows)) in repeated.iter().zip(p.chunks_exact(3)).enumerate() {
-                apply_operator(c, q, &mut gx);
-                let distance2: f64 = (0..3).map(|r| (gx[r] - rows[r]).norm_squared()).sum();
-                let one = 0.5 * c.weight() * distance2;
-                assert_eq!(
-                    batched[i].to_bits(),
-                    one.to_bits(),
-                    "element {i}: {} vs {one}",
-                    batched[i]
-                );
-            }
-        }
-        // One pass: the same projections and the same energies.
-        let mut rows = vec![Point::zeros(); 3 * n];
-        let mut fused = vec![0.0; n];
-        TetStrain::project_many_with_energies(&repeated, q, &mut rows, &mut fused);
-        let mut separate = vec![0.0; n];
-        TetStrain::energies_many(&repeated, q, &projected, &mut separate);
-        let bits = |v: &[Point]| -> Vec<u64> {
-            v.iter()
-                .flat_map(|p| p.iter().map(|c| c.to_bits()))
-                .collect()
-        };
-        assert_eq!(bits(&rows), bits(&projected));
-        let energy_bits = |v: &[f64]| -> Vec<u64> { v.iter().map(|e| e.to_bits()).collect() };
-        assert_eq!(energy_bits(&fused), energy_bits(&separate));
-        let set = ConstraintSet::new(repeated);
-        let bound = set.energy_bound_range(q, 0, &projected);
-        let mut rows = vec![Point::zeros(); 3 * n];
-        let fused_bound = set.project_energy_range(q, 0, &mut rows);
-        assert_eq!(bits(&rows), bits(&projected));
-        assert_eq!(fused_bound.total.to_bits(), bound.total.to_bits());
-        assert_eq!(fused_bound.worst, bound.worst);
-        let total = set.energy_range(q, 0..n);
-        assert_eq!(
-            bound.total.to_bits(),
-            total.to_bits(),
-            "{} vs {total}",
-            bound.total
-        );
-        let mut energies = vec![0.0; n];
-        TetStrain::energies_many(set.constraints(), q, &projected, &mut energies);
-        let mut worst = (0, 0.0);
-        for (i, &e) in energies.iter().enumerate() {
-            if !(e <= worst.1) {
-                worst = (i, e);
-            }
-        }
-        assert_eq!(bound.worst, worst.0);
-    }
+    use crate::lane_rows::test_support::assert_all_bit_identical;
 
     /// Elements over a random cloud of 8 points: each takes 4 distinct
     /// points, the rest shape (the cloud's rest positions) decides which
