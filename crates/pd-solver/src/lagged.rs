@@ -169,13 +169,30 @@ impl LaggedSystem {
         coefficients: MatrixCoefficients,
         stiffness: f64,
     ) -> Result<(), SolverError> {
+        self.assemble(blocks, positions, coefficients, stiffness, true);
+        self.symbolic.refactorise(&self.values, &mut self.factor)
+    }
+
+    /// Recomputes the element Hessians at `positions` (projected to PSD with
+    /// `project_psd`, else the true ones) and assembles
+    /// `mass M + system L + damping L_d + stiffness K` without factorising
+    /// it: for [`LaggedSystem::product`] (the true Hessian need not be
+    /// positive definite).
+    pub fn assemble(
+        &mut self,
+        blocks: &[Box<dyn ConstraintBlock>],
+        positions: &[Point],
+        coefficients: MatrixCoefficients,
+        stiffness: f64,
+        project_psd: bool,
+    ) {
         for h in &mut self.hessians {
             let block = &blocks[h.block];
             let chunk = CHUNK * block.hessian_len();
             h.values
                 .par_chunks_mut(chunk)
                 .enumerate()
-                .for_each(|(i, out)| block.hessian_range(positions, i * CHUNK, true, out));
+                .for_each(|(i, out)| block.hessian_range(positions, i * CHUNK, project_psd, out));
         }
         combine(
             &mut self.values,
@@ -189,6 +206,36 @@ impl LaggedSystem {
                 }
             }
         }
+    }
+
+    /// `out = S w` over the free vertices (one point each), `S` the matrix of
+    /// the last [`LaggedSystem::assemble`] (or refactorisation), symmetric,
+    /// from its lower triangle.
+    pub fn product(&self, w: &[Point], out: &mut [Point]) {
+        out.iter_mut().for_each(|o| *o = Point::zeros());
+        let pattern = self.symbolic.pattern();
+        for j in 0..pattern.n {
+            let wj = w[j / 3][j % 3];
+            let range = pattern.col_ptr[j]..pattern.col_ptr[j + 1];
+            let mut column = 0.0;
+            for (&i, &value) in pattern.row_idx[range.clone()]
+                .iter()
+                .zip(&self.values[range])
+            {
+                out[i / 3][i % 3] += value * wj;
+                if i != j {
+                    column += value * w[i / 3][i % 3];
+                }
+            }
+            out[j / 3][j % 3] += column;
+        }
+    }
+
+    /// Factorises the matrix of the last [`LaggedSystem::assemble`].
+    ///
+    /// # Errors
+    /// A matrix that is not positive definite.
+    pub fn factorise_assembled(&mut self) -> Result<(), SolverError> {
         self.symbolic.refactorise(&self.values, &mut self.factor)
     }
 

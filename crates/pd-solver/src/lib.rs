@@ -55,9 +55,9 @@ pub use model::{Body, BodyId, Model};
 pub use settings::Settings;
 pub use simulation::{Energies, SetupStats, Simulation, State, StepStats};
 pub use step::{
-    Anderson, Chebyshev, IterationChange, Lbfgs, LocalGlobal, Newton, PositionSolver, Predictor,
-    PredictorState, RecurrenceFit, SolverMethod, SolverSpec, SpectralRadius, StepProblem,
-    fit_recurrence,
+    Anderson, CgRun, Chebyshev, IterationChange, KrylovProbe, KrylovRecord, Lbfgs, LocalGlobal,
+    Newton, PositionSolver, Predictor, PredictorState, RecurrenceFit, SolverMethod, SolverSpec,
+    SpectralRadius, StepProblem, fit_recurrence,
 };
 
 /// Everything that can go wrong building or stepping a simulation.
