@@ -384,7 +384,11 @@ mod tests {
     #[test]
     fn a_superlinear_pair_elsewhere_flags_the_report() {
         let mut limits = measure(&fake(1.5), true, &[]).unwrap();
-        assert_eq!(limits["noisy"], false);
+        // `measure` reads the machine's real CPU pressure, which a busy
+        // machine (CI compiling) pushes over the threshold: start from a
+        // quiet verdict so that only the pairs decide.
+        limits["noisy"] = json!(false);
+        limits["noise_reasons"] = json!([]);
         flag_speedups(&mut limits, "local step", &[1.9, 2.0]);
         assert_eq!(limits["noisy"], false);
         flag_speedups(&mut limits, "local step", &[1.9, 2.1]);
