@@ -1,7 +1,9 @@
-//! What the batched local-step loops of tet strain (`tet_strain/batch.rs`)
-//! and triangle strain (`triangle_strain/batch.rs`) share: the byte ranges
-//! they prefetch, projection rows moved into SIMD lanes, and squared
-//! distances summed in the order of the one-at-a-time energies.
+//! The batched local-step loops of the kinds that project in SIMD lanes
+//! (tet strain, `tet_strain/batch.rs`; triangle strain,
+//! `triangle_strain/batch.rs`), written once over [`LaneKind`]: the loop
+//! over batches with its prefetches and its one-at-a-time fallbacks, the
+//! energies from the lanes, projection rows moved into SIMD lanes, and
+//! squared distances summed in the order of the one-at-a-time energies.
 //!
 //! A batch of `WIDTH` elements with `R` rows each is held as `N = 3 R`
 //! lane registers: entry `3 r + j` is coordinate `j` of row `r`, lane `l`
@@ -12,7 +14,194 @@ use std::ops::Range;
 
 use pd_mesh::Point;
 
-use crate::polar_batch::lane_sets::Lanes;
+use crate::Constraint;
+use crate::constraint::{energies_one_by_one, project_one_by_one};
+use crate::polar_batch::lane_sets::{Lanes, WithLanes, vectorize};
+
+/// Batches ahead of the one projected whose elements are prefetched, and
+/// whose output rows are prefetched for writing (docs/performance.md,
+/// "Prefetching the next batches (issue 18, sixth round)": the elements
+/// arrive from memory at 527,280 tets, and the hardware prefetcher alone
+/// left the loop waiting; a no-op on the 4-lane path).
+const ELEMENTS_AHEAD: usize = 2;
+const ROWS_AHEAD: usize = 1;
+
+/// A constraint kind whose projection runs in SIMD lanes, `N = 3 ROWS`
+/// lane registers per batch. Every method must be `#[inline(always)]`.
+pub(crate) trait LaneKind<const N: usize>: Constraint {
+    /// Whether a batch holding this element goes one at a time (strain
+    /// limits, which the lanes do not implement).
+    fn one_at_a_time(&self) -> bool;
+    /// `G q` of a batch, one element per lane, summed exactly as
+    /// `apply_operator` sums it (each lane bit-identical to the scalar).
+    fn gradients<S: Lanes>(s: S, batch: &[Self], q: &[Point]) -> [S::F; N];
+    /// The projection of every lane, and the bits of the lanes that hold
+    /// the scalar projection to the bit (the others must be projected by
+    /// the scalar code).
+    fn project_lanes<S: Lanes>(s: S, f: &[S::F; N]) -> ([S::F; N], u32);
+    /// Writes lane `l`'s projection into rows `R l..R l + R` of `rows`:
+    /// `p`'s where `exact` has bit `l`, else the scalar projection of the
+    /// lane's `f`.
+    fn scatter<S: Lanes>(s: S, p: &[S::F; N], exact: u32, f: &[S::F; N], rows: &mut [Point]);
+}
+
+/// [`Constraint::project_many`] in lanes; `false` (nothing written) if
+/// the CPU has no SIMD lanes.
+pub(crate) fn project_many<C: LaneKind<N>, const N: usize>(
+    constraints: &[C],
+    q: &[Point],
+    out: &mut [Point],
+) -> bool {
+    vectorize(ProjectBatched::<C, N, false> {
+        constraints,
+        q,
+        out,
+        energies: &mut [],
+    })
+    .is_some()
+}
+
+/// [`Constraint::project_many_with_energies`] in lanes, each batch's
+/// energies from its lanes of `G q` and of the projection (no second
+/// gather); `false` if the CPU has no SIMD lanes.
+pub(crate) fn project_many_with_energies<C: LaneKind<N>, const N: usize>(
+    constraints: &[C],
+    q: &[Point],
+    out: &mut [Point],
+    energies: &mut [f64],
+) -> bool {
+    vectorize(ProjectBatched::<C, N, true> {
+        constraints,
+        q,
+        out,
+        energies,
+    })
+    .is_some()
+}
+
+/// [`Constraint::energies_many`] in lanes; `false` if the CPU has no SIMD
+/// lanes.
+pub(crate) fn energies_many<C: LaneKind<N>, const N: usize>(
+    constraints: &[C],
+    q: &[Point],
+    projections: &[Point],
+    out: &mut [f64],
+) -> bool {
+    vectorize(EnergiesBatched::<C, N> {
+        constraints,
+        q,
+        projections,
+        out,
+    })
+    .is_some()
+}
+
+/// The projection loop as a lane operation. With `ENERGIES`, each
+/// element's energy `w/2 |G q - p|^2` goes into `energies` too; without,
+/// `energies` is empty and the loop is the plain projection's (compiled
+/// without it).
+struct ProjectBatched<'a, C, const N: usize, const ENERGIES: bool> {
+    constraints: &'a [C],
+    q: &'a [Point],
+    out: &'a mut [Point],
+    energies: &'a mut [f64],
+}
+
+impl<C: LaneKind<N>, const N: usize, const ENERGIES: bool> WithLanes
+    for ProjectBatched<'_, C, N, ENERGIES>
+{
+    type Output = ();
+
+    #[inline(always)]
+    fn run<S: Lanes>(self, s: S) {
+        let Self {
+            constraints,
+            q,
+            out,
+            energies,
+        } = self;
+        let batches = constraints.chunks_exact(S::WIDTH);
+        let rest = batches.remainder();
+        let (elements, rows_out) = (constraints.as_ptr(), out.as_ptr());
+        let (n_elements, n_rows) = (constraints.len(), out.len());
+        let mut out_batches = out.chunks_exact_mut(S::WIDTH * C::ROWS);
+        let mut energy_batches = energies.chunks_exact_mut(S::WIDTH);
+        for (b, (batch, rows)) in batches.zip(&mut out_batches).enumerate() {
+            let ahead = b + ELEMENTS_AHEAD;
+            s.prefetch::<false>(batch_bytes(elements, n_elements, ahead, S::WIDTH));
+            let ahead = b + ROWS_AHEAD;
+            s.prefetch::<true>(batch_bytes(rows_out, n_rows, ahead, C::ROWS * S::WIDTH));
+            if batch.iter().any(C::one_at_a_time) {
+                project_one_by_one(batch, q, rows);
+                if ENERGIES && let Some(energy) = energy_batches.next() {
+                    energies_one_by_one(batch, q, rows, energy);
+                }
+                continue;
+            }
+            let f = C::gradients(s, batch, q);
+            let (p, exact) = C::project_lanes(s, &f);
+            C::scatter(s, &p, exact, &f, rows);
+            if ENERGIES && let Some(energy) = energy_batches.next() {
+                // The lanes' projection where every lane holds the scalar
+                // one, else the rows just written.
+                let distance2 = if exact == (1 << S::WIDTH) - 1 {
+                    distances(s, &f, &p)
+                } else {
+                    distances(s, &f, &gather_rows(s, rows))
+                };
+                write_energies(batch, distance2.as_ref(), energy);
+            }
+        }
+        let rows = out_batches.into_remainder();
+        project_one_by_one(rest, q, rows);
+        if ENERGIES {
+            energies_one_by_one(rest, q, rows, energy_batches.into_remainder());
+        }
+    }
+}
+
+/// The energies loop as a lane operation: `w/2 |G q - p|^2` per element,
+/// with `G q` from [`LaneKind::gradients`] and the squared distances
+/// summed in the scalar order, so every energy is bit-identical to the
+/// one-at-a-time one.
+struct EnergiesBatched<'a, C, const N: usize> {
+    constraints: &'a [C],
+    q: &'a [Point],
+    projections: &'a [Point],
+    out: &'a mut [f64],
+}
+
+impl<C: LaneKind<N>, const N: usize> WithLanes for EnergiesBatched<'_, C, N> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<S: Lanes>(self, s: S) {
+        let Self {
+            constraints,
+            q,
+            projections,
+            out,
+        } = self;
+        let batches = constraints.chunks_exact(S::WIDTH);
+        let rest = batches.remainder();
+        let mut p_batches = projections.chunks_exact(S::WIDTH * C::ROWS);
+        let mut out_batches = out.chunks_exact_mut(S::WIDTH);
+        for ((batch, p), energies) in batches.zip(&mut p_batches).zip(&mut out_batches) {
+            let f = C::gradients(s, batch, q);
+            let distance2 = distances(s, &f, &gather_rows(s, p));
+            write_energies(batch, distance2.as_ref(), energies);
+        }
+        energies_one_by_one(rest, q, p_batches.remainder(), out_batches.into_remainder());
+    }
+}
+
+/// `w/2 d` per element, as the one-at-a-time energies compute it.
+#[inline(always)]
+fn write_energies<C: Constraint>(batch: &[C], distance2: &[f64], out: &mut [f64]) {
+    for ((e, c), d) in out.iter_mut().zip(batch).zip(distance2) {
+        *e = 0.5 * c.weight() * d;
+    }
+}
 
 /// The bytes of items `k * len..(k + 1) * len` of the `n` items from
 /// `start`, cut at their end (empty past it), for a prefetch: only the

@@ -5,10 +5,8 @@
 use nalgebra::Matrix3;
 use pd_mesh::Point;
 
-use crate::constraint::apply_operator;
+use crate::constraint::{energies_one_by_one, project_one_by_one};
 use crate::polar::closest_rotation;
-#[cfg(target_arch = "x86_64")]
-use crate::polar_batch::lane_sets::vectorize;
 use crate::signed_svd::signed_svd;
 use crate::{Constraint, ConstraintError, Stencil};
 
@@ -173,14 +171,7 @@ impl Constraint for TetStrain {
     /// [`Self::project`]); the rest, one at a time.
     fn project_many(constraints: &[Self], q: &[Point], out: &mut [Point]) {
         #[cfg(target_arch = "x86_64")]
-        if vectorize(batch::ProjectBatched::<false> {
-            constraints,
-            q,
-            out: &mut *out,
-            energies: &mut [],
-        })
-        .is_some()
-        {
+        if crate::lane_rows::project_many(constraints, q, out) {
             return;
         }
         project_one_by_one(constraints, q, out);
@@ -196,14 +187,7 @@ impl Constraint for TetStrain {
         energies: &mut [f64],
     ) {
         #[cfg(target_arch = "x86_64")]
-        if vectorize(batch::ProjectBatched::<true> {
-            constraints,
-            q,
-            out: &mut *out,
-            energies: &mut *energies,
-        })
-        .is_some()
-        {
+        if crate::lane_rows::project_many_with_energies(constraints, q, out, energies) {
             return;
         }
         project_one_by_one(constraints, q, out);
@@ -215,36 +199,10 @@ impl Constraint for TetStrain {
     /// to the default's sums); the rest, one at a time.
     fn energies_many(constraints: &[Self], q: &[Point], projections: &[Point], out: &mut [f64]) {
         #[cfg(target_arch = "x86_64")]
-        if vectorize(batch::EnergiesBatched {
-            constraints,
-            q,
-            projections,
-            out: &mut *out,
-        })
-        .is_some()
-        {
+        if crate::lane_rows::energies_many(constraints, q, projections, out) {
             return;
         }
         energies_one_by_one(constraints, q, projections, out);
-    }
-}
-
-/// The default [`Constraint::energies_many`], for the elements a batch
-/// leaves over.
-fn energies_one_by_one(constraints: &[TetStrain], q: &[Point], p: &[Point], out: &mut [f64]) {
-    let mut gx = [Point::zeros(); 3];
-    for ((c, p), e) in constraints.iter().zip(p.chunks_exact(3)).zip(out) {
-        apply_operator(c, q, &mut gx);
-        let distance2: f64 = (0..3).map(|r| (gx[r] - p[r]).norm_squared()).sum();
-        *e = 0.5 * c.weight * distance2;
-    }
-}
-
-fn project_one_by_one(constraints: &[TetStrain], q: &[Point], out: &mut [Point]) {
-    let mut gx = [Point::zeros(); 3];
-    for (c, rows) in constraints.iter().zip(out.chunks_exact_mut(3)) {
-        apply_operator(c, q, &mut gx);
-        c.project(&gx, rows);
     }
 }
 

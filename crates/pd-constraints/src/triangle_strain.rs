@@ -7,8 +7,6 @@ use nalgebra::{Matrix2, Matrix3x2};
 use pd_mesh::Point;
 
 use crate::constraint::{energies_one_by_one, project_one_by_one};
-#[cfg(target_arch = "x86_64")]
-use crate::polar_batch::lane_sets::vectorize;
 use crate::tet_strain::check_stiffness;
 use crate::triangle_frame::{
     IsotropicProjection, closest_orthonormal, gradient_of, isotropic_hessian, rest_frame, thin_svd,
@@ -118,14 +116,7 @@ impl Constraint for TriangleStrain {
     /// one at a time.
     fn project_many(constraints: &[Self], q: &[Point], out: &mut [Point]) {
         #[cfg(target_arch = "x86_64")]
-        if vectorize(batch::ProjectBatched::<false> {
-            constraints,
-            q,
-            out: &mut *out,
-            energies: &mut [],
-        })
-        .is_some()
-        {
+        if crate::lane_rows::project_many(constraints, q, out) {
             return;
         }
         project_one_by_one(constraints, q, out);
@@ -141,14 +132,7 @@ impl Constraint for TriangleStrain {
         energies: &mut [f64],
     ) {
         #[cfg(target_arch = "x86_64")]
-        if vectorize(batch::ProjectBatched::<true> {
-            constraints,
-            q,
-            out: &mut *out,
-            energies: &mut *energies,
-        })
-        .is_some()
-        {
+        if crate::lane_rows::project_many_with_energies(constraints, q, out, energies) {
             return;
         }
         project_one_by_one(constraints, q, out);
@@ -160,14 +144,7 @@ impl Constraint for TriangleStrain {
     /// the rest, one at a time.
     fn energies_many(constraints: &[Self], q: &[Point], projections: &[Point], out: &mut [f64]) {
         #[cfg(target_arch = "x86_64")]
-        if vectorize(batch::EnergiesBatched {
-            constraints,
-            q,
-            projections,
-            out: &mut *out,
-        })
-        .is_some()
-        {
+        if crate::lane_rows::energies_many(constraints, q, projections, out) {
             return;
         }
         energies_one_by_one(constraints, q, projections, out);

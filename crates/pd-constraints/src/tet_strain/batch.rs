@@ -1,7 +1,6 @@
-//! [`TetStrain`]'s [`project_many`](crate::Constraint::project_many) as a
-//! batched loop: as many elements at a time as the CPU has f64 lanes (8
-//! with AVX-512, 4 with AVX2), from the positions straight into the SIMD
-//! lanes and back.
+//! [`TetStrain`]'s lanes for the batched loop of [`crate::lane_rows`]: as
+//! many elements at a time as the CPU has f64 lanes (8 with AVX-512, 4 with
+//! AVX2), from the positions straight into the SIMD lanes and back.
 //!
 //! Per batch: gather the deformation gradients into structure-of-arrays
 //! lanes (`F = G q` with lane-wide products and sums, in the order of
@@ -9,141 +8,37 @@
 //! run the lane polar iteration of [`crate::polar_batch`], and write each
 //! converged lane's rotation into its three output rows; a lane that Newton
 //! declined is projected by the scalar [`closest_rotation`]. Everything is
-//! `inline(always)` below a [`WithLanes::run`], so it is compiled inside the
+//! `inline(always)` below the loop's `WithLanes::run`, so it is compiled inside the
 //! dispatcher's `#[target_feature]` function: no closure the compiler could
 //! keep out of line (std's `array::from_fn` did) sits on the hot path.
 
 use pd_mesh::Point;
 
-use super::{TetStrain, energies_one_by_one, project_one_by_one};
-use crate::lane_rows::{batch_bytes, distances, gather_rows};
+use super::TetStrain;
+use crate::lane_rows::LaneKind;
 use crate::polar::closest_rotation;
-use crate::polar_batch::lane_sets::{Lanes, WithLanes};
+use crate::polar_batch::lane_sets::Lanes;
 use crate::polar_batch::{Batch, batch_values, lane_matrix, newton_polar_lanes};
 
-/// Batches ahead of the one projected whose elements are prefetched, and
-/// whose output rows are prefetched for writing (docs/performance.md,
-/// "Prefetching the next batches (issue 18, sixth round)": the elements
-/// arrive from memory at 527,280 tets, and the hardware prefetcher alone
-/// left the loop waiting).
-const ELEMENTS_AHEAD: usize = 2;
-const ROWS_AHEAD: usize = 1;
-
-/// [`TetStrain`]'s [`project_many`](crate::Constraint::project_many) loop
-/// as a lane operation.
-/// With `ENERGIES`, each element's energy `w/2 |G q - p|^2` goes into
-/// `energies` too (`project_many_with_energies`); without, `energies` is
-/// empty and the loop is the plain projection's (compiled without it).
-pub(super) struct ProjectBatched<'a, const ENERGIES: bool> {
-    pub constraints: &'a [TetStrain],
-    pub q: &'a [Point],
-    pub out: &'a mut [Point],
-    pub energies: &'a mut [f64],
-}
-
-impl<const ENERGIES: bool> WithLanes for ProjectBatched<'_, ENERGIES> {
-    type Output = ();
+impl LaneKind<9> for TetStrain {
+    #[inline(always)]
+    fn one_at_a_time(&self) -> bool {
+        self.has_limits()
+    }
 
     #[inline(always)]
-    fn run<S: Lanes>(self, s: S) {
-        let Self {
-            constraints,
-            q,
-            out,
-            energies,
-        } = self;
-        let batches = constraints.chunks_exact(S::WIDTH);
-        let rest = batches.remainder();
-        let (elements, rows_out) = (constraints.as_ptr(), out.as_ptr());
-        let (n_elements, n_rows) = (constraints.len(), out.len());
-        let mut out_batches = out.chunks_exact_mut(S::WIDTH * 3);
-        let mut energy_batches = energies.chunks_exact_mut(S::WIDTH);
-        for (b, (batch, rows)) in batches.zip(&mut out_batches).enumerate() {
-            let ahead = b + ELEMENTS_AHEAD;
-            s.prefetch::<false>(batch_bytes(elements, n_elements, ahead, S::WIDTH));
-            let ahead = b + ROWS_AHEAD;
-            s.prefetch::<true>(batch_bytes(rows_out, n_rows, ahead, 3 * S::WIDTH));
-            if batch.iter().any(TetStrain::has_limits) {
-                project_one_by_one(batch, q, rows);
-                if ENERGIES && let Some(energy) = energy_batches.next() {
-                    energies_one_by_one(batch, q, rows, energy);
-                }
-                continue;
-            }
-            let f = gradients(s, batch, q);
-            let (x, converged) = newton_polar_lanes(s, &f);
-            scatter(s, &x, converged, &f, rows);
-            if ENERGIES && let Some(energy) = energy_batches.next() {
-                lane_energies(s, batch, &f, &x, converged, rows, energy);
-            }
-        }
-        let rows = out_batches.into_remainder();
-        project_one_by_one(rest, q, rows);
-        if ENERGIES {
-            energies_one_by_one(rest, q, rows, energy_batches.into_remainder());
-        }
+    fn gradients<S: Lanes>(s: S, batch: &[Self], q: &[Point]) -> Batch<S> {
+        gradients(s, batch, q)
     }
-}
-
-/// The energies `w/2 |F - P|^2` of a batch from its lanes of `F = G q` and
-/// of the projection: the converged iterate `x`, or (when a lane was
-/// projected by the scalar fallback) the rows just written. Summed as
-/// [`distances`] does, bit-identical to the one-at-a-time energies.
-#[inline(always)]
-fn lane_energies<S: Lanes>(
-    s: S,
-    batch: &[TetStrain],
-    f: &Batch<S>,
-    x: &Batch<S>,
-    converged: u32,
-    rows: &[Point],
-    out: &mut [f64],
-) {
-    let distance2 = if converged == (1 << S::WIDTH) - 1 {
-        distances(s, f, x)
-    } else {
-        distances(s, f, &gather_rows(s, rows))
-    };
-    for ((e, c), d) in out.iter_mut().zip(batch).zip(distance2.as_ref()) {
-        *e = 0.5 * c.weight * d;
-    }
-}
-
-/// [`TetStrain`]'s [`energies_many`](crate::Constraint::energies_many)
-/// loop as a lane operation: `w/2 |G q - p|^2` per element, with `G q`
-/// from [`gradients`] and the squared distances summed in the scalar
-/// order (per row `((0 + dx^2) + dy^2) + dz^2`, then the rows in order),
-/// so every energy is bit-identical to the one-at-a-time one.
-pub(super) struct EnergiesBatched<'a> {
-    pub constraints: &'a [TetStrain],
-    pub q: &'a [Point],
-    pub projections: &'a [Point],
-    pub out: &'a mut [f64],
-}
-
-impl WithLanes for EnergiesBatched<'_> {
-    type Output = ();
 
     #[inline(always)]
-    fn run<S: Lanes>(self, s: S) {
-        let Self {
-            constraints,
-            q,
-            projections,
-            out,
-        } = self;
-        let batches = constraints.chunks_exact(S::WIDTH);
-        let rest = batches.remainder();
-        let mut p_batches = projections.chunks_exact(S::WIDTH * 3);
-        let mut out_batches = out.chunks_exact_mut(S::WIDTH);
-        for ((batch, p), energies) in batches.zip(&mut p_batches).zip(&mut out_batches) {
-            let f = gradients(s, batch, q);
-            let distance2 = distances(s, &f, &gather_rows(s, p));
-            for ((e, c), d) in energies.iter_mut().zip(batch).zip(distance2.as_ref()) {
-                *e = 0.5 * c.weight * d;
-            }
-        }
-        energies_one_by_one(rest, q, p_batches.remainder(), out_batches.into_remainder());
+    fn project_lanes<S: Lanes>(s: S, f: &Batch<S>) -> (Batch<S>, u32) {
+        newton_polar_lanes(s, f)
+    }
+
+    #[inline(always)]
+    fn scatter<S: Lanes>(s: S, x: &Batch<S>, converged: u32, f: &Batch<S>, rows: &mut [Point]) {
+        scatter(s, x, converged, f, rows);
     }
 }
 

@@ -1,7 +1,7 @@
-//! [`TriangleStrain`]'s [`project_many`](crate::Constraint::project_many)
-//! as a batched loop: as many triangles at a time as the CPU has f64 lanes
-//! (8 with AVX-512, 4 with AVX2), from the positions straight into the
-//! SIMD lanes and back, as `tet_strain/batch.rs` does for tetrahedra.
+//! [`TriangleStrain`]'s lanes for the batched loop of [`crate::lane_rows`]:
+//! as many triangles at a time as the CPU has f64 lanes (8 with AVX-512, 4
+//! with AVX2), from the positions straight into the SIMD lanes and back,
+//! as `tet_strain/batch.rs` does for tetrahedra.
 //!
 //! Per batch: gather the 3 x 2 gradients into structure-of-arrays lanes
 //! (`F = G q` with lane-wide products and sums in the order of
@@ -20,123 +20,34 @@
 use pd_mesh::Point;
 
 use super::TriangleStrain;
-use crate::constraint::{energies_one_by_one, project_one_by_one};
-use crate::lane_rows::{batch_bytes, distances, gather_rows};
-use crate::polar_batch::lane_sets::{Lanes, WithLanes};
+use crate::lane_rows::LaneKind;
+use crate::polar_batch::lane_sets::Lanes;
 use crate::triangle_frame::closest_orthonormal;
 
 /// One 3 x 2 matrix per lane; entry `3 c + j` is coordinate `j` of column
 /// `c` (row `c` of `G q` or of the projection).
 type Columns<S> = [<S as Lanes>::F; 6];
 
-/// Batches ahead of the one projected whose elements are prefetched, and
-/// whose output rows are prefetched for writing (as for tetrahedra:
-/// `docs/performance.md`, "Prefetching the next batches"; a no-op on the
-/// 4-lane path).
-const ELEMENTS_AHEAD: usize = 2;
-const ROWS_AHEAD: usize = 1;
-
-/// [`TriangleStrain`]'s [`project_many`](crate::Constraint::project_many)
-/// loop as a lane operation. With `ENERGIES`, each triangle's energy
-/// `w/2 |G q - p|^2` goes into `energies` too
-/// (`project_many_with_energies`); without, `energies` is empty.
-pub(super) struct ProjectBatched<'a, const ENERGIES: bool> {
-    pub constraints: &'a [TriangleStrain],
-    pub q: &'a [Point],
-    pub out: &'a mut [Point],
-    pub energies: &'a mut [f64],
-}
-
-impl<const ENERGIES: bool> WithLanes for ProjectBatched<'_, ENERGIES> {
-    type Output = ();
+impl LaneKind<6> for TriangleStrain {
+    #[inline(always)]
+    fn one_at_a_time(&self) -> bool {
+        self.limits.is_some()
+    }
 
     #[inline(always)]
-    fn run<S: Lanes>(self, s: S) {
-        let Self {
-            constraints,
-            q,
-            out,
-            energies,
-        } = self;
-        let batches = constraints.chunks_exact(S::WIDTH);
-        let rest = batches.remainder();
-        let (elements, rows_out) = (constraints.as_ptr(), out.as_ptr());
-        let (n_elements, n_rows) = (constraints.len(), out.len());
-        let mut out_batches = out.chunks_exact_mut(S::WIDTH * 2);
-        let mut energy_batches = energies.chunks_exact_mut(S::WIDTH);
-        for (b, (batch, rows)) in batches.zip(&mut out_batches).enumerate() {
-            let ahead = b + ELEMENTS_AHEAD;
-            s.prefetch::<false>(batch_bytes(elements, n_elements, ahead, S::WIDTH));
-            let ahead = b + ROWS_AHEAD;
-            s.prefetch::<true>(batch_bytes(rows_out, n_rows, ahead, 2 * S::WIDTH));
-            if batch.iter().any(|c| c.limits.is_some()) {
-                project_one_by_one(batch, q, rows);
-                if ENERGIES && let Some(energy) = energy_batches.next() {
-                    energies_one_by_one(batch, q, rows, energy);
-                }
-                continue;
-            }
-            let f = gradients(s, batch, q);
-            let (p, fast) = closest_orthonormal_lanes(s, &f);
-            let fast = s.bits(fast);
-            scatter(s, &p, fast, &f, rows);
-            if ENERGIES && let Some(energy) = energy_batches.next() {
-                let distance2 = if fast == (1 << S::WIDTH) - 1 {
-                    distances(s, &f, &p)
-                } else {
-                    distances(s, &f, &gather_rows(s, rows))
-                };
-                write_energies(batch, distance2.as_ref(), energy);
-            }
-        }
-        let rows = out_batches.into_remainder();
-        project_one_by_one(rest, q, rows);
-        if ENERGIES {
-            energies_one_by_one(rest, q, rows, energy_batches.into_remainder());
-        }
+    fn gradients<S: Lanes>(s: S, batch: &[Self], q: &[Point]) -> Columns<S> {
+        gradients(s, batch, q)
     }
-}
-
-/// `w/2 d` per triangle, as the one-at-a-time energies compute it.
-#[inline(always)]
-fn write_energies(batch: &[TriangleStrain], distance2: &[f64], out: &mut [f64]) {
-    for ((e, c), d) in out.iter_mut().zip(batch).zip(distance2) {
-        *e = 0.5 * c.weight * d;
-    }
-}
-
-/// [`TriangleStrain`]'s [`energies_many`](crate::Constraint::energies_many)
-/// loop as a lane operation: `w/2 |G q - p|^2` per triangle, with `G q`
-/// from [`gradients`] and the squared distances summed in the scalar order,
-/// so every energy is bit-identical to the one-at-a-time one.
-pub(super) struct EnergiesBatched<'a> {
-    pub constraints: &'a [TriangleStrain],
-    pub q: &'a [Point],
-    pub projections: &'a [Point],
-    pub out: &'a mut [f64],
-}
-
-impl WithLanes for EnergiesBatched<'_> {
-    type Output = ();
 
     #[inline(always)]
-    fn run<S: Lanes>(self, s: S) {
-        let Self {
-            constraints,
-            q,
-            projections,
-            out,
-        } = self;
-        let batches = constraints.chunks_exact(S::WIDTH);
-        let rest = batches.remainder();
-        let mut p_batches = projections.chunks_exact(S::WIDTH * 2);
-        let mut out_batches = out.chunks_exact_mut(S::WIDTH);
-        for ((batch, p), energies) in batches.zip(&mut p_batches).zip(&mut out_batches) {
-            let f = gradients(s, batch, q);
-            let distance2 = distances(s, &f, &gather_rows(s, p));
-            write_energies(batch, distance2.as_ref(), energies);
-        }
-        energies_one_by_one(rest, q, p_batches.remainder(), out_batches.into_remainder());
+    fn project_lanes<S: Lanes>(s: S, f: &Columns<S>) -> (Columns<S>, u32) {
+        let (p, regular) = closest_orthonormal_lanes(s, f);
+        (p, s.bits(regular))
+    }
+
+    #[inline(always)]
+    fn scatter<S: Lanes>(s: S, p: &Columns<S>, regular: u32, f: &Columns<S>, rows: &mut [Point]) {
+        scatter(s, p, regular, f, rows);
     }
 }
 
