@@ -39,33 +39,12 @@
 
 use std::sync::{Arc, Mutex};
 
-use pd_benches::Beam;
+use pd_benches::{Beam, Options};
 use pd_mesh::Point;
 use pd_solver::{
     Checkpoint, KrylovProbe, KrylovRecord, Predictor, Settings, Simulation, SolverMethod,
     SolverSpec,
 };
-
-fn value<'a>(args: &'a [String], name: &str) -> Option<&'a str> {
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .map(String::as_str)
-}
-
-fn parse<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> Result<T, String> {
-    value(args, name).map_or(Ok(default), |t| {
-        t.parse().map_err(|_| format!("{name}: cannot parse {t:?}"))
-    })
-}
-
-fn list(args: &[String], name: &str, default: &str) -> Result<Vec<usize>, String> {
-    value(args, name)
-        .unwrap_or(default)
-        .split(',')
-        .map(|c| c.trim().parse().map_err(|_| format!("{name}: {c:?}")))
-        .collect()
-}
 
 struct Setup<'a> {
     beam: &'a Beam,
@@ -114,14 +93,16 @@ fn first_below(errors: &[f64], bar: f64) -> Option<usize> {
 
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let integrator = value(&args, "--integrator").unwrap_or("im");
-    let damping = value(&args, "--damping").unwrap_or("none");
-    let probe_steps = list(&args, "--probe-steps", "1,5,10,20")?;
-    let plain: usize = parse(&args, "--plain", 30)?;
-    let cg_iterations: usize = parse(&args, "--cg", 40)?;
-    let budgets = list(&args, "--budgets", "1,2,3,4,5,6,7,8,10,12,15,20")?;
-    let tolerance: f64 = parse(&args, "--reference-tolerance", 1e-11)?;
-    let (method, budget) = value(&args, "--trajectory")
+    let options = Options::new(&args);
+    let integrator = options.value("--integrator").unwrap_or("im");
+    let damping = options.value("--damping").unwrap_or("none");
+    let probe_steps = options.list("--probe-steps", &[1, 5, 10, 20])?;
+    let plain: usize = options.parse("--plain", 30)?;
+    let cg_iterations: usize = options.parse("--cg", 40)?;
+    let budgets = options.list("--budgets", &[1, 2, 3, 4, 5, 6, 7, 8, 10, 12, 15, 20])?;
+    let tolerance: f64 = options.parse("--reference-tolerance", 1e-11)?;
+    let (method, budget) = options
+        .value("--trajectory")
         .unwrap_or("anderson:8")
         .split_once(':')
         .ok_or("--trajectory METHOD:BUDGET")?;
@@ -131,8 +112,8 @@ fn main() -> Result<(), String> {
         threads: 1,
         ..Beam::default()
     };
-    if value(&args, "--cells").is_some() {
-        let cells = list(&args, "--cells", "")?;
+    if options.value("--cells").is_some() {
+        let cells = options.list("--cells", &[])?;
         beam.cells = cells.try_into().map_err(|_| "--cells needs three counts")?;
     }
     let mesh = beam.mesh()?;
@@ -157,8 +138,8 @@ fn main() -> Result<(), String> {
     let record = Arc::new(Mutex::new(KrylovRecord {
         plain_iterations: plain,
         cg_iterations,
-        timing_repetitions: parse(&args, "--timing", 0)?,
-        lagged_preconditioner: args.iter().any(|a| a == "--lagged"),
+        timing_repetitions: options.parse("--timing", 0)?,
+        lagged_preconditioner: options.flag("--lagged"),
         ..KrylovRecord::default()
     }));
     let mut probe = setup.simulation(SolverMethod::LocalGlobal, linear, with(1, 0.0))?;
@@ -173,8 +154,9 @@ fn main() -> Result<(), String> {
         })
         .collect::<Result<_, String>>()?;
     let masses = trajectory.model().masses().to_vec();
-    if value(&args, "--oracle").is_some() {
-        let oracle: Vec<(bool, Vec<usize>)> = value(&args, "--oracle")
+    if options.value("--oracle").is_some() {
+        let oracle: Vec<(bool, Vec<usize>)> = options
+            .value("--oracle")
             .unwrap_or("")
             .split(',')
             .map(|item| {
@@ -189,8 +171,8 @@ fn main() -> Result<(), String> {
                 Ok((newton, counts))
             })
             .collect::<Result<_, String>>()?;
-        let steps: usize = parse(&args, "--steps", 20)?;
-        let run_tolerance: f64 = parse(&args, "--run-reference-tolerance", 1e-10)?;
+        let steps: usize = options.parse("--steps", 20)?;
+        let run_tolerance: f64 = options.parse("--run-reference-tolerance", 1e-10)?;
         return oracle_runs(&setup, &oracle, &budgets, steps, (tolerance, run_tolerance));
     }
     println!(

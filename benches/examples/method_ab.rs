@@ -8,22 +8,9 @@
 //! A/B comparisons of a method's cost (run the two builds alternately) and
 //! for checking that a change keeps its results bit for bit.
 
-use pd_benches::Beam;
+use pd_benches::{Beam, Options};
 use pd_io::recorder::median;
 use pd_solver::{Predictor, SolverMethod, SolverSpec};
-
-fn value<'a>(args: &'a [String], name: &str) -> Option<&'a str> {
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .map(String::as_str)
-}
-
-fn parse<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> Result<T, String> {
-    value(args, name).map_or(Ok(default), |t| {
-        t.parse().map_err(|_| format!("{name}: cannot parse {t:?}"))
-    })
-}
 
 /// A predictor name, or `fittedK/M` (the fitted predictor of order `K`
 /// over `M` steps).
@@ -39,33 +26,31 @@ fn parse_predictor(text: &str) -> Option<Predictor> {
 
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
+    let options = Options::new(&args);
     let (Some(method), Some(budget)) = (args.first(), args.get(1)) else {
         return Err("usage: method_ab METHOD BUDGET [options]".into());
     };
     let method = SolverMethod::parse(method).ok_or(format!("unknown method {method:?}"))?;
     let budget: usize = budget.parse().map_err(|_| format!("BUDGET: {budget:?}"))?;
-    let predictor = value(&args, "--predictor").unwrap_or("inertial");
+    let predictor = options.value("--predictor").unwrap_or("inertial");
     let predictor = parse_predictor(predictor).ok_or(format!("unknown predictor {predictor:?}"))?;
-    let integrator = value(&args, "--integrator").unwrap_or("be");
-    let damping = value(&args, "--damping").unwrap_or("none");
-    let steps: usize = parse(&args, "--steps", 40)?;
-    let warmup: usize = parse(&args, "--warmup", 5)?;
+    let integrator = options.value("--integrator").unwrap_or("be");
+    let damping = options.value("--damping").unwrap_or("none");
+    let steps: usize = options.parse("--steps", 40)?;
+    let warmup: usize = options.parse("--warmup", 5)?;
     let mut beam = Beam {
         iterations: budget,
         threads: 1,
         ..Beam::default()
     };
-    if let Some(cells) = value(&args, "--cells") {
-        let cells: Vec<usize> = cells
-            .split(',')
-            .map(|c| c.parse().map_err(|_| format!("--cells: {c:?}")))
-            .collect::<Result<_, _>>()?;
+    if options.value("--cells").is_some() {
+        let cells = options.list("--cells", &[])?;
         beam.cells = cells.try_into().map_err(|_| "--cells needs three counts")?;
     }
     let mut sim = beam.simulation(damping, integrator)?;
     let spec = SolverSpec {
         method,
-        window: parse(&args, "--window", SolverSpec::default().window)?,
+        window: options.parse("--window", SolverSpec::default().window)?,
         ..SolverSpec::default()
     };
     sim.set_position_solver(spec.create().map_err(|e| e.to_string())?);

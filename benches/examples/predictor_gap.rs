@@ -16,16 +16,9 @@
 //! residual. A start whose objective is not below `y`'s is replaced by `y`
 //! (the predictor's safeguard), so ratios are at most 1.
 
-use pd_benches::Beam;
+use pd_benches::{Beam, Options};
 use pd_mesh::Point;
 use pd_solver::{Checkpoint, Predictor, Simulation, SolverMethod, SolverSpec, fit_recurrence};
-
-fn value<'a>(args: &'a [String], name: &str) -> Option<&'a str> {
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .map(String::as_str)
-}
 
 fn gram(history: &[&[Point]], masses: &[f64]) -> Vec<f64> {
     let len = history.len();
@@ -59,15 +52,13 @@ fn gap(probe: &mut Simulation, saved: &Checkpoint) -> Result<f64, String> {
 
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let integrator = value(&args, "--integrator").unwrap_or("im");
-    let damping = value(&args, "--damping").unwrap_or("none");
-    let steps: usize = value(&args, "--steps")
-        .map_or(Ok(20), str::parse)
-        .map_err(|e| format!("{e}"))?;
-    let reference: usize = value(&args, "--reference-iterations")
-        .map_or(Ok(40), str::parse)
-        .map_err(|e| format!("{e}"))?;
-    let fits: Vec<(usize, usize)> = value(&args, "--fits")
+    let options = Options::new(&args);
+    let integrator = options.value("--integrator").unwrap_or("im");
+    let damping = options.value("--damping").unwrap_or("none");
+    let steps: usize = options.parse("--steps", 20)?;
+    let reference: usize = options.parse("--reference-iterations", 40)?;
+    let fits: Vec<(usize, usize)> = options
+        .value("--fits")
         .unwrap_or("2/4,3/6,4/8,5/10,6/12,8/16")
         .split(',')
         .map(|f| {
@@ -83,17 +74,15 @@ fn main() -> Result<(), String> {
         threads: 1,
         ..Beam::default()
     };
-    if let Some(cells) = value(&args, "--cells") {
-        let cells: Vec<usize> = cells.split(',').map(|c| c.parse().unwrap_or(0)).collect();
+    if options.value("--cells").is_some() {
+        let cells = options.list("--cells", &[])?;
         beam.cells = cells.try_into().map_err(|_| "--cells needs three counts")?;
     }
     let anderson = SolverSpec {
         method: SolverMethod::Anderson,
         ..SolverSpec::default()
     };
-    let history_iterations: usize = value(&args, "--history-iterations")
-        .map_or(Ok(reference), str::parse)
-        .map_err(|e| format!("{e}"))?;
+    let history_iterations: usize = options.parse("--history-iterations", reference)?;
     let make = |predictor: Predictor, iterations: usize| -> Result<Simulation, String> {
         let beam = Beam { iterations, ..beam };
         let mut sim = beam.simulation(damping, integrator)?;

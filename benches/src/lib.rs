@@ -22,6 +22,9 @@ use pd_solver::{Model, Settings, Simulation};
 
 pub mod contact;
 pub mod methods;
+mod options;
+
+pub use options::Options;
 
 /// FNV-1a over the bits of every position and velocity of `state`: two
 /// runs with the same hash ended in the same state bit for bit (how a change

@@ -24,7 +24,7 @@
 use std::process::ExitCode;
 use std::time::Instant;
 
-use pd_benches::{Beam, Clamp, Sheet, damping_models, peak_memory_bytes};
+use pd_benches::{Beam, Clamp, Options, Sheet, damping_models, peak_memory_bytes};
 use pd_damping::registry::UNDAMPED;
 use pd_io::recorder::median;
 use pd_mesh::Point;
@@ -45,47 +45,14 @@ fn main() -> ExitCode {
     }
 }
 
-/// Options as `--name value` pairs, plus flags.
-struct Options<'a> {
-    args: &'a [String],
+/// The options of the beam and of the cloth sheet a probe runs.
+trait ProbeOptions {
+    /// The beam of `--cells`, `--iters`, `--threads`, `--dt`, ...
+    fn beam(&self) -> Result<Beam, String>;
+    fn sheet(&self) -> Result<Option<Sheet>, String>;
 }
 
-impl Options<'_> {
-    fn value(&self, name: &str) -> Option<&str> {
-        self.args
-            .iter()
-            .position(|a| a == name)
-            .and_then(|i| self.args.get(i + 1))
-            .map(String::as_str)
-    }
-
-    fn flag(&self, name: &str) -> bool {
-        self.args.iter().any(|a| a == name)
-    }
-
-    fn parse<T: std::str::FromStr>(&self, name: &str, default: T) -> Result<T, String> {
-        match self.value(name) {
-            None => Ok(default),
-            Some(text) => text
-                .parse()
-                .map_err(|_| format!("{name}: cannot parse {text:?}")),
-        }
-    }
-
-    fn list(&self, name: &str, default: &[usize]) -> Result<Vec<usize>, String> {
-        match self.value(name) {
-            None => Ok(default.to_vec()),
-            Some(text) => text
-                .split(',')
-                .map(|p| {
-                    p.trim()
-                        .parse()
-                        .map_err(|_| format!("{name}: cannot parse {p:?} in {text:?}"))
-                })
-                .collect(),
-        }
-    }
-
+impl ProbeOptions for Options<'_> {
     fn beam(&self) -> Result<Beam, String> {
         let defaults = Beam::default();
         let cells = self.list("--cells", &defaults.cells)?;
@@ -139,7 +106,7 @@ fn with_triangles(mut value: Value, sim: &Simulation, cloth: bool) -> Value {
 }
 
 fn run(args: &[String]) -> Result<Value, String> {
-    let options = Options { args };
+    let options = Options::new(args);
     let beam = options.beam()?;
     match args.first().map(String::as_str) {
         Some("step") => step(&options, &beam),
