@@ -42,9 +42,8 @@ use nalgebra::{DMatrix, SymmetricEigen};
 use pd_mesh::Point;
 
 use super::iteration::{PositionSolver, StepProblem};
-use super::newton::symmetric_product;
+use super::newton::{hessian_coefficients, symmetric_product};
 use crate::SolverError;
-use crate::global::MatrixCoefficients;
 use crate::lagged::LaggedSystem;
 use crate::system::SystemCoefficients;
 
@@ -344,13 +343,7 @@ fn costs(
             symmetric_product(system, &a_values, start, &mut product);
         }),
     ));
-    let elastic = c.c1 * c.c2 * c.c2;
-    let coefficients = MatrixCoefficients {
-        mass: matrix.mass,
-        system: elastic,
-        damping: matrix.damping - elastic,
-        mass_damping: matrix.mass_damping,
-    };
+    let (coefficients, elastic) = hessian_coefficients(matrix, c);
     let q = step.buffers.q.clone();
     let local = step.local;
     for (name, psd) in [("hessian psd", true), ("hessian true", false)] {
@@ -464,14 +457,7 @@ impl PositionSolver for KrylovProbe {
         system.values_into(matrix, &mut a_values);
         let minus_gradient = minus_gradient(step, &a_values);
 
-        let elastic = c.c1 * c.c2 * c.c2;
-        let hessian_coefficients = MatrixCoefficients {
-            mass: matrix.mass,
-            system: elastic,
-            // L_anchor = L_sys - L_d: the elastic L_d is inside K.
-            damping: matrix.damping - elastic,
-            mass_damping: matrix.mass_damping,
-        };
+        let (hessian_coefficients, elastic) = hessian_coefficients(matrix, c);
         let positions = step.positions;
         let q_of = |dx: &[Point]| -> Vec<Point> {
             positions

@@ -26,6 +26,7 @@
 //! already is the 3n system; their damping Hessian would have to be added.
 
 use pd_constraints::EnergyBound;
+use pd_integrators::StepCoefficients;
 use pd_mesh::Point;
 
 use super::iteration::{PositionSolver, StepProblem};
@@ -85,6 +86,26 @@ pub(crate) fn symmetric_product(
     }
 }
 
+/// The coefficients of the step objective's Hessian in the lagged 3n
+/// system, `mass M + c1 c2 gamma a2 L_d + L_anchor + elastic K`, from the
+/// step matrix's `matrix`, and the element Hessians' factor
+/// `elastic = c1 c2^2`: the system part is the elastic weight and the
+/// damping part loses it (`L_anchor = L_sys - L_d`: the elastic `L_d` is
+/// inside `K`).
+pub(crate) fn hessian_coefficients(
+    matrix: MatrixCoefficients,
+    c: StepCoefficients,
+) -> (MatrixCoefficients, f64) {
+    let elastic = c.c1 * c.c2 * c.c2;
+    let coefficients = MatrixCoefficients {
+        mass: matrix.mass,
+        system: elastic,
+        damping: matrix.damping - elastic,
+        mass_damping: matrix.mass_damping,
+    };
+    (coefficients, elastic)
+}
+
 impl Newton {
     /// Builds the Hessian system on first use, sizes the buffers.
     fn prepare(&mut self, step: &StepProblem<'_>) -> Result<(), SolverError> {
@@ -134,14 +155,7 @@ impl Newton {
         for ((q, x_n), dx) in self.q.iter_mut().zip(step.positions).zip(&self.iterate) {
             *q = x_n + dx * c.c2;
         }
-        let elastic = c.c1 * c.c2 * c.c2;
-        let hessian_coefficients = MatrixCoefficients {
-            mass: coefficients.mass,
-            system: elastic,
-            // L_anchor = L_sys - L_d: the elastic L_d is inside K.
-            damping: coefficients.damping - elastic,
-            mass_damping: coefficients.mass_damping,
-        };
+        let (hessian_coefficients, elastic) = hessian_coefficients(coefficients, c);
         let hessian = self.hessian.as_mut().expect("built by prepare");
         hessian.refactorise(step.local.blocks(), &self.q, hessian_coefficients, elastic)?;
         hessian.solve(&self.rhs);
