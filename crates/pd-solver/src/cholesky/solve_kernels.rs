@@ -115,6 +115,43 @@ impl<'a> Block<'a> {
     }
 }
 
+/// Supernodes narrower than this (four in five supernodes of the 80 x 14 x
+/// 14 beam's METIS order, 3.5 % of its values) update the rows below them
+/// row by row, straight into the solution (`Structure::forward_supernode`, [`narrow_updates`]),
+/// with the sums of `Below::update`'s one-column passes, so the same bits:
+/// 3-5 % off the beam's solve (docs/performance.md, "Narrow supernodes").
+/// Wider ones (a fused loop up to 8 columns measured the same as 4) and
+/// the backward step (a fused gather into the dot products' lanes was no
+/// faster) keep the coordinate arrays.
+pub(super) const NARROW: usize = 4;
+
+/// The forward step's updates of the `r` rows below a supernode of
+/// `top.len() < NARROW` columns, row by row: row `k`'s update summed from
+/// zero column by column (the sums of [`Below::update`]'s one-column
+/// passes, so the same bits), handed to `scatter(k, update)` at once
+/// instead of through the coordinate arrays.
+#[inline(always)]
+pub(super) fn narrow_updates(
+    block: &Block,
+    top: &[Point],
+    r: usize,
+    mut scatter: impl FnMut(usize, Point),
+) {
+    let c = top.len();
+    let columns: [&[f64]; NARROW - 1] =
+        std::array::from_fn(|j| if j < c { block.rows(j, c, r) } else { &[] });
+    for k in 0..r {
+        let mut update = Point::zeros();
+        for (p, l) in top.iter().zip(&columns) {
+            let l = l[k];
+            update.x += p.x * l;
+            update.y += p.y * l;
+            update.z += p.z * l;
+        }
+        scatter(k, update);
+    }
+}
+
 /// One supernode's below-diagonal rows, one array per coordinate, so that
 /// the loops over rows run four rows per instruction.
 pub(super) struct Below<'a> {

@@ -29,7 +29,7 @@ use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
 use pd_mesh::Point;
 
 use super::NumericFactor;
-use super::solve_kernels::{Below, vectorized};
+use super::solve_kernels::{Below, NARROW, narrow_updates, vectorized};
 use super::solve_tree::{TOP, TreeSplit};
 
 // A child of this module (it reads `Structure`'s fields), kept beside it.
@@ -83,6 +83,9 @@ struct Structure<'a> {
     /// The narrowest diagonal block solved by tiles, forward and backward
     /// ([`BLOCKED_DIAGONAL`]; tests turn them off).
     blocked: [usize; 2],
+    /// Supernodes narrower than this update their rows below row by row
+    /// ([`NARROW`]; tests turn it off).
+    narrow: usize,
 }
 
 impl<'a> Structure<'a> {
@@ -101,6 +104,7 @@ impl<'a> Structure<'a> {
             packed: false,
             prefetch: s.col_ptr_for_val().last().copied().unwrap_or(0) * 8 >= PREFETCH_BYTES,
             blocked: BLOCKED_DIAGONAL,
+            narrow: NARROW,
         })
     }
 }
@@ -132,6 +136,8 @@ pub(crate) struct SupernodalSolve {
     /// The narrowest diagonal block solved by tiles, forward and backward
     /// ([`BLOCKED_DIAGONAL`]).
     blocked: [usize; 2],
+    /// Supernodes narrower than this update row by row ([`NARROW`]).
+    narrow: usize,
 }
 
 impl SupernodalSolve {
@@ -187,6 +193,7 @@ impl SupernodalSolve {
             x: vec![Point::zeros(); n],
             prefetch: structure.prefetch,
             blocked: BLOCKED_DIAGONAL,
+            narrow: NARROW,
         })
     }
 
@@ -195,6 +202,13 @@ impl SupernodalSolve {
     #[cfg(test)]
     pub fn set_blocked(&mut self, narrowest: [usize; 2]) {
         self.blocked = narrowest;
+    }
+
+    /// Sets the width below which supernodes update row by row (tests: 0
+    /// gives the coordinate arrays' passes everywhere).
+    #[cfg(test)]
+    pub fn set_narrow(&mut self, narrow: usize) {
+        self.narrow = narrow;
     }
 
     /// Turns the kernels' prefetches on or off, whatever the factor's size
@@ -226,6 +240,7 @@ impl SupernodalSolve {
             .in_layout_of(factor);
         structure.prefetch = self.prefetch;
         structure.blocked = self.blocked;
+        structure.narrow = self.narrow;
         let forward = symbolic.perm().map(|p| p.arrays().0);
         self.permute_in(forward, rhs);
         self.forward_substitution(&structure, values);
@@ -255,71 +270,6 @@ impl SupernodalSolve {
             }
             None => rhs.copy_from_slice(&self.x),
         }
-    }
-
-    /// [`Self::solve`] in its four parts, timed: the permutation in, the
-    /// forward and the backward substitution, the permutation out (seconds
-    /// of `clock` each; `solve_profile.rs`).
-    #[cfg(test)]
-    pub fn solve_timed(
-        &mut self,
-        symbolic: &SymbolicCholesky<usize>,
-        factor: &NumericFactor,
-        rhs: &mut [Point],
-        clock: &dyn Fn() -> f64,
-    ) -> [f64; 4] {
-        let values = &factor.values[..];
-        let mut structure = Structure::of(symbolic)
-            .expect("the plan of a supernodal factor")
-            .in_layout_of(factor);
-        structure.prefetch = self.prefetch;
-        structure.blocked = self.blocked;
-        let forward = symbolic.perm().map(|p| p.arrays().0);
-        let t0 = clock();
-        self.permute_in(forward, rhs);
-        let t1 = clock();
-        self.forward_substitution(&structure, values);
-        let t2 = clock();
-        self.backward_substitution(&structure, values);
-        let t3 = clock();
-        self.permute_out(forward, rhs);
-        [t1 - t0, t2 - t1, t3 - t2, clock() - t3]
-    }
-
-    /// The stored values of the top of the tree and of each bin, for
-    /// `solve_profile.rs`.
-    #[cfg(test)]
-    pub fn split_values(&self, symbolic: &SymbolicCholesky<usize>) -> [usize; 3] {
-        let structure = Structure::of(symbolic).expect("a supernodal factor");
-        let values = |list: &[usize]| -> usize {
-            list.iter()
-                .map(|&s| structure.value_ptr[s + 1] - structure.value_ptr[s])
-                .sum()
-        };
-        [
-            values(&self.split.top),
-            values(&self.split.bins[0]),
-            values(&self.split.bins[1]),
-        ]
-    }
-
-    /// The supernodes by width class `(widest width, count, values of the
-    /// diagonal blocks' lower triangles, values below them)`, classes
-    /// 1, 2-3, 4-7, ..., for `solve_profile.rs`.
-    #[cfg(test)]
-    pub fn width_classes(symbolic: &SymbolicCholesky<usize>) -> Vec<(usize, usize, usize, usize)> {
-        let structure = Structure::of(symbolic).expect("a supernodal factor");
-        let mut classes = vec![(0, 0, 0, 0); 16];
-        for s in 0..structure.begin.len() {
-            let c = structure.end[s] - structure.begin[s];
-            let class = &mut classes[c.ilog2() as usize];
-            class.0 = class.0.max(c);
-            class.1 += 1;
-            class.2 += c * (c + 1) / 2;
-            class.3 += c * structure.row_len[s];
-        }
-        classes.retain(|class| class.1 > 0);
-        classes
     }
 
     /// `x <- L^-1 x`: the bins' subtrees (at once when there are two
@@ -548,6 +498,15 @@ impl Structure<'_> {
             }
         }
         let r = rows.len();
+        if c < self.narrow {
+            let mut p = [Point::zeros(); NARROW - 1];
+            p[..c].copy_from_slice(top);
+            narrow_updates(&block, &p[..c], r, |k, update| match locate(rows[k]) {
+                Some(i) => x[i] -= update,
+                None => outside(rows[k], update),
+            });
+            return;
+        }
         below.update(&block, c, top, r);
         let updates = below.x[..r].iter().zip(&below.y[..r]).zip(&below.z[..r]);
         for (&row, ((&ux, &uy), &uz)) in rows.iter().zip(updates) {

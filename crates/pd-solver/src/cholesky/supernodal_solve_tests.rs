@@ -1,10 +1,77 @@
-//! Tests of `supernodal_solve.rs` (kept apart so that file stays under
-//! 600 lines).
+//! Tests of `supernodal_solve.rs` and the measurement helpers of
+//! `solve_profile.rs` (kept apart so that file stays under 600 lines).
 
 use super::super::calibration::{armadillo, laplacian_factor};
 use super::super::{NumericFactor, SymbolicFactor};
-use super::SupernodalSolve;
+use super::{Structure, SupernodalSolve};
+use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use pd_mesh::Point;
+
+/// Measurement helpers for `solve_profile.rs`.
+impl SupernodalSolve {
+    /// [`Self::solve`] in its four parts, timed: the permutation in, the
+    /// forward and the backward substitution, the permutation out (seconds
+    /// of `clock` each; `solve_profile.rs`).
+    pub fn solve_timed(
+        &mut self,
+        symbolic: &SymbolicCholesky<usize>,
+        factor: &NumericFactor,
+        rhs: &mut [Point],
+        clock: &dyn Fn() -> f64,
+    ) -> [f64; 4] {
+        let values = &factor.values[..];
+        let mut structure = Structure::of(symbolic)
+            .expect("the plan of a supernodal factor")
+            .in_layout_of(factor);
+        structure.prefetch = self.prefetch;
+        structure.blocked = self.blocked;
+        structure.narrow = self.narrow;
+        let forward = symbolic.perm().map(|p| p.arrays().0);
+        let t0 = clock();
+        self.permute_in(forward, rhs);
+        let t1 = clock();
+        self.forward_substitution(&structure, values);
+        let t2 = clock();
+        self.backward_substitution(&structure, values);
+        let t3 = clock();
+        self.permute_out(forward, rhs);
+        [t1 - t0, t2 - t1, t3 - t2, clock() - t3]
+    }
+
+    /// The stored values of the top of the tree and of each bin, for
+    /// `solve_profile.rs`.
+    pub fn split_values(&self, symbolic: &SymbolicCholesky<usize>) -> [usize; 3] {
+        let structure = Structure::of(symbolic).expect("a supernodal factor");
+        let values = |list: &[usize]| -> usize {
+            list.iter()
+                .map(|&s| structure.value_ptr[s + 1] - structure.value_ptr[s])
+                .sum()
+        };
+        [
+            values(&self.split.top),
+            values(&self.split.bins[0]),
+            values(&self.split.bins[1]),
+        ]
+    }
+
+    /// The supernodes by width class `(widest width, count, values of the
+    /// diagonal blocks' lower triangles, values below them)`, classes
+    /// 1, 2-3, 4-7, ..., for `solve_profile.rs`.
+    pub fn width_classes(symbolic: &SymbolicCholesky<usize>) -> Vec<(usize, usize, usize, usize)> {
+        let structure = Structure::of(symbolic).expect("a supernodal factor");
+        let mut classes = vec![(0, 0, 0, 0); 16];
+        for s in 0..structure.begin.len() {
+            let c = structure.end[s] - structure.begin[s];
+            let class = &mut classes[c.ilog2() as usize];
+            class.0 = class.0.max(c);
+            class.1 += 1;
+            class.2 += c * (c + 1) / 2;
+            class.3 += c * structure.row_len[s];
+        }
+        classes.retain(|class| class.1 > 0);
+        classes
+    }
+}
 
 /// Prefetching changes no value: a beam's split solve (a factor below
 /// the prefetch threshold, the prefetches forced on) gives the same
@@ -27,6 +94,43 @@ fn prefetches_change_no_bit() {
     assert_eq!(plain, solved(true, 1));
     assert_eq!(plain, solved(true, 2));
     assert_eq!(plain, solved(false, 2));
+}
+
+/// The row-by-row update of narrow supernodes' rows below (`NARROW`) gives
+/// the bits of the coordinate arrays' one-column passes: the beam (split,
+/// most of its supernodes one column wide) and the armadillo (if present;
+/// many of two to three columns), on 1 and 2 threads, in faer's layout and
+/// packed.
+#[test]
+fn narrow_supernodes_change_no_bit() {
+    let beam = pd_mesh::generators::box_tets([1.0, 0.2, 0.2], [40, 8, 8]).unwrap();
+    for mesh in [Some(beam), armadillo()].into_iter().flatten() {
+        let (mut factor, mut numeric) = laplacian_factor(&mesh);
+        let n = factor.pattern().n;
+        let mut solve = factor.fast_solve.take().expect("a supernodal factor");
+        let rhs: Vec<Point> = (0..n)
+            .map(|i| {
+                Point::new(
+                    (i % 11) as f64 - 5.0,
+                    (i % 7) as f64,
+                    1.0 / (1 + i % 3) as f64,
+                )
+            })
+            .collect();
+        for packed in [false, true] {
+            if packed {
+                factor.pack(&mut numeric);
+            }
+            let mut solved = |narrow: usize, threads: usize| {
+                solve.set_narrow(narrow);
+                bits(&solved_on(threads, &mut solve, (&factor, &numeric), &rhs))
+            };
+            let passes = solved(0, 1);
+            assert_eq!(passes, solved(4, 1), "packed: {packed}");
+            assert_eq!(passes, solved(4, 2), "packed: {packed}");
+            assert_eq!(passes, solved(0, 2), "packed: {packed}");
+        }
+    }
 }
 
 /// `b - L L^T x` and `|L| |L^T| |x|`, both in the factor's order, for the
