@@ -13,6 +13,10 @@
 //!   bound describes) and the global step's time per iteration (the solve
 //!   plus the right-hand side's assembly `B^T p` and the update of the
 //!   displacement, which the bound does not count).
+//! - The solve in the caches: the same solve on a beam whose factor stays
+//!   in the caches (32 x 8 x 8 cells, 1.7 MB), in ns per stored value per
+//!   pass against the bound's `8 bytes / bandwidth`: above 1, the kernels,
+//!   not the memory, set the solve's floor on this machine.
 //! - Local step: ns per tet per iteration, at 1 and 2 threads.
 //! - Noise: CPU pressure (`/proc/pressure/cpu`, `some avg10`) above
 //!   [`PRESSURE_NOISY`] % before or after, a 2-thread speed-up above
@@ -36,6 +40,12 @@ const SPREAD_NOISY: f64 = 0.05;
 /// 94,080 tets) or a smaller one for `--quick`.
 fn cells(quick: bool) -> [usize; 3] {
     if quick { [35, 7, 7] } else { [80, 14, 14] }
+}
+
+/// A beam whose factor (about 1.7 MB stored, 0.4 MB for `--quick`) stays
+/// in the caches between solves.
+fn cells_in_cache(quick: bool) -> [usize; 3] {
+    if quick { [20, 6, 6] } else { [32, 8, 8] }
 }
 
 /// The standard real mesh, if the shared meshes sit beside the repository.
@@ -135,6 +145,30 @@ pub fn measure(
             "iters": iters,
         }));
     }
+    // The same solve on a beam whose factor stays in the caches: its time
+    // per stored value, against the streaming bound's, says whether the
+    // kernels or the memory set the solve's floor.
+    let small = cells_in_cache(quick);
+    let in_cache = probe(strings(&[
+        "step",
+        "--cells",
+        &format!("{},{},{}", small[0], small[1], small[2]),
+        "--steps",
+        "2",
+        "--threads",
+        "1",
+    ]))?;
+    let cached_values = f(&in_cache["nnz_L_factor"]);
+    let cached_ns = f(&in_cache["solve_ms_median"]) * 1e6 / (2.0 * cached_values);
+    let bound_ns = 8.0 / f(&bandwidth["bytes_per_second"]) * 1e9;
+    let in_cache = json!({
+        "cells": small,
+        "factor_bytes": 8.0 * cached_values,
+        "solve_ms": f(&in_cache["solve_ms_median"]),
+        "ns_per_value_pass": cached_ns,
+        "bound_ns_per_value": bound_ns,
+        "ratio_to_bound": cached_ns / bound_ns,
+    });
     let step_speedup = f(&per_threads[0]["step_ms"]) / f(&per_threads[1]["step_ms"]);
     let local_speedup = f(&per_threads[0]["local_ns_per_tet_iteration"])
         / f(&per_threads[1]["local_ns_per_tet_iteration"]);
@@ -189,6 +223,7 @@ pub fn measure(
         "bandwidth_2_threads": bandwidth_2,
         "cells": cells,
         "by_threads": per_threads,
+        "in_cache": in_cache,
         "step_speedup": step_speedup,
         "local_speedup": local_speedup,
         "pressure_before": pressure_before,
@@ -284,6 +319,31 @@ pub fn markdown(limits: &Value) -> String {
             100.0 * f(&run["spread"]),
         );
     }
+    let cached = &limits["in_cache"];
+    if cached.is_object() {
+        let ratio = f(&cached["ratio_to_bound"]);
+        let _ = writeln!(
+            md,
+            "\nThe solve with its factor in the caches (beam {} x {} x {}, {:.1} MB, 1 thread): \
+             {:.2} ms, {:.3} ns per stored value per pass against the streaming bound's {:.3} ns \
+             ({:.2}x): {}",
+            cached["cells"][0],
+            cached["cells"][1],
+            cached["cells"][2],
+            f(&cached["factor_bytes"]) / 1e6,
+            f(&cached["solve_ms"]),
+            f(&cached["ns_per_value_pass"]),
+            f(&cached["bound_ns_per_value"]),
+            ratio,
+            if ratio > 1.0 {
+                "with no DRAM traffic the solve is already slower than the bound, so on this \
+                 machine its kernels, not the memory, set its floor."
+            } else {
+                "from the caches the solve beats the bound, so the memory, not the kernels, \
+                 sets its floor on the large beam."
+            }
+        );
+    }
     let _ = writeln!(
         md,
         "\n2-thread speed-up: step {:.2}, local step {:.2}.\n",
@@ -357,6 +417,12 @@ mod tests {
         assert!((f(&one["ratio_to_bound"]) - 2.0 / 1.6).abs() < 1e-12);
         // The solve alone: 1.8 ms against the same bound.
         assert!((f(&one["solve_ratio_to_bound"]) - 1.8 / 1.6).abs() < 1e-12);
+        // In the caches: 1.8 ms / (2 passes x 1e6 values) = 0.9 ns per value
+        // against 8 bytes / 10 GB/s = 0.8 ns.
+        let cached = &limits["in_cache"];
+        assert!((f(&cached["ns_per_value_pass"]) - 0.9).abs() < 1e-12);
+        assert!((f(&cached["ratio_to_bound"]) - 1.125).abs() < 1e-12);
+        assert!(markdown(&limits).contains("(1.12x): with no DRAM traffic"));
         // 20 ms / (10 iterations x 100 tets) = 20,000 ns.
         assert!((f(&one["local_ns_per_tet_iteration"]) - 20_000.0).abs() < 1e-6);
         assert!((f(&limits["local_speedup"]) - 1.5).abs() < 1e-12);
