@@ -9,7 +9,8 @@ use pd_mesh::Point;
 use crate::constraint::{energies_one_by_one, project_one_by_one};
 use crate::tet_strain::check_stiffness;
 use crate::triangle_frame::{
-    IsotropicProjection, closest_orthonormal, gradient_of, isotropic_hessian, rest_frame, thin_svd,
+    IsotropicProjection, clamped_stretch, closest_orthonormal, gradient_of, isotropic_hessian,
+    rest_frame, thin_svd,
 };
 use crate::{Constraint, ConstraintError, TetStrain};
 
@@ -101,11 +102,7 @@ impl Constraint for TriangleStrain {
         let f = gradient_of(gx);
         let target: Matrix3x2<f64> = match self.limits {
             None => closest_orthonormal(&f),
-            Some((min, max)) => {
-                let svd = thin_svd(&f);
-                let c = svd.s.map(|s| s.clamp(min, max));
-                svd.u * Matrix2::from_diagonal(&c) * svd.v.transpose()
-            }
+            Some((min, max)) => clamped_stretch(&f, min, max),
         };
         out[0] = target.column(0).into_owned();
         out[1] = target.column(1).into_owned();
