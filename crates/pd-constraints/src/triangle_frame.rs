@@ -253,7 +253,11 @@ pub(crate) fn clamped_stretch_2x2(
     let (s0, s1) = (rot + refl, (rot - refl).max(0.0));
     let (c0, c1) = (s0.clamp(min, max), s1.clamp(min, max));
     let a = 0.5 * (c0 + c1) / rot;
-    let b = if isotropic { 0.0 } else { 0.5 * (c0 - c1) / refl };
+    let b = if isotropic {
+        0.0
+    } else {
+        0.5 * (c0 - c1) / refl
+    };
     Some([a * e + b * d, a * h + b * g, b * g - a * h, a * e - b * d])
 }
 
@@ -834,7 +838,10 @@ mod tests {
             let axis = [uniform(), uniform(), uniform()];
             let f = test_support::from_singular_values(axis, 3.2 * uniform(), 3.2 * uniform(), s);
             let p = clamped_stretch(&f, 0.9, 1.1);
-            assert!(largest_difference(&p, &f) <= 32.0 * f64::EPSILON, "{f:?}: {p:?}");
+            assert!(
+                largest_difference(&p, &f) <= 32.0 * f64::EPSILON,
+                "{f:?}: {p:?}"
+            );
         }
     }
 
@@ -851,7 +858,11 @@ mod tests {
             (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
         };
         let mut largest = 0.0f64;
-        let n = if cfg!(debug_assertions) { 60_000 } else { 500_000 };
+        let n = if cfg!(debug_assertions) {
+            60_000
+        } else {
+            500_000
+        };
         for i in 0..n {
             let f = match i % 4 {
                 0 => Matrix3x2::from_fn(|_, _| uniform()),
@@ -861,10 +872,7 @@ mod tests {
                     test_support::from_singular_values(axis, 3.2 * uniform(), 3.2 * uniform(), s)
                 }
                 _ => {
-                    let s = [
-                        10f64.powf(2.0 * uniform()),
-                        10f64.powf(2.0 * uniform()),
-                    ];
+                    let s = [10f64.powf(2.0 * uniform()), 10f64.powf(2.0 * uniform())];
                     let axis = [uniform(), uniform(), uniform()];
                     let f = test_support::from_singular_values(
                         axis,

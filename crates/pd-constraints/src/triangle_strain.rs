@@ -76,6 +76,15 @@ impl TriangleStrain {
     fn bounds(&self) -> (f64, f64) {
         self.limits.unwrap_or((1.0, 1.0))
     }
+
+    /// The projection of the gradient `f`: [`closest_orthonormal`], or
+    /// with limits [`clamped_stretch`].
+    fn target(&self, f: &Matrix3x2<f64>) -> Matrix3x2<f64> {
+        match self.limits {
+            None => closest_orthonormal(f),
+            Some((min, max)) => clamped_stretch(f, min, max),
+        }
+    }
 }
 
 impl Constraint for TriangleStrain {
@@ -99,11 +108,7 @@ impl Constraint for TriangleStrain {
     }
 
     fn project(&self, gx: &[Point], out: &mut [Point]) {
-        let f = gradient_of(gx);
-        let target: Matrix3x2<f64> = match self.limits {
-            None => closest_orthonormal(&f),
-            Some((min, max)) => clamped_stretch(&f, min, max),
-        };
+        let target = self.target(&gradient_of(gx));
         out[0] = target.column(0).into_owned();
         out[1] = target.column(1).into_owned();
     }
