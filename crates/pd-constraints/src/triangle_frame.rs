@@ -33,6 +33,24 @@
 //! projection repeat (`docs/performance.md`, "Triangle strain in SIMD
 //! lanes").
 //!
+//! # Clamped singular values
+//!
+//! `U2 diag(c) V^T` for `c = clamp(s, min, max)` without the angles: with
+//! `R = e I + h J + d Z + g X` (`e, h` as above, `d = (r00 - r11)/2`,
+//! `g = r01/2`; `J` the quarter turn, `Z = diag(1, -1)`, `X` the swap),
+//! `R = rot Rot(alpha) + refl Refl(beta)`, `rot = sqrt(e^2 + h^2)`,
+//! `refl = sqrt(d^2 + g^2)`, `s = (rot + refl, rot - refl)`, and
+//! `U2 = Rot((alpha + beta)/2)`, `V^T = Rot((alpha - beta)/2)`. Since
+//! `Rot(phi) diag(c0, c1) Rot(psi) = (c0 + c1)/2 Rot(phi + psi) +
+//! (c0 - c1)/2 Rot(phi - psi) Z`, the clamped matrix is
+//! `a [[e, -h], [h, e]] + b [[d, g], [g, -d]]` with
+//! `a = (c0 + c1) / (2 rot)`, `b = (c0 - c1) / (2 refl)` (`b = 0` where
+//! `d = g = 0`: equal singular values, `c0 = c1`, and undefined singular
+//! vectors that the result does not need). With `c = s` it is `R`
+//! itself. [`clamped_stretch`] computes it so, with a fixed sequence of
+//! IEEE operations that the SIMD lanes repeat (`docs/performance.md`,
+//! "Stretch-limited triangles in SIMD lanes").
+//!
 //! # Hessian of an isotropic energy
 //!
 //! For `P(F) = U diag(c) V^T`, `c = c(s)`, the six matrices

@@ -26,9 +26,10 @@ mod batch;
 /// a rigid motion of the rest triangle), computed as `Q Rot` from the
 /// factors `F = Q R` and the rotation closest to `R`, without
 /// trigonometry; or with limits `[min, max]` the matrix
-/// `U clamp(S, min, max) V^T`. [`Constraint::project_many`] projects
-/// triangles without limits several at a time in SIMD lanes, with the same
-/// bits. The weight is `stiffness * rest area`
+/// `U clamp(S, min, max) V^T`, computed as `Q` times the clamped 2 x 2 SVD
+/// of `R` in closed form, again without trigonometry.
+/// [`Constraint::project_many`] projects triangles with and without
+/// limits several at a time in SIMD lanes, with the same bits. The weight is `stiffness * rest area`
 /// with `stiffness = E t` in N/m: for small strains this is plane-stress
 /// linear elasticity with Young's modulus `E`, thickness `t` and Poisson
 /// ratio 0.
@@ -113,9 +114,9 @@ impl Constraint for TriangleStrain {
         out[1] = target.column(1).into_owned();
     }
 
-    /// Batches of triangles without limits (as many as the CPU has f64
-    /// lanes) in SIMD lanes, bit-identical to [`Self::project`]; the rest,
-    /// one at a time.
+    /// Batches of triangles with or without limits (as many as the CPU has
+    /// f64 lanes) in SIMD lanes, bit-identical to [`Self::project`]; the
+    /// rest, one at a time.
     fn project_many(constraints: &[Self], q: &[Point], out: &mut [Point]) {
         #[cfg(target_arch = "x86_64")]
         if crate::lane_rows::project_many(constraints, q, out) {

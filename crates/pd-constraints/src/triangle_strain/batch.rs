@@ -357,6 +357,9 @@ mod tests {
         (constraints, q)
     }
 
+    /// Triangle `i`'s limits in the list shifted by `shift`.
+    type LimitsOf = dyn Fn(usize, usize) -> Option<(f64, f64)>;
+
     /// Every special gradient (degenerate, non-finite, extreme scales,
     /// isotropic, ...) in every lane position of 4 and 8 lanes next to
     /// every other, in lists with and without a remainder, in batches
@@ -381,7 +384,7 @@ mod tests {
             m([0.1, 0.0, 0.0], [0.0, 0.2, 0.0]),
         ]);
         let n = cases.len();
-        let every: [&dyn Fn(usize, usize) -> Option<(f64, f64)>; 4] = [
+        let every: [&LimitsOf; 4] = [
             &|_, _| None,
             &|_, _| Some((0.9, 1.1)),
             &|i, shift| (i == shift % 11).then_some((0.9, 1.1)),
