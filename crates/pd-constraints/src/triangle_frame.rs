@@ -786,7 +786,8 @@ mod tests {
     }
 
     /// Gradients with equal singular values exactly (`R = c I` or a
-    /// rotation of it: `d = g = 0`), or up to round-off.
+    /// rotation of it: `d = g = 0`), or up to round-off; the last two
+    /// with an anisotropy so small that `d^2` is subnormal or 0.
     fn isotropic_gradients() -> Vec<Matrix3x2<f64>> {
         let m = |f0: [f64; 3], f1: [f64; 3]| {
             Matrix3x2::from_columns(&[Vector3::from(f0), Vector3::from(f1)])
@@ -803,6 +804,10 @@ mod tests {
                 [c, c],
             ));
         }
+        // Anisotropy whose `d^2` is subnormal, and one whose `d^2`
+        // underflows to 0 with `d != 0`: outside the closed form.
+        cases.push(m([1e-150 + 2e-157, 0.0, 0.0], [0.0, 1e-150, 0.0]));
+        cases.push(m([1e-150 + 2e-163, 0.0, 0.0], [0.0, 1e-150, 0.0]));
         cases
     }
 
@@ -810,9 +815,13 @@ mod tests {
     fn clamped_special_gradients_change_by_round_off_only() {
         let tilted = test_support::from_singular_values([0.3, -1.0, 0.7], 2.1, 0.4, [1.2, 0.9]);
         let extreme = [1e-150, 1e150, 1e-154, 1e154, 1e-300, 1e300].map(|x| tilted * x);
+        let isotropic = isotropic_gradients();
+        for f in &isotropic[isotropic.len() - 2..] {
+            assert!(!clamped_closed_form(f, 0.0, 1.0), "{f:?}");
+        }
         for f in special_gradients()
             .into_iter()
-            .chain(isotropic_gradients())
+            .chain(isotropic)
             .chain(extreme)
         {
             assert_clamped_round_off_change(&f);

@@ -378,6 +378,10 @@ mod tests {
             m([0.5, 0.0, 0.0], [0.0, 0.0, 0.5]),
             m([1e-140, 0.0, 0.0], [0.0, 1e-140, 0.0]),
             m([1e150, 0.0, 0.0], [0.0, 1e150, 0.0]),
+            // Anisotropy whose `d^2` is subnormal, and one whose `d^2`
+            // underflows to 0 with `d != 0`: the scalar angle form.
+            m([1e-150 + 2e-157, 0.0, 0.0], [0.0, 1e-150, 0.0]),
+            m([1e-150 + 2e-163, 0.0, 0.0], [0.0, 1e-150, 0.0]),
             // Stretched and compressed beyond both limits.
             m([1.5, 0.1, 0.0], [0.0, 0.5, 0.2]),
             m([3.0, 0.0, 0.0], [0.0, 0.0, 2.0]),
