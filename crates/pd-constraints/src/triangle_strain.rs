@@ -29,10 +29,10 @@ mod batch;
 /// `U clamp(S, min, max) V^T`, computed as `Q` times the clamped 2 x 2 SVD
 /// of `R` in closed form, again without trigonometry.
 /// [`Constraint::project_many`] projects triangles with and without
-/// limits several at a time in SIMD lanes, with the same bits. The weight is `stiffness * rest area`
-/// with `stiffness = E t` in N/m: for small strains this is plane-stress
-/// linear elasticity with Young's modulus `E`, thickness `t` and Poisson
-/// ratio 0.
+/// limits several at a time in SIMD lanes, with the same bits. The weight
+/// is `stiffness * rest area` with `stiffness = E t` in N/m: for small
+/// strains this is plane-stress linear elasticity with Young's modulus
+/// `E`, thickness `t` and Poisson ratio 0.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TriangleStrain {
     vertices: [usize; 3],

@@ -17,14 +17,17 @@
 //! norm, a second column parallel to the first, a subnormal or
 //! overflowing `e^2 + h^2`, or with limits `d^2 + g^2` neither normal nor
 //! exactly 0) is projected by its triangle's scalar function after the
-//! batch, so the results are those of [`TriangleStrain::project`] to the
-//! bit in every case.
+//! batch, so the results are those of
+//! [`TriangleStrain::project`](crate::Constraint::project) to the bit in
+//! every case.
 
 use pd_mesh::Point;
 
 use super::TriangleStrain;
 use crate::lane_rows::LaneKind;
 use crate::polar_batch::lane_sets::Lanes;
+#[cfg(doc)]
+use crate::triangle_frame::{clamped_stretch, closest_orthonormal};
 
 /// One 3 x 2 matrix per lane; entry `3 c + j` is coordinate `j` of column
 /// `c` (row `c` of `G q` or of the projection).
@@ -95,8 +98,9 @@ fn dot<S: Lanes>(s: S, a: [S::F; 3], b: [S::F; 3]) -> S::F {
     )
 }
 
-/// Each lane's projection by its own triangle ([`TriangleStrain::project`]:
-/// [`closest_orthonormal`](crate::triangle_frame::closest_orthonormal) without limits, [`clamped_stretch`](crate::triangle_frame::clamped_stretch) with), and
+/// Each lane's projection by its own triangle
+/// ([`TriangleStrain::project`](crate::Constraint::project):
+/// [`closest_orthonormal`] without limits, [`clamped_stretch`] with), and
 /// the bits of the lanes that hold it to the bit. A batch of one kind
 /// computes that kind's form only; a mixed batch computes both and selects
 /// per lane.
@@ -208,7 +212,7 @@ fn times_q<S: Lanes>(s: S, qr: &QrLanes<S>, [p00, p10, p01, p11]: [S::F; 4]) -> 
     ]
 }
 
-/// [`closest_orthonormal`](crate::triangle_frame::closest_orthonormal) on every lane from its Gram-Schmidt factors,
+/// [`closest_orthonormal`] on every lane from its Gram-Schmidt factors,
 /// with the operations of
 /// [`closest_rotation_2x2`](crate::triangle_frame::closest_rotation_2x2)'s
 /// quotient form in the same order, and the lanes where the scalar function
@@ -234,8 +238,8 @@ fn closest_orthonormal_lanes<S: Lanes>(s: S, qr: &QrLanes<S>) -> (Columns<S>, S:
     (p, normal(s, r_squared))
 }
 
-/// [`clamped_stretch`](crate::triangle_frame::clamped_stretch) on every lane from its Gram-Schmidt factors and
-/// its limits, with the operations of
+/// [`clamped_stretch`] on every lane from its Gram-Schmidt factors and its
+/// limits, with the operations of
 /// [`clamped_stretch_2x2`](crate::triangle_frame::clamped_stretch_2x2)'s
 /// closed form in the same order (`f64::clamp` as two selects, `max` with
 /// 0 of a finite difference as `vmaxpd`), and the lanes where the scalar
