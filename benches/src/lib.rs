@@ -261,7 +261,8 @@ impl Beam {
 /// fixed; released from horizontal under gravity it swings down, so the
 /// triangles rotate and stretch a little, as in `scenes/cloth_*.toml`.
 /// Bending is optional, so that the triangle-strain pass can be measured
-/// alone.
+/// alone; so are stretch limits (`scenes/cloth_flag.toml` and two more
+/// cloth scenes have them).
 ///
 /// ```
 /// let sheet = pd_benches::Sheet { cells: [4, 3], ..pd_benches::Sheet::default() };
@@ -282,6 +283,9 @@ pub struct Sheet {
     /// Flexural rigidity `D` in N m of the bending constraints, or `None`
     /// for none.
     pub bending: Option<f64>,
+    /// Stretch limits `(min, max)` of every triangle's principal stretches
+    /// (`0 <= min <= 1 <= max`), or `None` for none.
+    pub limits: Option<(f64, f64)>,
 }
 
 impl Default for Sheet {
@@ -294,6 +298,7 @@ impl Default for Sheet {
             stiffness: 5e3,
             density: 0.2,
             bending: None,
+            limits: None,
         }
     }
 }
@@ -316,7 +321,7 @@ impl Sheet {
         let mut model = Model::new();
         let body = model.add_body(mesh, masses).map_err(|e| e.to_string())?;
         model
-            .add_triangle_strain(body, self.stiffness, None)
+            .add_triangle_strain(body, self.stiffness, self.limits)
             .map_err(|e| e.to_string())?;
         if let Some(rigidity) = self.bending {
             model

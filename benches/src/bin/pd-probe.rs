@@ -15,9 +15,10 @@
 //! beam options: --cells NX,NY,NZ --iters K --threads T --dt H --stiffness PA --soft-clamp
 //! ```
 //!
-//! `step` and `phases` take `--cloth NX,NZ [--bending D]` instead of a beam
-//! or mesh: the cloth sheet of `pd_benches::Sheet` with that many cells
-//! (triangle strain only, or with bending of rigidity `D` in N m), stepped
+//! `step` and `phases` take `--cloth NX,NZ [--bending D] [--limits MIN,MAX]`
+//! instead of a beam or mesh: the cloth sheet of `pd_benches::Sheet` with
+//! that many cells (triangle strain only, or with bending of rigidity `D`
+//! in N m; with stretch limits `[MIN, MAX]` on every triangle), stepped
 //! with the beam options' `--iters`, `--threads` and `--dt` (undamped,
 //! backward Euler); the output then also has `n_triangles`.
 
@@ -75,7 +76,8 @@ impl ProbeOptions for Options<'_> {
         })
     }
 
-    /// The cloth sheet of `--cloth NX,NZ [--bending D]`, if asked for.
+    /// The cloth sheet of `--cloth NX,NZ [--bending D] [--limits MIN,MAX]`,
+    /// if asked for.
     fn sheet(&self) -> Result<Option<Sheet>, String> {
         if self.value("--cloth").is_none() {
             return Ok(None);
@@ -88,9 +90,24 @@ impl ProbeOptions for Options<'_> {
             None => None,
             Some(_) => Some(self.parse("--bending", 0.0)?),
         };
+        let limits = match self.value("--limits") {
+            None => None,
+            Some(text) => {
+                let bounds: Vec<f64> = text
+                    .split(',')
+                    .map(|p| p.trim().parse())
+                    .collect::<Result<_, _>>()
+                    .map_err(|_| format!("--limits: cannot parse {text:?}"))?;
+                let [min, max]: [f64; 2] = bounds
+                    .try_into()
+                    .map_err(|_| "--limits needs two numbers MIN,MAX".to_string())?;
+                Some((min, max))
+            }
+        };
         Ok(Some(Sheet {
             cells,
             bending,
+            limits,
             ..Sheet::default()
         }))
     }

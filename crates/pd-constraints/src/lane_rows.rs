@@ -30,19 +30,26 @@ const ROWS_AHEAD: usize = 1;
 /// lane registers per batch. Every method must be `#[inline(always)]`.
 pub(crate) trait LaneKind<const N: usize>: Constraint {
     /// Whether a batch holding this element goes one at a time (strain
-    /// limits, which the lanes do not implement).
+    /// limits, where a kind's lanes do not implement them).
     fn one_at_a_time(&self) -> bool;
     /// `G q` of a batch, one element per lane, summed exactly as
     /// `apply_operator` sums it (each lane bit-identical to the scalar).
     fn gradients<S: Lanes>(s: S, batch: &[Self], q: &[Point]) -> [S::F; N];
-    /// The projection of every lane, and the bits of the lanes that hold
-    /// the scalar projection to the bit (the others must be projected by
-    /// the scalar code).
-    fn project_lanes<S: Lanes>(s: S, f: &[S::F; N]) -> ([S::F; N], u32);
+    /// The projection of every lane (lane `l` element `batch[l]`'s), and
+    /// the bits of the lanes that hold the scalar projection to the bit
+    /// (the others must be projected by the scalar code).
+    fn project_lanes<S: Lanes>(s: S, batch: &[Self], f: &[S::F; N]) -> ([S::F; N], u32);
     /// Writes lane `l`'s projection into rows `R l..R l + R` of `rows`:
     /// `p`'s where `exact` has bit `l`, else the scalar projection of the
-    /// lane's `f`.
-    fn scatter<S: Lanes>(s: S, p: &[S::F; N], exact: u32, f: &[S::F; N], rows: &mut [Point]);
+    /// lane's `f` by `batch[l]`.
+    fn scatter<S: Lanes>(
+        s: S,
+        batch: &[Self],
+        p: &[S::F; N],
+        exact: u32,
+        f: &[S::F; N],
+        rows: &mut [Point],
+    );
 }
 
 /// [`Constraint::project_many`] in lanes; `false` (nothing written) if
@@ -139,8 +146,8 @@ impl<C: LaneKind<N>, const N: usize, const ENERGIES: bool> WithLanes
                 continue;
             }
             let f = C::gradients(s, batch, q);
-            let (p, exact) = C::project_lanes(s, &f);
-            C::scatter(s, &p, exact, &f, rows);
+            let (p, exact) = C::project_lanes(s, batch, &f);
+            C::scatter(s, batch, &p, exact, &f, rows);
             if ENERGIES && let Some(energy) = energy_batches.next() {
                 // The lanes' projection where every lane holds the scalar
                 // one, else the rows just written.

@@ -33,6 +33,24 @@
 //! projection repeat (`docs/performance.md`, "Triangle strain in SIMD
 //! lanes").
 //!
+//! # Clamped singular values
+//!
+//! `U2 diag(c) V^T` for `c = clamp(s, min, max)` without the angles: with
+//! `R = e I + h J + d Z + g X` (`e, h` as above, `d = (r00 - r11)/2`,
+//! `g = r01/2`; `J` the quarter turn, `Z = diag(1, -1)`, `X` the swap),
+//! `R = rot Rot(alpha) + refl Refl(beta)`, `rot = sqrt(e^2 + h^2)`,
+//! `refl = sqrt(d^2 + g^2)`, `s = (rot + refl, rot - refl)`, and
+//! `U2 = Rot((alpha + beta)/2)`, `V^T = Rot((alpha - beta)/2)`. Since
+//! `Rot(phi) diag(c0, c1) Rot(psi) = (c0 + c1)/2 Rot(phi + psi) +
+//! (c0 - c1)/2 Rot(phi - psi) Z`, the clamped matrix is
+//! `a [[e, -h], [h, e]] + b [[d, g], [g, -d]]` with
+//! `a = (c0 + c1) / (2 rot)`, `b = (c0 - c1) / (2 refl)` (`b = 0` where
+//! `d = g = 0`: equal singular values, `c0 = c1`, and undefined singular
+//! vectors that the result does not need). With `c = s` it is `R`
+//! itself. [`clamped_stretch`] computes it so, with a fixed sequence of
+//! IEEE operations that the SIMD lanes repeat (`docs/performance.md`,
+//! "Stretch-limited triangles in SIMD lanes").
+//!
 //! # Hessian of an isotropic energy
 //!
 //! For `P(F) = U diag(c) V^T`, `c = c(s)`, the six matrices
@@ -205,6 +223,84 @@ pub(crate) fn closest_orthonormal(f: &Matrix3x2<f64>) -> Matrix3x2<f64> {
     } = thin_qr(f);
     let (cos, sin) = closest_rotation_2x2(r00, r01, r11);
     Matrix3x2::from_columns(&[q0 * cos + q1 * sin, q1 * cos - q0 * sin])
+}
+
+/// `U clamp(s, min, max) V^T` of the thin SVD of `f` as [`thin_svd`]
+/// gives it (two `atan2`, three `sin_cos`): the stretch-limited projection
+/// from before [`clamped_stretch`], and that function's result where its
+/// closed form does not apply.
+pub(crate) fn clamped_stretch_by_angles(f: &Matrix3x2<f64>, min: f64, max: f64) -> Matrix3x2<f64> {
+    let svd = thin_svd(f);
+    let c = svd.s.map(|s| s.clamp(min, max));
+    svd.u * Matrix2::from_diagonal(&c) * svd.v.transpose()
+}
+
+/// `U2 clamp(s, min, max) V^T` of the upper-triangular
+/// `R = [[r00, r01], [0, r11]] = U2 diag(s) V^T`, as the entries
+/// `[p00, p10, p01, p11]` (column-major), without trigonometry (see the
+/// module documentation): with `e, d, g, h` as in [`thin_svd`],
+/// `rot = sqrt(e^2 + h^2)`, `refl = sqrt(d^2 + g^2)`, `s0 = rot + refl`,
+/// `s1 = max(rot - refl, 0)`, `c_i = clamp(s_i, min, max)`,
+/// `a = 0.5 (c0 + c1) / rot`, `b = 0.5 (c0 - c1) / refl` (0 where
+/// `d = g = 0`: equal singular values, so `c0 = c1`), the matrix
+/// `a [[e, -h], [h, e]] + b [[d, g], [g, -d]]`, each entry one sum of two
+/// products in the order written. `None` (the caller takes the angles)
+/// where `e^2 + h^2` is not a normal, finite number, or `d^2 + g^2` is
+/// neither one nor exactly 0 from `d = g = 0`: an over- or underflowing
+/// square would make a quotient wrong, not merely rounded. The
+/// triangle-strain lanes repeat exactly these operations.
+#[inline]
+pub(crate) fn clamped_stretch_2x2(
+    r00: f64,
+    r01: f64,
+    r11: f64,
+    min: f64,
+    max: f64,
+) -> Option<[f64; 4]> {
+    let (e, d, g, h) = (0.5 * (r00 + r11), 0.5 * (r00 - r11), 0.5 * r01, -0.5 * r01);
+    let rot2 = e * e + h * h;
+    let refl2 = d * d + g * g;
+    let normal = |x: f64| (f64::MIN_POSITIVE..=f64::MAX).contains(&x);
+    let isotropic = d == 0.0 && g == 0.0;
+    if !(normal(rot2) && (isotropic || normal(refl2))) {
+        return None;
+    }
+    let (rot, refl) = (rot2.sqrt(), refl2.sqrt());
+    // `det R >= 0` makes `rot >= refl`; `max` removes round-off, as in
+    // `thin_svd`.
+    let (s0, s1) = (rot + refl, (rot - refl).max(0.0));
+    let (c0, c1) = (s0.clamp(min, max), s1.clamp(min, max));
+    let a = 0.5 * (c0 + c1) / rot;
+    let b = if isotropic {
+        0.0
+    } else {
+        0.5 * (c0 - c1) / refl
+    };
+    Some([a * e + b * d, a * h + b * g, b * g - a * h, a * e - b * d])
+}
+
+/// `U clamp(S, min, max) V^T` for the thin SVD `f = U S V^T`: [`thin_qr`],
+/// [`clamped_stretch_2x2`] of `R`, then `Q` times that 2 x 2 matrix, the
+/// columns `q0 p00 + q1 p10` and `q0 p01 + q1 p11` (per coordinate, left
+/// to right). It differs from [`clamped_stretch_by_angles`] by round-off
+/// only (`docs/performance.md`, "Stretch-limited triangles in SIMD
+/// lanes"), and is that function's result to the bit where the closed
+/// form does not apply (`F = 0`, columns of norm below about 1e-150 or
+/// above 1e150, NaN). Degenerate columns are handled as in [`thin_svd`].
+pub(crate) fn clamped_stretch(f: &Matrix3x2<f64>, min: f64, max: f64) -> Matrix3x2<f64> {
+    let ThinQr {
+        q0,
+        q1,
+        r00,
+        r01,
+        r11,
+    } = thin_qr(f);
+    match clamped_stretch_2x2(r00, r01, r11, min, max) {
+        Some([p00, p10, p01, p11]) => {
+            Matrix3x2::from_columns(&[q0 * p00 + q1 * p10, q0 * p01 + q1 * p11])
+        }
+        None => clamped_stretch_by_angles(f, min, max),
+    }
 }
 
 /// Thin SVD of `f` (see the module documentation). Non-finite input gives
@@ -620,6 +716,11 @@ mod tests {
         }
 
         #[test]
+        fn clamped_stretch_changes_by_round_off_only(f in gradient()) {
+            assert_clamped_round_off_change(&f);
+        }
+
+        #[test]
         fn closest_orthonormal_is_optimal(f in gradient()) {
             let s = f.singular_values();
             // Gram-Schmidt's loss of orthogonality grows with the condition
@@ -629,6 +730,198 @@ mod tests {
                 assert_closest_orthonormal(&f, &closest_orthonormal(&f));
             }
         }
+    }
+
+    /// The bound of `docs/performance.md` ("Stretch-limited triangles in
+    /// SIMD lanes") on `|P_new - P_old|` per entry, in units of
+    /// `2^-52 max(s0, min) sqrt(1 + |q0 . q1|)`.
+    const CLAMPED_ROUND_OFF_BOUND: f64 = 19.0 * f64::EPSILON;
+
+    /// Stretch limits of every kind the constraints accept: the cloth
+    /// scenes', a wide and a degenerate pair, `min = 0`, `max = 1`.
+    const LIMITS: [(f64, f64); 6] = [
+        (0.95, 1.05),
+        (0.9, 1.1),
+        (0.5, 2.0),
+        (1.0, 1.0),
+        (0.0, 1.0),
+        (0.0, 1e6),
+    ];
+
+    /// Whether `f` takes [`clamped_stretch_2x2`]'s closed form.
+    fn clamped_closed_form(f: &Matrix3x2<f64>, min: f64, max: f64) -> bool {
+        let ThinQr { r00, r01, r11, .. } = thin_qr(f);
+        clamped_stretch_2x2(r00, r01, r11, min, max).is_some()
+    }
+
+    /// `|P_new - P_old|`'s largest entry over the bound's unit
+    /// `2^-52 max(s0, min) sqrt(1 + |q0 . q1|)` (0 where the bits agree),
+    /// and checks that outside the closed form the bits agree.
+    fn clamped_change(f: &Matrix3x2<f64>, min: f64, max: f64) -> f64 {
+        let (new, old) = (
+            clamped_stretch(f, min, max),
+            clamped_stretch_by_angles(f, min, max),
+        );
+        if !clamped_closed_form(f, min, max) {
+            let bits = |m: &Matrix3x2<f64>| m.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&new), bits(&old), "F = {f:?}, limits {min}, {max}");
+            return 0.0;
+        }
+        let ThinQr { q0, q1, .. } = thin_qr(f);
+        let scale = thin_svd(f).s[0].max(min) * (1.0 + q0.dot(&q1).abs()).sqrt();
+        largest_difference(&new, &old) / scale
+    }
+
+    fn assert_clamped_round_off_change(f: &Matrix3x2<f64>) {
+        for (min, max) in LIMITS {
+            let d = clamped_change(f, min, max);
+            assert!(
+                d <= CLAMPED_ROUND_OFF_BOUND,
+                "F = {f:?}, limits {min}, {max}: {} eps: new {:?} vs old {:?}",
+                d / f64::EPSILON,
+                clamped_stretch(f, min, max),
+                clamped_stretch_by_angles(f, min, max)
+            );
+        }
+    }
+
+    /// Gradients with equal singular values exactly (`R = c I` or a
+    /// rotation of it: `d = g = 0`), or up to round-off; the last two
+    /// with an anisotropy so small that `d^2` is subnormal or 0.
+    fn isotropic_gradients() -> Vec<Matrix3x2<f64>> {
+        let m = |f0: [f64; 3], f1: [f64; 3]| {
+            Matrix3x2::from_columns(&[Vector3::from(f0), Vector3::from(f1)])
+        };
+        let mut cases = Vec::new();
+        for c in [1.0, 1.2, 0.7, 1.05, 0.95, 1e-3, 1e3, 1e-140, 1e140] {
+            cases.push(m([c, 0.0, 0.0], [0.0, c, 0.0]));
+            cases.push(m([0.0, 0.0, c], [c, 0.0, 0.0]));
+            cases.push(m([0.6 * c, 0.8 * c, 0.0], [-0.8 * c, 0.6 * c, 0.0]));
+            cases.push(test_support::from_singular_values(
+                [0.2, 0.5, -1.0],
+                1.3,
+                0.4,
+                [c, c],
+            ));
+        }
+        // Anisotropy whose `d^2` is subnormal, and one whose `d^2`
+        // underflows to 0 with `d != 0`: outside the closed form.
+        cases.push(m([1e-150 + 2e-157, 0.0, 0.0], [0.0, 1e-150, 0.0]));
+        cases.push(m([1e-150 + 2e-163, 0.0, 0.0], [0.0, 1e-150, 0.0]));
+        cases
+    }
+
+    #[test]
+    fn clamped_special_gradients_change_by_round_off_only() {
+        let tilted = test_support::from_singular_values([0.3, -1.0, 0.7], 2.1, 0.4, [1.2, 0.9]);
+        let extreme = [1e-150, 1e150, 1e-154, 1e154, 1e-300, 1e300].map(|x| tilted * x);
+        let isotropic = isotropic_gradients();
+        for f in &isotropic[isotropic.len() - 2..] {
+            assert!(!clamped_closed_form(f, 0.0, 1.0), "{f:?}");
+        }
+        for f in special_gradients()
+            .into_iter()
+            .chain(isotropic)
+            .chain(extreme)
+        {
+            assert_clamped_round_off_change(&f);
+        }
+    }
+
+    /// Exactly isotropic gradients take the closed form (its `d = g = 0`
+    /// case, no division by `refl = 0`) and are scaled to the clamped
+    /// singular value: `clamp(c) / c` times `F`, up to round-off.
+    #[test]
+    fn isotropic_gradients_are_scaled() {
+        for f in isotropic_gradients().into_iter().step_by(4).take(7) {
+            let c = f[(0, 0)];
+            for (min, max) in LIMITS {
+                assert!(clamped_closed_form(&f, min, max));
+                let expected = f * (c.clamp(min, max) / c);
+                let p = clamped_stretch(&f, min, max);
+                assert!(
+                    largest_difference(&p, &expected) <= 4.0 * f64::EPSILON * c.max(min),
+                    "{f:?}, {min}, {max}: {p:?}"
+                );
+            }
+        }
+    }
+
+    /// Where both singular values lie within the limits the constraint is
+    /// satisfied and the projection is `F` itself, up to round-off (a
+    /// sanity check of the closed form with a loose tolerance, not a
+    /// derived bound: the bound above is against the old form).
+    #[test]
+    fn gradients_within_the_limits_are_kept() {
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut uniform = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for _ in 0..10_000 {
+            let s = [1.0 + 0.05 * uniform(), 1.0 + 0.05 * uniform()];
+            let axis = [uniform(), uniform(), uniform()];
+            let f = test_support::from_singular_values(axis, 3.2 * uniform(), 3.2 * uniform(), s);
+            let p = clamped_stretch(&f, 0.9, 1.1);
+            assert!(
+                largest_difference(&p, &f) <= 32.0 * f64::EPSILON,
+                "{f:?}: {p:?}"
+            );
+        }
+    }
+
+    /// Half a million gradients with limits from a fixed sequence: random
+    /// entries, near-isometries, stretched and compressed ones, at scales
+    /// 1e-8 to 1e8; the largest change is printed with `--nocapture`.
+    #[test]
+    fn largest_clamped_round_off_change_over_many_gradients() {
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut uniform = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let mut largest = 0.0f64;
+        let n = if cfg!(debug_assertions) {
+            60_000
+        } else {
+            500_000
+        };
+        for i in 0..n {
+            let f = match i % 4 {
+                0 => Matrix3x2::from_fn(|_, _| uniform()),
+                1 => {
+                    let s = [1.0 + 0.1 * uniform(), 1.0 + 0.1 * uniform()];
+                    let axis = [uniform(), uniform(), uniform()];
+                    test_support::from_singular_values(axis, 3.2 * uniform(), 3.2 * uniform(), s)
+                }
+                _ => {
+                    let s = [10f64.powf(2.0 * uniform()), 10f64.powf(2.0 * uniform())];
+                    let axis = [uniform(), uniform(), uniform()];
+                    let f = test_support::from_singular_values(
+                        axis,
+                        3.2 * uniform(),
+                        3.2 * uniform(),
+                        s,
+                    );
+                    f * 10f64.powf(8.0 * uniform())
+                }
+            };
+            let (min, max) = LIMITS[i % LIMITS.len()];
+            largest = largest.max(clamped_change(&f, min, max));
+        }
+        eprintln!(
+            "largest |P_new - P_old| entry: {} eps max(s0, min) sqrt(1 + |q0.q1|)",
+            largest / f64::EPSILON
+        );
+        assert!(
+            largest <= CLAMPED_ROUND_OFF_BOUND,
+            "{} eps",
+            largest / f64::EPSILON
+        );
     }
 
     #[test]

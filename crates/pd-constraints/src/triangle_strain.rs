@@ -9,7 +9,8 @@ use pd_mesh::Point;
 use crate::constraint::{energies_one_by_one, project_one_by_one};
 use crate::tet_strain::check_stiffness;
 use crate::triangle_frame::{
-    IsotropicProjection, closest_orthonormal, gradient_of, isotropic_hessian, rest_frame, thin_svd,
+    IsotropicProjection, clamped_stretch, closest_orthonormal, gradient_of, isotropic_hessian,
+    rest_frame, thin_svd,
 };
 use crate::{Constraint, ConstraintError, TetStrain};
 
@@ -25,12 +26,13 @@ mod batch;
 /// a rigid motion of the rest triangle), computed as `Q Rot` from the
 /// factors `F = Q R` and the rotation closest to `R`, without
 /// trigonometry; or with limits `[min, max]` the matrix
-/// `U clamp(S, min, max) V^T`. [`Constraint::project_many`] projects
-/// triangles without limits several at a time in SIMD lanes, with the same
-/// bits. The weight is `stiffness * rest area`
-/// with `stiffness = E t` in N/m: for small strains this is plane-stress
-/// linear elasticity with Young's modulus `E`, thickness `t` and Poisson
-/// ratio 0.
+/// `U clamp(S, min, max) V^T`, computed as `Q` times the clamped 2 x 2 SVD
+/// of `R` in closed form, again without trigonometry.
+/// [`Constraint::project_many`] projects triangles with and without
+/// limits several at a time in SIMD lanes, with the same bits. The weight
+/// is `stiffness * rest area` with `stiffness = E t` in N/m: for small
+/// strains this is plane-stress linear elasticity with Young's modulus
+/// `E`, thickness `t` and Poisson ratio 0.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TriangleStrain {
     vertices: [usize; 3],
@@ -75,6 +77,15 @@ impl TriangleStrain {
     fn bounds(&self) -> (f64, f64) {
         self.limits.unwrap_or((1.0, 1.0))
     }
+
+    /// The projection of the gradient `f`: [`closest_orthonormal`], or
+    /// with limits [`clamped_stretch`].
+    fn target(&self, f: &Matrix3x2<f64>) -> Matrix3x2<f64> {
+        match self.limits {
+            None => closest_orthonormal(f),
+            Some((min, max)) => clamped_stretch(f, min, max),
+        }
+    }
 }
 
 impl Constraint for TriangleStrain {
@@ -98,22 +109,14 @@ impl Constraint for TriangleStrain {
     }
 
     fn project(&self, gx: &[Point], out: &mut [Point]) {
-        let f = gradient_of(gx);
-        let target: Matrix3x2<f64> = match self.limits {
-            None => closest_orthonormal(&f),
-            Some((min, max)) => {
-                let svd = thin_svd(&f);
-                let c = svd.s.map(|s| s.clamp(min, max));
-                svd.u * Matrix2::from_diagonal(&c) * svd.v.transpose()
-            }
-        };
+        let target = self.target(&gradient_of(gx));
         out[0] = target.column(0).into_owned();
         out[1] = target.column(1).into_owned();
     }
 
-    /// Batches of triangles without limits (as many as the CPU has f64
-    /// lanes) in SIMD lanes, bit-identical to [`Self::project`]; the rest,
-    /// one at a time.
+    /// Batches of triangles with or without limits (as many as the CPU has
+    /// f64 lanes) in SIMD lanes, bit-identical to [`Self::project`]; the
+    /// rest, one at a time.
     fn project_many(constraints: &[Self], q: &[Point], out: &mut [Point]) {
         #[cfg(target_arch = "x86_64")]
         if crate::lane_rows::project_many(constraints, q, out) {

@@ -32,12 +32,19 @@ impl LaneKind<9> for TetStrain {
     }
 
     #[inline(always)]
-    fn project_lanes<S: Lanes>(s: S, f: &Batch<S>) -> (Batch<S>, u32) {
+    fn project_lanes<S: Lanes>(s: S, _: &[Self], f: &Batch<S>) -> (Batch<S>, u32) {
         newton_polar_lanes(s, f)
     }
 
     #[inline(always)]
-    fn scatter<S: Lanes>(s: S, x: &Batch<S>, converged: u32, f: &Batch<S>, rows: &mut [Point]) {
+    fn scatter<S: Lanes>(
+        s: S,
+        _: &[Self],
+        x: &Batch<S>,
+        converged: u32,
+        f: &Batch<S>,
+        rows: &mut [Point],
+    ) {
         scatter(s, x, converged, f, rows);
     }
 }

@@ -6,23 +6,28 @@
 //! Per batch: gather the 3 x 2 gradients into structure-of-arrays lanes
 //! (`F = G q` with lane-wide products and sums in the order of
 //! `apply_operator`, so each lane's `F` is bit-identical to the scalar
-//! one), run [`closest_orthonormal`]'s operations on every lane
-//! ([`closest_orthonormal_lanes`]: Gram-Schmidt, then the 2 x 2 closest
-//! rotation, no trigonometry, no branch), and write each lane's two
-//! columns into its output rows. A lane for which the scalar function
+//! one), run the scalar projection's operations on every lane (Gram-Schmidt,
+//! [`thin_qr_lanes`]; then without limits the 2 x 2 closest rotation,
+//! [`closest_orthonormal_lanes`], with limits the clamped 2 x 2 SVD in
+//! closed form, [`clamped_stretch_lanes`], each lane with its own limits;
+//! no trigonometry, no branch), and write each lane's two columns into its
+//! output rows. A batch of triangles with and without limits computes both
+//! forms and takes each lane's own. A lane for which the scalar function
 //! would take another branch (a zero, non-finite or overflowing column
 //! norm, a second column parallel to the first, a subnormal or
-//! overflowing `e^2 + h^2`) is projected by the scalar
-//! [`closest_orthonormal`], and a batch with a stretch-limited triangle
-//! goes one at a time, so the results are those of
-//! [`TriangleStrain::project`] to the bit in every case.
+//! overflowing `e^2 + h^2`, or with limits `d^2 + g^2` neither normal nor
+//! exactly 0) is projected by its triangle's scalar function after the
+//! batch, so the results are those of
+//! [`TriangleStrain::project`](crate::Constraint::project) to the bit in
+//! every case.
 
 use pd_mesh::Point;
 
 use super::TriangleStrain;
 use crate::lane_rows::LaneKind;
 use crate::polar_batch::lane_sets::Lanes;
-use crate::triangle_frame::closest_orthonormal;
+#[cfg(doc)]
+use crate::triangle_frame::{clamped_stretch, closest_orthonormal};
 
 /// One 3 x 2 matrix per lane; entry `3 c + j` is coordinate `j` of column
 /// `c` (row `c` of `G q` or of the projection).
@@ -31,7 +36,7 @@ type Columns<S> = [<S as Lanes>::F; 6];
 impl LaneKind<6> for TriangleStrain {
     #[inline(always)]
     fn one_at_a_time(&self) -> bool {
-        self.limits.is_some()
+        false
     }
 
     #[inline(always)]
@@ -40,14 +45,20 @@ impl LaneKind<6> for TriangleStrain {
     }
 
     #[inline(always)]
-    fn project_lanes<S: Lanes>(s: S, f: &Columns<S>) -> (Columns<S>, u32) {
-        let (p, regular) = closest_orthonormal_lanes(s, f);
-        (p, s.bits(regular))
+    fn project_lanes<S: Lanes>(s: S, batch: &[Self], f: &Columns<S>) -> (Columns<S>, u32) {
+        project_lanes(s, batch, f)
     }
 
     #[inline(always)]
-    fn scatter<S: Lanes>(s: S, p: &Columns<S>, regular: u32, f: &Columns<S>, rows: &mut [Point]) {
-        scatter(s, p, regular, f, rows);
+    fn scatter<S: Lanes>(
+        s: S,
+        batch: &[Self],
+        p: &Columns<S>,
+        regular: u32,
+        f: &Columns<S>,
+        rows: &mut [Point],
+    ) {
+        scatter(s, batch, p, regular, f, rows);
     }
 }
 
@@ -87,15 +98,63 @@ fn dot<S: Lanes>(s: S, a: [S::F; 3], b: [S::F; 3]) -> S::F {
     )
 }
 
-/// [`closest_orthonormal`] on every lane, with the operations of its
-/// regular branch ([`thin_qr`](crate::triangle_frame::thin_qr) on two
-/// columns of positive, finite norm, then
-/// [`closest_rotation_2x2`](crate::triangle_frame::closest_rotation_2x2)
-/// from a normal, finite `e^2 + h^2`) in the same order, and the lanes where
-/// the scalar function takes that branch. Those lanes hold its result to
-/// the bit; the others must be projected by the scalar function.
+/// Each lane's projection by its own triangle
+/// ([`TriangleStrain::project`](crate::Constraint::project):
+/// [`closest_orthonormal`] without limits, [`clamped_stretch`] with), and
+/// the bits of the lanes that hold it to the bit. A batch of one kind
+/// computes that kind's form only; a mixed batch computes both and selects
+/// per lane.
 #[inline(always)]
-fn closest_orthonormal_lanes<S: Lanes>(s: S, f: &Columns<S>) -> (Columns<S>, S::M) {
+fn project_lanes<S: Lanes>(s: S, batch: &[TriangleStrain], f: &Columns<S>) -> (Columns<S>, u32) {
+    let qr = thin_qr_lanes(s, f);
+    let limited = (batch.iter().enumerate()).fold(0u32, |bits, (l, t)| {
+        bits | u32::from(t.limits.is_some()) << l
+    });
+    let all = (1u32 << S::WIDTH) - 1;
+    if limited == 0 {
+        let (p, regular) = closest_orthonormal_lanes(s, &qr);
+        return (p, s.bits(s.and(qr.regular, regular)));
+    }
+    let mut bounds = [S::Values::default(); 2];
+    for (l, t) in batch.iter().enumerate() {
+        // Unlimited lanes of a mixed batch compute a clamp that is not
+        // used: any valid limits do.
+        let (min, max) = t.limits.unwrap_or((1.0, 1.0));
+        bounds[0].as_mut()[l] = min;
+        bounds[1].as_mut()[l] = max;
+    }
+    let (min, max) = (s.pack(bounds[0]), s.pack(bounds[1]));
+    let (clamped, clamped_regular) = clamped_stretch_lanes(s, &qr, min, max);
+    let qr_regular = s.bits(qr.regular);
+    if limited == all {
+        return (clamped, qr_regular & s.bits(clamped_regular));
+    }
+    let (rotation, rotation_regular) = closest_orthonormal_lanes(s, &qr);
+    let mut flags = S::Values::default();
+    for (l, v) in flags.as_mut().iter_mut().enumerate() {
+        *v = f64::from(limited >> l & 1);
+    }
+    let mask = s.gt(s.pack(flags), s.splat(0.0));
+    let p = std::array::from_fn(|i| s.select(mask, clamped[i], rotation[i]));
+    let regular = (limited & s.bits(clamped_regular)) | (!limited & s.bits(rotation_regular));
+    (p, qr_regular & regular)
+}
+
+/// The Gram-Schmidt factors `F = Q R` of every lane, and the lanes where
+/// [`thin_qr`](crate::triangle_frame::thin_qr) takes its regular branch
+/// (two columns of positive, finite norm), with its operations in its
+/// order.
+struct QrLanes<S: Lanes> {
+    q0: [S::F; 3],
+    q1: [S::F; 3],
+    r00: S::F,
+    r01: S::F,
+    r11: S::F,
+    regular: S::M,
+}
+
+#[inline(always)]
+fn thin_qr_lanes<S: Lanes>(s: S, f: &Columns<S>) -> QrLanes<S> {
     let (zero, largest) = (s.splat(0.0), s.splat(f64::MAX));
     let finite_positive = |x: S::F| s.and(s.gt(x, zero), s.le(x, largest));
     let f0 = [f[0], f[1], f[2]];
@@ -115,12 +174,59 @@ fn closest_orthonormal_lanes<S: Lanes>(s: S, f: &Columns<S>) -> (Columns<S>, S::
     let n1 = s.sqrt(n1_squared);
     let q1 = [s.div(rest[0], n1), s.div(rest[1], n1), s.div(rest[2], n1)];
     let (r00, r11) = (dot(s, q0, f0), dot(s, q1, f1));
-    // The closest rotation to R: (e, h) / sqrt(e^2 + h^2).
-    let e = s.mul(s.splat(0.5), s.add(r00, r11));
-    let h = s.mul(s.splat(-0.5), r01);
+    // `try_normalize(0.0)` succeeds where the norm is positive (finite
+    // here, so that no lane carries inf or NaN into the rest).
+    let regular = s.and(finite_positive(n0_squared), finite_positive(n1_squared));
+    QrLanes {
+        q0,
+        q1,
+        r00,
+        r01,
+        r11,
+        regular,
+    }
+}
+
+/// Whether every lane of `x` is a normal, finite number.
+#[inline(always)]
+fn normal<S: Lanes>(s: S, x: S::F) -> S::M {
+    s.and(
+        s.ge(x, s.splat(f64::MIN_POSITIVE)),
+        s.le(x, s.splat(f64::MAX)),
+    )
+}
+
+/// `Q` times a 2 x 2 matrix `[p00, p10, p01, p11]` (column-major): the
+/// columns `q0 p00 + q1 p10` and `q0 p01 + q1 p11`, per coordinate left to
+/// right, as nalgebra evaluates them.
+#[inline(always)]
+fn times_q<S: Lanes>(s: S, qr: &QrLanes<S>, [p00, p10, p01, p11]: [S::F; 4]) -> Columns<S> {
+    let (q0, q1) = (qr.q0, qr.q1);
+    [
+        s.add(s.mul(q0[0], p00), s.mul(q1[0], p10)),
+        s.add(s.mul(q0[1], p00), s.mul(q1[1], p10)),
+        s.add(s.mul(q0[2], p00), s.mul(q1[2], p10)),
+        s.add(s.mul(q0[0], p01), s.mul(q1[0], p11)),
+        s.add(s.mul(q0[1], p01), s.mul(q1[1], p11)),
+        s.add(s.mul(q0[2], p01), s.mul(q1[2], p11)),
+    ]
+}
+
+/// [`closest_orthonormal`] on every lane from its Gram-Schmidt factors,
+/// with the operations of
+/// [`closest_rotation_2x2`](crate::triangle_frame::closest_rotation_2x2)'s
+/// quotient form in the same order, and the lanes where the scalar function
+/// takes that form (a normal, finite `e^2 + h^2`). Those lanes of a regular
+/// `qr` hold its result to the bit; the others must be projected by the
+/// scalar function.
+#[inline(always)]
+fn closest_orthonormal_lanes<S: Lanes>(s: S, qr: &QrLanes<S>) -> (Columns<S>, S::M) {
+    let e = s.mul(s.splat(0.5), s.add(qr.r00, qr.r11));
+    let h = s.mul(s.splat(-0.5), qr.r01);
     let r_squared = s.add(s.mul(e, e), s.mul(h, h));
     let r = s.sqrt(r_squared);
     let (cos, sin) = (s.div(e, r), s.div(h, r));
+    let (q0, q1) = (qr.q0, qr.q1);
     let p = [
         s.add(s.mul(q0[0], cos), s.mul(q1[0], sin)),
         s.add(s.mul(q0[1], cos), s.mul(q1[1], sin)),
@@ -129,24 +235,67 @@ fn closest_orthonormal_lanes<S: Lanes>(s: S, f: &Columns<S>) -> (Columns<S>, S::
         s.sub(s.mul(q1[1], cos), s.mul(q0[1], sin)),
         s.sub(s.mul(q1[2], cos), s.mul(q0[2], sin)),
     ];
-    // The scalar branches: `try_normalize(0.0)` succeeds where the norm is
-    // positive (finite here, so that no lane carries inf or NaN into the
-    // rest), and the quotient form needs a normal, finite `e^2 + h^2`.
+    (p, normal(s, r_squared))
+}
+
+/// [`clamped_stretch`] on every lane from its Gram-Schmidt factors and its
+/// limits, with the operations of
+/// [`clamped_stretch_2x2`](crate::triangle_frame::clamped_stretch_2x2)'s
+/// closed form in the same order (`f64::clamp` as two selects, `max` with
+/// 0 of a finite difference as `vmaxpd`), and the lanes where the scalar
+/// function takes that form. Those lanes of a regular `qr` hold its result
+/// to the bit; the others must be projected by the scalar function.
+#[inline(always)]
+fn clamped_stretch_lanes<S: Lanes>(
+    s: S,
+    qr: &QrLanes<S>,
+    min: S::F,
+    max: S::F,
+) -> (Columns<S>, S::M) {
+    let (zero, half) = (s.splat(0.0), s.splat(0.5));
+    let e = s.mul(half, s.add(qr.r00, qr.r11));
+    let d = s.mul(half, s.sub(qr.r00, qr.r11));
+    let g = s.mul(half, qr.r01);
+    let h = s.mul(s.splat(-0.5), qr.r01);
+    let rot_squared = s.add(s.mul(e, e), s.mul(h, h));
+    let refl_squared = s.add(s.mul(d, d), s.mul(g, g));
+    let is_zero = |x: S::F| s.and(s.le(x, zero), s.ge(x, zero));
+    let isotropic = s.and(is_zero(d), is_zero(g));
+    let (rot, refl) = (s.sqrt(rot_squared), s.sqrt(refl_squared));
+    let s0 = s.add(rot, refl);
+    let s1 = s.max(s.sub(rot, refl), zero);
+    let clamp = |x: S::F| {
+        let x = s.select(s.lt(x, min), min, x);
+        s.select(s.gt(x, max), max, x)
+    };
+    let (c0, c1) = (clamp(s0), clamp(s1));
+    let a = s.div(s.mul(half, s.add(c0, c1)), rot);
+    let b = s.select(isotropic, zero, s.div(s.mul(half, s.sub(c0, c1)), refl));
+    let p2 = [
+        s.add(s.mul(a, e), s.mul(b, d)),
+        s.add(s.mul(a, h), s.mul(b, g)),
+        s.sub(s.mul(b, g), s.mul(a, h)),
+        s.sub(s.mul(a, e), s.mul(b, d)),
+    ];
     let regular = s.and(
-        s.and(finite_positive(n0_squared), finite_positive(n1_squared)),
-        s.and(
-            s.ge(r_squared, s.splat(f64::MIN_POSITIVE)),
-            s.le(r_squared, largest),
-        ),
+        normal(s, rot_squared),
+        s.or(isotropic, normal(s, refl_squared)),
     );
-    (p, regular)
+    (times_q(s, qr, p2), regular)
 }
 
 /// Writes lane `l`'s projection into rows `2 l`, `2 l + 1` of `rows`: the
-/// lanes' columns where `regular` has bit `l`, else the scalar
-/// [`closest_orthonormal`] of the lane's `F`.
+/// lanes' columns where `regular` has bit `l`, else the scalar projection
+/// of the lane's `F` by `batch[l]`.
 #[inline(always)]
-fn scatter<S: Lanes>(s: S, p: &Columns<S>, regular: u32, f: &Columns<S>, rows: &mut [Point]) {
+fn scatter<S: Lanes>(
+    s: S,
+    batch: &[TriangleStrain],
+    p: &Columns<S>,
+    regular: u32,
+    f: &Columns<S>,
+    rows: &mut [Point],
+) {
     let mut values = [S::Values::default(); 6];
     for (v, x) in values.iter_mut().zip(p) {
         *v = s.values(*x);
@@ -165,7 +314,7 @@ fn scatter<S: Lanes>(s: S, p: &Columns<S>, regular: u32, f: &Columns<S>, rows: &
             for (g, x) in gradient.iter_mut().zip(f) {
                 *g = s.values(*x).as_ref()[l];
             }
-            let target = closest_orthonormal(&gradient);
+            let target = batch[l].target(&gradient);
             for (c, row) in rows.iter_mut().enumerate() {
                 *row = target.column(c).into_owned();
             }
@@ -180,16 +329,25 @@ mod tests {
 
     use super::*;
     use crate::lane_rows::test_support::assert_all_bit_identical;
-    use crate::triangle_frame::test_support::{gradient, special_gradients};
+    use crate::triangle_frame::test_support::{from_singular_values, gradient, special_gradients};
+
+    /// Limits of every kind, `None` (the rotation form) among them.
+    const LIMITS: [Option<(f64, f64)>; 5] = [
+        None,
+        Some((0.9, 1.1)),
+        Some((0.95, 1.05)),
+        Some((0.0, 1.0)),
+        Some((1.0, 1.0)),
+    ];
 
     /// A triangle per gradient, each on its own three vertices: the rest
     /// triangle `(0, 0, 0), (1, 0, 0), (0, 1, 0)`, whose operator
     /// `[[-1, 1, 0], [-1, 0, 1]]` is exact, and positions `0, f0, f1`, so
     /// that `G q` is `f` itself (zero and parallel columns exactly so);
-    /// stretch limits on the triangles `limited` names.
+    /// triangle `i` with stretch limits `limits(i)`.
     fn unit_triangles(
         gradients: &[Matrix3x2<f64>],
-        limited: impl Fn(usize) -> bool,
+        limits: impl Fn(usize) -> Option<(f64, f64)>,
     ) -> (Vec<TriangleStrain>, Vec<Point>) {
         let mut rest = Vec::new();
         let mut q = Vec::new();
@@ -197,25 +355,53 @@ mod tests {
         for (i, f) in gradients.iter().enumerate() {
             rest.extend([Point::zeros(), Point::x(), Point::y()]);
             q.extend([Point::zeros(), f.column(0).into(), f.column(1).into()]);
-            let limits = limited(i).then_some((0.9, 1.1));
             let t = [3 * i, 3 * i + 1, 3 * i + 2];
-            constraints.push(TriangleStrain::new(&rest, t, 10.0, limits).unwrap());
+            constraints.push(TriangleStrain::new(&rest, t, 10.0, limits(i)).unwrap());
         }
         (constraints, q)
     }
 
-    /// Every special gradient (degenerate, non-finite, extreme scales, ...)
-    /// in every lane position of 4 and 8 lanes next to every other, in
-    /// lists with and without a remainder, and with a stretch-limited
-    /// triangle in some batches.
+    /// Triangle `i`'s limits in the list shifted by `shift`.
+    type LimitsOf = dyn Fn(usize, usize) -> Option<(f64, f64)>;
+
+    /// Every special gradient (degenerate, non-finite, extreme scales,
+    /// isotropic, ...) in every lane position of 4 and 8 lanes next to
+    /// every other, in lists with and without a remainder, in batches
+    /// without limits, all with the same limits, with one limited
+    /// triangle, and with limits of every kind mixed.
     #[test]
     fn every_gradient_class_in_every_lane_position() {
-        let cases = special_gradients();
+        let m = |f0: [f64; 3], f1: [f64; 3]| Matrix3x2::from_columns(&[f0.into(), f1.into()]);
+        let mut cases = special_gradients();
+        cases.extend([
+            // Equal singular values exactly (`d = g = 0`), inside and
+            // outside the limits, and at the extreme scales.
+            m([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]),
+            m([0.0, 0.0, 1.2], [1.2, 0.0, 0.0]),
+            m([0.6, 0.8, 0.0], [-0.8, 0.6, 0.0]),
+            m([0.5, 0.0, 0.0], [0.0, 0.0, 0.5]),
+            m([1e-140, 0.0, 0.0], [0.0, 1e-140, 0.0]),
+            m([1e150, 0.0, 0.0], [0.0, 1e150, 0.0]),
+            // Anisotropy whose `d^2` is subnormal, and one whose `d^2`
+            // underflows to 0 with `d != 0`: the scalar angle form.
+            m([1e-150 + 2e-157, 0.0, 0.0], [0.0, 1e-150, 0.0]),
+            m([1e-150 + 2e-163, 0.0, 0.0], [0.0, 1e-150, 0.0]),
+            // Stretched and compressed beyond both limits.
+            m([1.5, 0.1, 0.0], [0.0, 0.5, 0.2]),
+            m([3.0, 0.0, 0.0], [0.0, 0.0, 2.0]),
+            m([0.1, 0.0, 0.0], [0.0, 0.2, 0.0]),
+        ]);
         let n = cases.len();
+        let every: [&LimitsOf; 4] = [
+            &|_, _| None,
+            &|_, _| Some((0.9, 1.1)),
+            &|i, shift| (i == shift % 11).then_some((0.9, 1.1)),
+            &|i, shift| LIMITS[(i + shift) % LIMITS.len()],
+        ];
         for shift in 0..n {
             let shifted: Vec<_> = (0..n).map(|l| cases[(l + shift) % n]).collect();
             for len in [n, n - 3, 16, 8] {
-                let (constraints, q) = unit_triangles(&shifted[..len], |_| false);
+                let (constraints, q) = unit_triangles(&shifted[..len], |_| None);
                 // `G q` is a finite gradient to the bit (an infinite entry
                 // times a 0 in the operator makes NaN: still non-finite).
                 let mut gx = [Point::zeros(); 2];
@@ -225,31 +411,34 @@ mod tests {
                         assert_eq!(Matrix3x2::from_columns(&gx), *f);
                     }
                 }
-                assert_all_bit_identical(&constraints, &q);
-                let (constraints, q) = unit_triangles(&shifted[..len], |i| i == shift % 11);
-                assert_all_bit_identical(&constraints, &q);
+                for limits in every {
+                    let (constraints, q) = unit_triangles(&shifted[..len], |i| limits(i, shift));
+                    assert_all_bit_identical(&constraints, &q);
+                }
             }
         }
     }
 
-    /// A rest triangle's corners, the gradient it is deformed by and the
-    /// position of its first corner.
-    type Placed = ([[f64; 3]; 3], Matrix3x2<f64>, [f64; 3]);
+    /// A rest triangle's corners, the gradient it is deformed by, the
+    /// position of its first corner and its limits (an index into
+    /// [`LIMITS`]).
+    type Placed = ([[f64; 3]; 3], Matrix3x2<f64>, [f64; 3], usize);
 
     /// Rest triangles of any shape, positions `x0 + F (local rest
     /// coordinates)` (so that `G q` is `F` up to round-off, of every
     /// class [`gradient`] draws), from 1 to 40 triangles (full batches and
-    /// remainders), with one stretch-limited triangle at a random place
-    /// (or none).
-    fn triangles_from(items: &[Placed], limited: usize) -> (Vec<TriangleStrain>, Vec<Point>) {
+    /// remainders), each with limits of one of the kinds of [`LIMITS`],
+    /// drawn from the first `kinds` of them (1: none; 2: none or one
+    /// pair; all: mixed).
+    fn triangles_from(items: &[Placed], kinds: usize) -> (Vec<TriangleStrain>, Vec<Point>) {
         let mut rest = Vec::new();
         let mut q = Vec::new();
         let mut constraints = Vec::new();
-        for (i, (corners, f, offset)) in items.iter().enumerate() {
+        for (corners, f, offset, limits) in items {
             let [x0, x1, x2] = corners.map(Point::from);
             let t = [rest.len(), rest.len() + 1, rest.len() + 2];
             rest.extend([x0, x1, x2]);
-            let limits = (i == limited).then_some((0.9, 1.1));
+            let limits = LIMITS[limits % kinds];
             let Ok(c) = TriangleStrain::new(&rest, t, 3.0, limits) else {
                 // A degenerate rest triangle: its vertices stay unused.
                 q.extend([Point::zeros(); 3]);
@@ -283,13 +472,48 @@ mod tests {
                     prop::array::uniform3(prop::array::uniform3(-1.0..1.0f64)),
                     gradient(),
                     prop::array::uniform3(-2.0..2.0f64),
+                    0usize..LIMITS.len(),
                 ),
                 1..40,
             ),
-            limited in 0usize..80,
+            kinds in 1usize..=LIMITS.len(),
         ) {
-            let (constraints, q) = triangles_from(&items, limited);
+            let (constraints, q) = triangles_from(&items, kinds);
+            assert_all_bit_identical(&constraints, &q);
+            // All limited, with the limits of the first kind drawn.
+            let limited: Vec<Placed> = items.iter().map(|&(c, f, o, _)| (c, f, o, 1)).collect();
+            let (constraints, q) = triangles_from(&limited, LIMITS.len());
             assert_all_bit_identical(&constraints, &q);
         }
+    }
+
+    /// Many random stretch-limited triangles near the cloth scenes' state
+    /// (stretches of a few percent, rotations of every angle), all
+    /// limited and mixed, against one at a time.
+    #[test]
+    fn many_limited_triangles_are_bit_identical() {
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut uniform = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let mut gradients = Vec::new();
+        for i in 0..4000 {
+            let spread = [0.02, 0.1, 0.5][i % 3];
+            let s = [1.0 + spread * uniform(), 1.0 + spread * uniform()];
+            let axis = [uniform(), uniform(), uniform()];
+            gradients.push(from_singular_values(
+                axis,
+                3.2 * uniform(),
+                3.2 * uniform(),
+                s,
+            ));
+        }
+        let (constraints, q) = unit_triangles(&gradients, |_| Some((0.95, 1.05)));
+        assert_all_bit_identical(&constraints, &q);
+        let (constraints, q) = unit_triangles(&gradients, |i| LIMITS[i * 7 % LIMITS.len()]);
+        assert_all_bit_identical(&constraints, &q);
     }
 }
