@@ -329,6 +329,7 @@ mod tests {
 
     use super::*;
     use crate::lane_rows::test_support::assert_all_bit_identical;
+    use crate::polar_batch::lane_sets::{WithLanes, for_each_width, vectorize};
     use crate::triangle_frame::test_support::{from_singular_values, gradient, special_gradients};
 
     /// Limits of every kind, `None` (the rotation form) among them.
@@ -484,6 +485,49 @@ mod tests {
             let limited: Vec<Placed> = items.iter().map(|&(c, f, o, _)| (c, f, o, 1)).collect();
             let (constraints, q) = triangles_from(&limited, LIMITS.len());
             assert_all_bit_identical(&constraints, &q);
+        }
+    }
+
+    /// The lanes, not the scalar fallback, project typical triangles (the
+    /// bit-identity tests above would pass with every lane sent to the
+    /// scalar path): batches of near-rotations with stretches of a few
+    /// percent, unlimited, limited and mixed, report every lane regular,
+    /// at every lane width this CPU has.
+    #[test]
+    fn typical_triangles_take_the_lanes() {
+        struct Regular<'a>(&'a [TriangleStrain], &'a [Point]);
+        impl WithLanes for Regular<'_> {
+            type Output = (usize, u32);
+            #[inline(always)]
+            fn run<S: Lanes>(self, s: S) -> (usize, u32) {
+                let batch = &self.0[..S::WIDTH];
+                let f = gradients(s, batch, self.1);
+                (S::WIDTH, project_lanes(s, batch, &f).1)
+            }
+        }
+        let gradients: Vec<_> = (0..8)
+            .map(|i| {
+                let t = i as f64;
+                let s = [1.0 + 0.03 * (t - 3.5) / 3.5, 0.98 + 0.01 * t / 7.0];
+                from_singular_values([0.3, -0.2 + 0.1 * t, 1.0], 0.4 * t, 1.1 - 0.3 * t, s)
+            })
+            .collect();
+        let kinds: [&dyn Fn(usize) -> Option<(f64, f64)>; 3] =
+            [&|_| None, &|_| Some((0.99, 1.01)), &|i| {
+                LIMITS[i % LIMITS.len()]
+            }];
+        for limits in kinds {
+            let (constraints, q) = unit_triangles(&gradients, limits);
+            for_each_width(|width| {
+                let (lanes, regular) =
+                    vectorize(Regular(&constraints, &q)).expect("this width's lanes");
+                assert_eq!(lanes, width);
+                assert_eq!(
+                    regular,
+                    (1u32 << width) - 1,
+                    "lanes sent to the scalar path"
+                );
+            });
         }
     }
 
