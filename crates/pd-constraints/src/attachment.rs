@@ -63,6 +63,15 @@ impl Constraint for Attachment {
         out[0] = self.target;
     }
 
+    /// The projection is the target whatever the positions: copied
+    /// without gathering `G q` (the default computes it for each
+    /// constraint and discards it). The same bits.
+    fn project_many(constraints: &[Self], _q: &[Point], out: &mut [Point]) {
+        for (c, p) in constraints.iter().zip(out) {
+            *p = c.target;
+        }
+    }
+
     fn gx_hessian(&self, _gx: &[Point], _project_psd: bool, out: &mut [f64]) {
         // E = w/2 |x - t|^2: Hessian w I, already positive definite.
         for a in 0..3 {
@@ -70,5 +79,26 @@ impl Constraint for Attachment {
                 out[3 * a + b] = if a == b { self.weight } else { 0.0 };
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `project_many` (the targets without `G q`) and the energies give
+    /// the one-at-a-time bits.
+    #[test]
+    fn batched_projection_is_bit_identical() {
+        let q: Vec<Point> = (0..7)
+            .map(|i| Point::new(i as f64, 0.5 * i as f64, -1.0 / (i + 1) as f64))
+            .collect();
+        let constraints: Vec<Attachment> = (0..7)
+            .map(|i| {
+                let target = Point::new(0.1 * i as f64, 2.0, 3.0 - i as f64);
+                Attachment::new((i * 3) % 7, target, 1.0 + i as f64).unwrap()
+            })
+            .collect();
+        crate::lane_rows::test_support::assert_all_bit_identical(&constraints, &q);
     }
 }
