@@ -26,6 +26,7 @@ use pd_mesh::Point;
 use super::TriangleStrain;
 use crate::lane_rows::LaneKind;
 use crate::polar_batch::lane_sets::Lanes;
+use crate::triangle_frame::REORTHOGONALIZE;
 #[cfg(doc)]
 use crate::triangle_frame::{clamped_stretch, closest_orthonormal};
 
@@ -175,8 +176,14 @@ fn thin_qr_lanes<S: Lanes>(s: S, f: &Columns<S>) -> QrLanes<S> {
     let q1 = [s.div(rest[0], n1), s.div(rest[1], n1), s.div(rest[2], n1)];
     let (r00, r11) = (dot(s, q0, f0), dot(s, q1, f1));
     // `try_normalize(0.0)` succeeds where the norm is positive (finite
-    // here, so that no lane carries inf or NaN into the rest).
-    let regular = s.and(finite_positive(n0_squared), finite_positive(n1_squared));
+    // here, so that no lane carries inf or NaN into the rest); a rest
+    // below `REORTHOGONALIZE` of `f1`, which `thin_qr` orthogonalises
+    // twice, goes to the scalar path.
+    let one_pass = s.ge(n1_squared, s.mul(s.splat(REORTHOGONALIZE), dot(s, f1, f1)));
+    let regular = s.and(
+        s.and(finite_positive(n0_squared), finite_positive(n1_squared)),
+        one_pass,
+    );
     QrLanes {
         q0,
         q1,
