@@ -229,6 +229,18 @@ pub(crate) mod test_support {
     /// (a wrong rotation is off by O(1)).
     pub const BUDGET: f64 = 400.0 * f64::EPSILON;
 
+    /// A fixed pseudo-random sequence (xorshift64 from `seed`), uniform in
+    /// `[-1, 1)`: the many-case tests' inputs, the same on every run.
+    pub fn uniform_sequence(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        }
+    }
+
     /// Optimality of `R` on SO(3), independent of how it was computed:
     /// `R^T F = S` symmetric, and `lambda_i + lambda_j >= 0` for every pair of
     /// `S`'s eigenvalues (the second-order condition: a rotation by `theta`
@@ -401,13 +413,7 @@ mod tests {
         // F (the twist modes of docs/constraints.md); both computations are
         // backward stable, so they differ by at most that times twice the
         // backward error.
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut next = test_support::uniform_sequence(0x9e37_79b9_7f4a_7c15);
         for _ in 0..2000 {
             let f = Matrix3::from_fn(|_, _| next() * 2.0);
             let ours = {

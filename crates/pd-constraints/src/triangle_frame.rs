@@ -618,6 +618,7 @@ mod tests {
         assert_closest_orthonormal, atan2_closest, gradient, special_gradients,
     };
     use super::*;
+    use crate::signed_svd::test_support::uniform_sequence;
 
     /// The bound of `docs/performance.md` ("Triangle strain in SIMD
     /// lanes") on `|P_new - P_old|` per entry, in units of 2^-52.
@@ -672,13 +673,7 @@ mod tests {
     /// proptest below runs; it is printed with `--nocapture`.
     #[test]
     fn largest_round_off_change_over_many_gradients() {
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut uniform = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut uniform = uniform_sequence(0x9E37_79B9_7F4A_7C15);
         let mut largest = 0.0f64;
         for i in 0..500_000 {
             let f = if i % 2 == 0 {
@@ -918,13 +913,7 @@ mod tests {
     /// derived bound: the bound above is against the old form).
     #[test]
     fn gradients_within_the_limits_are_kept() {
-        let mut state = 0x2545_F491_4F6C_DD1Du64;
-        let mut uniform = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut uniform = uniform_sequence(0x2545_F491_4F6C_DD1D);
         for _ in 0..10_000 {
             let s = [1.0 + 0.05 * uniform(), 1.0 + 0.05 * uniform()];
             let axis = [uniform(), uniform(), uniform()];
@@ -942,13 +931,7 @@ mod tests {
     /// 1e-8 to 1e8; the largest change is printed with `--nocapture`.
     #[test]
     fn largest_clamped_round_off_change_over_many_gradients() {
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut uniform = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut uniform = uniform_sequence(0x9E37_79B9_7F4A_7C15);
         let mut largest = 0.0f64;
         let n = if cfg!(debug_assertions) {
             60_000

@@ -337,6 +337,7 @@ mod tests {
     use super::*;
     use crate::lane_rows::test_support::assert_all_bit_identical;
     use crate::polar_batch::lane_sets::{WithLanes, for_each_width, vectorize};
+    use crate::signed_svd::test_support::uniform_sequence;
     use crate::triangle_frame::test_support::{from_singular_values, gradient, special_gradients};
 
     /// Limits of every kind, `None` (the rotation form) among them.
@@ -543,13 +544,7 @@ mod tests {
     /// limited and mixed, against one at a time.
     #[test]
     fn many_limited_triangles_are_bit_identical() {
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut uniform = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut uniform = uniform_sequence(0x9E37_79B9_7F4A_7C15);
         let mut gradients = Vec::new();
         for i in 0..4000 {
             let spread = [0.02, 0.1, 0.5][i % 3];

@@ -235,17 +235,30 @@ impl SupernodalSolve {
         rhs: &mut [Point],
     ) {
         let values = &factor.values[..];
-        let mut structure = Structure::of(symbolic)
-            .expect("the plan of a supernodal factor")
-            .in_layout_of(factor);
-        structure.prefetch = self.prefetch;
-        structure.blocked = self.blocked;
-        structure.narrow = self.narrow;
+        let structure = self.structure(symbolic, factor);
         let forward = symbolic.perm().map(|p| p.arrays().0);
         self.permute_in(forward, rhs);
         self.forward_substitution(&structure, values);
         self.backward_substitution(&structure, values);
         self.permute_out(forward, rhs);
+    }
+
+    /// The view of `symbolic`'s supernodes in `factor`'s layout, with this
+    /// plan's kernel settings (prefetches, tiled diagonal blocks, narrow
+    /// supernodes).
+    fn structure<'a>(
+        &self,
+        symbolic: &'a SymbolicCholesky<usize>,
+        factor: &'a NumericFactor,
+    ) -> Structure<'a> {
+        Structure {
+            prefetch: self.prefetch,
+            blocked: self.blocked,
+            narrow: self.narrow,
+            ..Structure::of(symbolic)
+                .expect("the plan of a supernodal factor")
+                .in_layout_of(factor)
+        }
     }
 
     /// `x = P rhs`: the right-hand side in the factor's order.

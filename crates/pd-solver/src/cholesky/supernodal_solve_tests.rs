@@ -20,12 +20,7 @@ impl SupernodalSolve {
         clock: &dyn Fn() -> f64,
     ) -> [f64; 4] {
         let values = &factor.values[..];
-        let mut structure = Structure::of(symbolic)
-            .expect("the plan of a supernodal factor")
-            .in_layout_of(factor);
-        structure.prefetch = self.prefetch;
-        structure.blocked = self.blocked;
-        structure.narrow = self.narrow;
+        let structure = self.structure(symbolic, factor);
         let forward = symbolic.perm().map(|p| p.arrays().0);
         let t0 = clock();
         self.permute_in(forward, rhs);
