@@ -26,6 +26,8 @@ mod calibration;
 mod metis;
 mod solve_kernels;
 pub(crate) use solve_kernels::{Simd, vectorized};
+#[cfg(all(test, target_arch = "x86_64"))]
+pub(crate) use solve_kernels::{limit_width, widths};
 #[cfg(test)]
 mod solve_profile;
 mod solve_tree;

@@ -520,9 +520,20 @@ mod tests {
             .map(|f| constant[f] + b.row_dot(f, &projections) * factor)
             .collect();
         let scatter = ProjectionScatter::new(b).unwrap();
-        let mut out = vec![Point::new(9.0, 9.0, 9.0); n];
-        scatter.rhs(&constant, &projections, factor, &mut out);
-        assert_eq!(bits(&out), bits(&gathered));
+        // On every instruction set this CPU has (AVX-512, AVX2, plain).
+        #[cfg(target_arch = "x86_64")]
+        let widths = crate::cholesky::widths();
+        #[cfg(not(target_arch = "x86_64"))]
+        let widths = [usize::MAX];
+        for width in widths {
+            #[cfg(target_arch = "x86_64")]
+            crate::cholesky::limit_width(width);
+            let mut out = vec![Point::new(9.0, 9.0, 9.0); n];
+            scatter.rhs(&constant, &projections, factor, &mut out);
+            assert_eq!(bits(&out), bits(&gathered), "{width} lanes");
+        }
+        #[cfg(target_arch = "x86_64")]
+        crate::cholesky::limit_width(usize::MAX);
         // And the operator's own dispatch on more threads: the row gather.
         let operator = ProjectionOperator::Rows(b.clone());
         let pool = rayon::ThreadPoolBuilder::new()

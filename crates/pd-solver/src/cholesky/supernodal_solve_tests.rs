@@ -128,6 +128,42 @@ fn narrow_supernodes_change_no_bit() {
     }
 }
 
+/// Every instruction set gives the same bits: the solve compiled for
+/// AVX-512 (where the CPU has it), for AVX2 (explicit 4-wide dot products)
+/// and plain, on the beam (split) and the armadillo (if present), on 1
+/// and 2 threads. A reordered sum in any one path fails it.
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn every_instruction_set_gives_the_same_bits() {
+    use super::super::solve_kernels::{limit_width, widths};
+    let beam = pd_mesh::generators::box_tets([1.0, 0.2, 0.2], [40, 8, 8]).unwrap();
+    for mesh in [Some(beam), armadillo()].into_iter().flatten() {
+        let (mut factor, numeric) = laplacian_factor(&mesh);
+        let n = factor.pattern().n;
+        let mut solve = factor.fast_solve.take().expect("a supernodal factor");
+        let rhs: Vec<Point> = (0..n)
+            .map(|i| Point::new((i % 13) as f64 - 6.0, (i % 5) as f64, 1.0 / (1 + i % 7) as f64))
+            .collect();
+        let mut outcomes = Vec::new();
+        for width in widths() {
+            for threads in [1, 2] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                pool.broadcast(|_| limit_width(width));
+                let mut x = rhs.clone();
+                pool.install(|| solve.solve(&factor.symbolic, &numeric, &mut x));
+                outcomes.push((width, threads, bits(&x)));
+            }
+        }
+        let (_, _, first) = &outcomes[0];
+        for (width, threads, x) in &outcomes {
+            assert!(x == first, "{width} lanes on {threads} threads: other bits");
+        }
+    }
+}
+
 /// `b - L L^T x` and `|L| |L^T| |x|`, both in the factor's order, for the
 /// supernodal factor `values` of `structure`, with the longest inner
 /// product of either product (the most entries in a row or column of `L`).
