@@ -40,8 +40,8 @@ pub(crate) enum Simd {}
 /// would not get the target features.
 ///
 /// With AVX-512 the compiler's loops run eight rows per instruction with
-/// 32 registers (no spilled broadcasts): the forward substitution 13-24 %
-/// faster than with AVX2, with the same bits (docs/performance.md, "The
+/// 32 registers (no spilled broadcasts): the solve 4-11 % faster than
+/// with AVX2 on the beams, with the same bits (docs/performance.md, "The
 /// solve compiled for AVX-512").
 #[inline(always)]
 pub(crate) fn vectorized(f: impl FnOnce(Option<Simd>)) {

@@ -14,7 +14,8 @@
 //! hash of one solve's bits (a kernel change that keeps the summation
 //! order keeps it), then the minimum forward and backward times with the
 //! diagonal blocks tiled from several widths (`solve_diagonal.rs`;
-//! `usize::MAX`: never, the column-by-column order).
+//! `usize::MAX`: never, the column-by-column order). `PD_SOLVE_WIDTH=4`
+//! (or `1`) times the AVX2 (or plain) path on a CPU with AVX-512.
 
 use super::calibration::{armadillo, laplacian_factor};
 use super::supernodal_solve::SupernodalSolve;
@@ -57,6 +58,16 @@ fn profile(label: &str, mesh: &pd_mesh::Mesh) {
         .num_threads(1)
         .build()
         .unwrap();
+    // `PD_SOLVE_WIDTH=4` (or 1): the AVX2 (or plain) path on a CPU with
+    // AVX-512.
+    #[cfg(target_arch = "x86_64")]
+    if let Some(width) = std::env::var("PD_SOLVE_WIDTH")
+        .ok()
+        .and_then(|w| w.parse().ok())
+    {
+        pool.broadcast(|_| super::solve_kernels::limit_width(width));
+        println!("  lanes limited to {width}");
+    }
     pool.install(|| {
         for _ in 0..rounds {
             let timed = solve.solve_timed(&factor.symbolic, &numeric, &mut rhs, &clock);

@@ -421,6 +421,7 @@ impl Structure<'_> {
                         first,
                         locate,
                         &mut below,
+                        #[inline(always)]
                         |row, u| {
                             top_updates[split.top_position[row] as usize] += u;
                         },
@@ -514,10 +515,16 @@ impl Structure<'_> {
         if c < self.narrow {
             let mut p = [Point::zeros(); NARROW - 1];
             p[..c].copy_from_slice(top);
-            narrow_updates(&block, &p[..c], r, |k, update| match locate(rows[k]) {
-                Some(i) => x[i] -= update,
-                None => outside(rows[k], update),
-            });
+            narrow_updates(
+                &block,
+                &p[..c],
+                r,
+                #[inline(always)]
+                |k, update| match locate(rows[k]) {
+                    Some(i) => x[i] -= update,
+                    None => outside(rows[k], update),
+                },
+            );
             return;
         }
         below.update(&block, c, top, r);

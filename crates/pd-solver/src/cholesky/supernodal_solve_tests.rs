@@ -142,7 +142,13 @@ fn every_instruction_set_gives_the_same_bits() {
         let n = factor.pattern().n;
         let mut solve = factor.fast_solve.take().expect("a supernodal factor");
         let rhs: Vec<Point> = (0..n)
-            .map(|i| Point::new((i % 13) as f64 - 6.0, (i % 5) as f64, 1.0 / (1 + i % 7) as f64))
+            .map(|i| {
+                Point::new(
+                    (i % 13) as f64 - 6.0,
+                    (i % 5) as f64,
+                    1.0 / (1 + i % 7) as f64,
+                )
+            })
             .collect();
         let mut outcomes = Vec::new();
         for width in widths() {
