@@ -68,8 +68,16 @@ impl Below<'_> {
             }
             if j1 < c {
                 // A tile with rows below it is a whole one.
-                let l: [&[f64]; TILE] = std::array::from_fn(|i| block.rows(j0 + i, j1, c - j1));
-                let p = |t: &[f64]| -> [f64; TILE] { std::array::from_fn(|i| t[j0 + i]) };
+                // Plain loops, as in `narrow_updates`.
+                let mut l: [&[f64]; TILE] = [&[]; TILE];
+                for (i, l) in l.iter_mut().enumerate() {
+                    *l = block.rows(j0 + i, j1, c - j1);
+                }
+                let p = |t: &[f64]| -> [f64; TILE] {
+                    let mut p = [0.0; TILE];
+                    p.copy_from_slice(&t[j0..j0 + TILE]);
+                    p
+                };
                 let (px, py, pz) = (p(tx), p(ty), p(tz));
                 subtract_tile(&l, &px, &mut tx[j1..]);
                 subtract_tile(&l, &py, &mut ty[j1..]);
@@ -154,7 +162,11 @@ impl Below<'_> {
 #[inline(always)]
 fn subtract_tile(l: &[&[f64]; TILE], p: &[f64; TILE], t: &mut [f64]) {
     let r = t.len();
-    let l: [&[f64]; TILE] = l.map(|l| &l[..r]);
+    // Sliced in a plain loop, as in `narrow_updates`.
+    let mut l: [&[f64]; TILE] = *l;
+    for l in &mut l {
+        *l = &l[..r];
+    }
     for k in 0..r {
         let g0 = p[0] * l[0][k] + p[1] * l[1][k] + p[2] * l[2][k] + p[3] * l[3][k];
         let g1 = p[4] * l[4][k] + p[5] * l[5][k] + p[6] * l[6][k] + p[7] * l[7][k];

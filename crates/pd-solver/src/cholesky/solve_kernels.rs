@@ -160,8 +160,13 @@ pub(super) fn narrow_updates(
     mut scatter: impl FnMut(usize, Point),
 ) {
     let c = top.len();
-    let columns: [&[f64]; NARROW - 1] =
-        std::array::from_fn(|j| if j < c { block.rows(j, c, r) } else { &[] });
+    // Plain loops build the kernels' small arrays: `array::from_fn` and
+    // `array::map` stayed out of line, outside the target features'
+    // function.
+    let mut columns: [&[f64]; NARROW - 1] = [&[]; NARROW - 1];
+    for (j, column) in columns.iter_mut().enumerate().take(c) {
+        *column = block.rows(j, c, r);
+    }
     for k in 0..r {
         let mut update = Point::zeros();
         for (p, l) in top.iter().zip(&columns) {
@@ -277,8 +282,12 @@ impl<'a> Below<'a> {
         let column = |j: usize| block.rows(j, c, r);
         let mut j = 0;
         while j + 8 <= c {
-            let l: [&[f64]; 8] = std::array::from_fn(|i| column(j + i));
-            let p: [Point; 8] = std::array::from_fn(|i| top[j + i]);
+            let mut l: [&[f64]; 8] = [&[]; 8];
+            for (i, l) in l.iter_mut().enumerate() {
+                *l = column(j + i);
+            }
+            let mut p = [Point::zeros(); 8];
+            p.copy_from_slice(&top[j..j + 8]);
             for k in 0..r {
                 let group = |q: &[Point], l: &[&[f64]], coordinate: fn(&Point) -> f64| {
                     coordinate(&q[0]) * l[0][k]
@@ -437,11 +446,16 @@ fn wide_lanes<const N: usize>(
             sum[2] = s.add_f64x4(sum[2], s.mul_f64x4(l, z));
         }
     }
-    sums.map(|[x, y, z]| Lanes {
-        x: pulp::cast(x),
-        y: pulp::cast(y),
-        z: pulp::cast(z),
-    })
+    // A plain loop, as in `narrow_updates`.
+    let mut lanes = [Lanes::default(); N];
+    for (lanes, [x, y, z]) in lanes.iter_mut().zip(sums) {
+        *lanes = Lanes {
+            x: pulp::cast(x),
+            y: pulp::cast(y),
+            z: pulp::cast(z),
+        };
+    }
+    lanes
 }
 
 /// `v`'s whole groups of four (the rows past the last multiple of four are
@@ -453,7 +467,7 @@ fn quads(v: &[f64]) -> std::slice::ChunksExact<'_, f64> {
 
 /// One column's partial dot products with the three coordinate arrays of
 /// [`Below`]: four lanes per coordinate.
-#[derive(Default)]
+#[derive(Default, Clone, Copy)]
 struct Lanes {
     x: [f64; 4],
     y: [f64; 4],
