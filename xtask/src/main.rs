@@ -12,6 +12,9 @@
 //! - `stability [--quick] [--shard I/N [--out DIR] | --merge DIR]`: runs
 //!   every integrator and damping model over a matrix of extreme parameters
 //!   (or one shard of it; docs/tools.md) and writes `docs/stability.md`.
+//!
+//! Every task checks its options first ([`check_options`]); `--help`
+//! prints them all.
 
 mod bench_contact;
 mod bench_cpp;
@@ -26,10 +29,73 @@ mod stability_contact;
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 
+const USAGE: &str = "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy and docs (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md\n  bench-report [--quick] [--mesh BASE]...\n                            speed/accuracy/scaling/limits report: docs/bench-report.md\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N] [--mesh BASE]...\n                            pd vs the C++ reference: docs/cpp-comparison.md\n  stability [--quick] [--shard I/N [--out DIR] | --merge DIR]\n                            run the matrix of extreme parameters (or one shard of it, or merge shards), write docs/stability.md (use --release)\n  stability --only contact  the contact axis alone (dev profile), write docs/stability-contact.md\n  stability --only methods [--integrator I] [--predictor P]\n                            the method axis (docs/stability-methods.md)";
+
+/// The options each task takes: those without a value, and those whose
+/// value is the next argument.
+fn task_options(task: &str) -> Option<(&'static [&'static str], &'static [&'static str])> {
+    Some(match task {
+        "ci" => (&[], &[]),
+        "damping-table" => (&["--quick"], &[]),
+        "bench-report" => (&["--quick"], &["--mesh"]),
+        "cpp-compare" => (&["--quick"], &["--reference", "--repeat", "--mesh"]),
+        "stability" => (
+            &["--quick"],
+            &[
+                "--shard",
+                "--out",
+                "--merge",
+                "--only",
+                "--integrator",
+                "--predictor",
+            ],
+        ),
+        _ => return None,
+    })
+}
+
+/// Checks `args` (after the task's name) against the task's options: an
+/// option the task does not know, a stray value or a missing one is an
+/// error that names it, so that a typo does not silently start a long
+/// run with the defaults.
+fn check_options(task: &str, args: &[String]) -> Result<(), String> {
+    let (flags, valued) = task_options(task).ok_or_else(|| format!("unknown task {task:?}"))?;
+    let mut rest = args.iter();
+    while let Some(arg) = rest.next() {
+        if flags.contains(&arg.as_str()) {
+            continue;
+        }
+        if valued.contains(&arg.as_str()) {
+            match rest.next() {
+                Some(value) if !value.starts_with("--") => continue,
+                _ => return Err(format!("{task}: {arg} needs a value")),
+            }
+        }
+        return Err(if arg.starts_with('-') {
+            format!("{task}: unknown option {arg}")
+        } else {
+            format!("{task}: unexpected argument {arg:?}")
+        });
+    }
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    match args.first().map(String::as_str) {
-        Some("ci") => run_all(&[
+    if args.iter().any(|a| a == "--help" || a == "-h") {
+        println!("{USAGE}");
+        return ExitCode::SUCCESS;
+    }
+    let Some(task) = args.first() else {
+        eprintln!("{USAGE}");
+        return ExitCode::from(2);
+    };
+    if let Err(e) = check_options(task, &args[1..]) {
+        eprintln!("error: {e}\n\n{USAGE}");
+        return ExitCode::from(2);
+    }
+    match task.as_str() {
+        "ci" => run_all(&[
             &["fmt", "--all", "--", "--check"],
             &[
                 "clippy",
@@ -42,11 +108,11 @@ fn main() -> ExitCode {
             &["doc", "--workspace", "--no-deps"],
             &["test", "--workspace"],
         ]),
-        Some("damping-table") => report(damping_table::run(
+        "damping-table" => report(damping_table::run(
             &workspace_root(),
             args.iter().any(|a| a == "--quick"),
         )),
-        Some("bench-report") => {
+        "bench-report" => {
             let root = workspace_root();
             // `--mesh BASE` (repeatable): TetGen meshes for the "Real meshes"
             // section; the shared armadillo by default.
@@ -64,14 +130,9 @@ fn main() -> ExitCode {
                 &meshes,
             ))
         }
-        Some("cpp-compare") => report(bench_cpp::run(&workspace_root(), &args[1..])),
-        Some("stability") => stability::main(&workspace_root(), &args[1..]),
-        _ => {
-            eprintln!(
-                "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy and docs (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md\n  bench-report [--quick] [--mesh BASE]...\n                            speed/accuracy/scaling/limits report: docs/bench-report.md\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N] [--mesh BASE]...\n                            pd vs the C++ reference: docs/cpp-comparison.md\n  stability [--quick] [--shard I/N [--out DIR] | --merge DIR]\n                            run the matrix of extreme parameters (or one shard of it, or merge shards), write docs/stability.md (use --release)\n  stability --only contact  the contact axis alone (dev profile), write docs/stability-contact.md"
-            );
-            ExitCode::from(2)
-        }
+        "cpp-compare" => report(bench_cpp::run(&workspace_root(), &args[1..])),
+        "stability" => stability::main(&workspace_root(), &args[1..]),
+        _ => unreachable!("check_options knows only the tasks above"),
     }
 }
 
@@ -118,4 +179,49 @@ fn run_all(commands: &[&[&str]]) -> ExitCode {
         }
     }
     ExitCode::SUCCESS
+}
+
+#[cfg(test)]
+mod tests {
+    use super::check_options;
+
+    fn args(list: &[&str]) -> Vec<String> {
+        list.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn known_options_pass() {
+        assert!(
+            check_options(
+                "bench-report",
+                &args(&["--quick", "--mesh", "a", "--mesh", "b"])
+            )
+            .is_ok()
+        );
+        assert!(
+            check_options("cpp-compare", &args(&["--reference", "x", "--repeat", "3"])).is_ok()
+        );
+        assert!(check_options("stability", &args(&["--shard", "1/4", "--out", "d"])).is_ok());
+        assert!(check_options("ci", &[]).is_ok());
+    }
+
+    #[test]
+    fn unknown_options_typos_and_missing_values_are_errors_that_name_them() {
+        let cases: [(&str, &[&str], &str); 6] = [
+            ("bench-report", &["--quik"], "unknown option --quik"),
+            ("stability", &["--bogus"], "unknown option --bogus"),
+            ("cpp-compare", &["--reference"], "--reference needs a value"),
+            (
+                "bench-report",
+                &["--mesh", "--quick"],
+                "--mesh needs a value",
+            ),
+            ("damping-table", &["quick"], "unexpected argument \"quick\""),
+            ("benchreport", &[], "unknown task \"benchreport\""),
+        ];
+        for (task, list, expected) in cases {
+            let error = check_options(task, &args(list)).unwrap_err();
+            assert!(error.contains(expected), "{task} {list:?}: {error}");
+        }
+    }
 }
