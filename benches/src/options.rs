@@ -40,6 +40,23 @@ impl<'a> Options<'a> {
         }
     }
 
+    /// Checks that every argument spelled as an option (`--name`) is one
+    /// of `known`, so that a typo stops the program instead of running it
+    /// with the default.
+    ///
+    /// # Errors
+    /// The first unknown option, named.
+    pub fn only(&self, known: &[&str]) -> Result<(), String> {
+        match self
+            .args
+            .iter()
+            .find(|a| a.starts_with("--") && !known.contains(&a.as_str()))
+        {
+            Some(unknown) => Err(format!("unknown option {unknown}")),
+            None => Ok(()),
+        }
+    }
+
     /// The comma-separated counts after `name`, or `default` without
     /// `name`.
     ///
@@ -75,6 +92,11 @@ mod tests {
         assert_eq!(options.parse("--dt", 1.0).unwrap(), 0.5);
         assert_eq!(options.parse("--steps", 7).unwrap(), 7);
         assert!(options.flag("--quiet") && !options.flag("--loud"));
+        assert!(options.only(&["--cells", "--dt", "--quiet"]).is_ok());
+        assert_eq!(
+            options.only(&["--cells", "--quiet"]).unwrap_err(),
+            "unknown option --dt"
+        );
         assert!(
             options
                 .parse::<usize>("--dt", 1)

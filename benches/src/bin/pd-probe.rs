@@ -122,8 +122,47 @@ fn with_triangles(mut value: Value, sim: &Simulation, cloth: bool) -> Value {
     value
 }
 
+/// Every option some probe reads: anything else is a typo.
+const KNOWN: &[&str] = &[
+    "--bending",
+    "--budgets",
+    "--cells",
+    "--cheb-rho",
+    "--cloth",
+    "--dt",
+    "--evict-mib",
+    "--factor-reps",
+    "--idle-us",
+    "--integrator",
+    "--iters",
+    "--iters-list",
+    "--limits",
+    "--mesh",
+    "--methods",
+    "--mib",
+    "--model",
+    "--newton-budgets",
+    "--parts",
+    "--predicted",
+    "--reference-max-iters",
+    "--reference-tolerance",
+    "--reps",
+    "--rho",
+    "--rounds",
+    "--side-cells",
+    "--soft-clamp",
+    "--start",
+    "--steps",
+    "--stiffness",
+    "--threads",
+    "--time",
+    "--warmup",
+    "--window",
+];
+
 fn run(args: &[String]) -> Result<Value, String> {
     let options = Options::new(args);
+    options.only(KNOWN)?;
     let beam = options.beam()?;
     match args.first().map(String::as_str) {
         Some("step") => step(&options, &beam),
