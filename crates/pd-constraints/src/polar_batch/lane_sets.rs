@@ -13,8 +13,9 @@
 //!
 //! The AVX-512 intrinsics are `unsafe` to call outside a function compiled
 //! with those features, hence this module's `unsafe` blocks (the
-//! workspace's only `unsafe` besides the METIS FFI): each is sound because
-//! an [`Avx512`] token exists only after the CPU has been checked.
+//! workspace's only `unsafe` besides the METIS FFI and pd-solver's call
+//! into its AVX-512 solve, `cholesky/solve_wide.rs`): each is sound
+//! because an [`Avx512`] token exists only after the CPU has been checked.
 //!
 //! The `_mm512_*` intrinsics are stable since Rust 1.89, the workspace's
 //! declared `rust-version`.

@@ -2,9 +2,10 @@
 //! CHOLMOD uses by default) through the raw bindings of `metis-sys`, which
 //! builds METIS from vendored C source with 32-bit indices.
 //!
-//! This is the crate's only foreign call, hence the only `unsafe` code: the
-//! arrays handed to METIS are owned, correctly sized Rust vectors, and METIS
-//! keeps no pointer to them after it returns.
+//! This is the crate's only foreign call, hence `unsafe` code (the only
+//! other is the call into the solve's AVX-512 function, `solve_wide.rs`):
+//! the arrays handed to METIS are owned, correctly sized Rust vectors, and
+//! METIS keeps no pointer to them after it returns.
 #![allow(unsafe_code)]
 
 use metis_sys::{
