@@ -98,20 +98,7 @@ fn prefetches_change_no_bit() {
 /// packed.
 #[test]
 fn narrow_supernodes_change_no_bit() {
-    let beam = pd_mesh::generators::box_tets([1.0, 0.2, 0.2], [40, 8, 8]).unwrap();
-    for mesh in [Some(beam), armadillo()].into_iter().flatten() {
-        let (mut factor, mut numeric) = laplacian_factor(&mesh);
-        let n = factor.pattern().n;
-        let mut solve = factor.fast_solve.take().expect("a supernodal factor");
-        let rhs: Vec<Point> = (0..n)
-            .map(|i| {
-                Point::new(
-                    (i % 11) as f64 - 5.0,
-                    (i % 7) as f64,
-                    1.0 / (1 + i % 3) as f64,
-                )
-            })
-            .collect();
+    for (factor, mut numeric, mut solve, rhs) in beam_and_armadillo_solves() {
         for packed in [false, true] {
             if packed {
                 factor.pack(&mut numeric);
@@ -128,6 +115,33 @@ fn narrow_supernodes_change_no_bit() {
     }
 }
 
+/// The split 40 x 8 x 8 beam (most of its supernodes one column wide) and
+/// the armadillo (if present; many of two to three columns): each one's
+/// Laplacian factor, its supernodal solve and a varied right-hand side.
+fn beam_and_armadillo_solves() -> Vec<(SymbolicFactor, NumericFactor, SupernodalSolve, Vec<Point>)>
+{
+    let beam = pd_mesh::generators::box_tets([1.0, 0.2, 0.2], [40, 8, 8]).unwrap();
+    [Some(beam), armadillo()]
+        .into_iter()
+        .flatten()
+        .map(|mesh| {
+            let (mut factor, numeric) = laplacian_factor(&mesh);
+            let n = factor.pattern().n;
+            let solve = factor.fast_solve.take().expect("a supernodal factor");
+            let rhs: Vec<Point> = (0..n)
+                .map(|i| {
+                    Point::new(
+                        (i % 11) as f64 - 5.0,
+                        (i % 7) as f64,
+                        1.0 / (1 + i % 3) as f64,
+                    )
+                })
+                .collect();
+            (factor, numeric, solve, rhs)
+        })
+        .collect()
+}
+
 /// Every instruction set gives the same bits: the solve compiled for
 /// AVX-512 (where the CPU has it), for AVX2 (explicit 4-wide dot products)
 /// and plain, on the beam (split) and the armadillo (if present), on 1
@@ -136,20 +150,7 @@ fn narrow_supernodes_change_no_bit() {
 #[test]
 fn every_instruction_set_gives_the_same_bits() {
     use super::super::solve_kernels::{limit_width, widths};
-    let beam = pd_mesh::generators::box_tets([1.0, 0.2, 0.2], [40, 8, 8]).unwrap();
-    for mesh in [Some(beam), armadillo()].into_iter().flatten() {
-        let (mut factor, numeric) = laplacian_factor(&mesh);
-        let n = factor.pattern().n;
-        let mut solve = factor.fast_solve.take().expect("a supernodal factor");
-        let rhs: Vec<Point> = (0..n)
-            .map(|i| {
-                Point::new(
-                    (i % 13) as f64 - 6.0,
-                    (i % 5) as f64,
-                    1.0 / (1 + i % 7) as f64,
-                )
-            })
-            .collect();
+    for (factor, numeric, mut solve, rhs) in beam_and_armadillo_solves() {
         let mut outcomes = Vec::new();
         for width in widths() {
             for threads in [1, 2] {
