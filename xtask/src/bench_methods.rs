@@ -105,7 +105,12 @@ const METHODS: [&str; 5] = ["local-global", "anderson", "chebyshev", "lbfgs", "n
 /// predictor = "linear"`, docs/solver.md "A better start"), as
 /// `pd-probe methods --predicted` names them; their rows are named
 /// `anderson+linear`. Plain PD's shows what the start alone gains.
-const PREDICTED: [&str; 3] = ["anderson:linear", "lbfgs:linear", "local-global:linear"];
+const PREDICTED: [&str; 4] = [
+    "anderson:linear",
+    "chebyshev:linear",
+    "lbfgs:linear",
+    "local-global:linear",
+];
 
 /// The section's Markdown.
 pub fn markdown(runs: &Value) -> String {
@@ -127,7 +132,7 @@ pub fn markdown(runs: &Value) -> String {
          of plain PD with 20 iterations over the least work with which the method reaches the \
          same error or better (budgets {BUDGETS}; Newton 1, 2, 3, 5); Newton's \
          by time only, since its work leaves out the 3n x 3n factorisation of each iteration. \
-         The last three columns start each step at the linear predictor `y + 2 c_n - c_(n-1)` \
+         The last four columns start each step at the linear predictor `y + 2 c_n - c_(n-1)` \
          (`[solver] predictor = \"linear\"`, docs/solver.md) instead of the inertial target \
          `y`, against the same PD-20 (inertial) baseline; plain PD's column shows what the \
          start alone gains.\n",
@@ -138,11 +143,12 @@ pub fn markdown(runs: &Value) -> String {
     let _ = writeln!(
         md,
         "| mesh | integrator | damping | error of PD-20 | anderson | chebyshev | lbfgs | newton \
-         | anderson, linear predictor | lbfgs, linear predictor | local-global, linear predictor |"
+         | anderson, linear predictor | chebyshev, linear predictor | lbfgs, linear predictor \
+         | local-global, linear predictor |"
     );
     let _ = writeln!(
         md,
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
     );
     for run in runs {
         let rows = run["rows"].as_array().unwrap_or(&empty);

@@ -189,8 +189,10 @@ fn every_method_and_predictor() {
                             Box::new(NoDamping)
                         };
                         let name = damping.name();
-                        // 12 iterations: Chebyshev accelerates from its
-                        // 10th (`start`), and the methods' rings wrap.
+                        // 12 iterations: Chebyshev's first step
+                        // estimates `rho` from 10 plain iterations (its
+                        // later steps accelerate from the 2nd), and the
+                        // methods' rings wrap.
                         let mut sim = two_beams(scheme, damping, threads, 12);
                         let spec = SolverSpec {
                             method,

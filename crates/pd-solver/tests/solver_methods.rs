@@ -23,7 +23,7 @@ fn spec(method: SolverMethod) -> SolverSpec {
         method,
         window: 5,
         rho: SpectralRadius::Auto,
-        start: 10,
+        start: SolverSpec::default().start,
     }
 }
 
@@ -110,21 +110,28 @@ fn every_method_converges_to_newtons_solution() {
 }
 
 /// Anderson reaches the tolerance in fewer than half the iterations of
-/// plain PD, L-BFGS in fewer than three quarters (measured over the three
-/// steps at 1e-6: Anderson 0.28 to 0.46 of plain PD's count, L-BFGS 0.37 to
-/// 0.54).
+/// plain PD, L-BFGS and Chebyshev in fewer than three quarters and three
+/// fifths (measured over the three steps at 1e-6: Anderson 0.28 to 0.46 of
+/// plain PD's count, L-BFGS 0.37 to 0.54, Chebyshev with its default
+/// `start` and `rho = "auto"` 0.42 to 0.51; Chebyshev on Wang's symmetric
+/// interval with `start = 10`, before docs/solver.md's "Chebyshev on the
+/// map's own spectrum", needed 0.70 to 0.81 at 1e-9).
 #[test]
 fn accelerated_methods_need_fewer_iterations() {
     for scheme in SCHEMES {
         let (_, plain) = run(scheme, false, SolverMethod::LocalGlobal, 1e-6, 20000, 3);
         let plain: usize = plain.iter().sum();
-        for method in [SolverMethod::Anderson, SolverMethod::Lbfgs] {
+        for method in [
+            SolverMethod::Anderson,
+            SolverMethod::Lbfgs,
+            SolverMethod::Chebyshev,
+        ] {
             let (_, accelerated) = run(scheme, false, method, 1e-6, 20000, 3);
             let accelerated: usize = accelerated.iter().sum();
-            let bound = if method == SolverMethod::Anderson {
-                plain / 2
-            } else {
-                plain * 3 / 4
+            let bound = match method {
+                SolverMethod::Anderson => plain / 2,
+                SolverMethod::Chebyshev => plain * 3 / 5,
+                _ => plain * 3 / 4,
             };
             assert!(
                 accelerated < bound,

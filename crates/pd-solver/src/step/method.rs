@@ -71,9 +71,9 @@ impl SolverMethod {
 pub enum SpectralRadius {
     /// Given, in `(0, 1)`.
     Fixed(f64),
-    /// Estimated from the first `start` iterations of the scene's first step
-    /// (the ratio of successive changes), lowered when the iteration
-    /// oscillates.
+    /// Estimated in the scene's first step, from the Ritz values of its
+    /// first plain iterations (`step/chebyshev.rs`), lowered when the
+    /// iteration oscillates.
     Auto,
 }
 
@@ -86,8 +86,8 @@ pub struct SolverSpec {
     pub window: usize,
     /// Chebyshev's spectral radius.
     pub rho: SpectralRadius,
-    /// Plain iterations Chebyshev runs in each step before it accelerates
-    /// (and over which `rho = "auto"` is estimated), >= 2.
+    /// Plain iterations Chebyshev runs in each step before it accelerates,
+    /// >= 2 (the step that estimates `rho = "auto"` runs up to 10).
     pub start: usize,
 }
 
@@ -97,7 +97,7 @@ impl Default for SolverSpec {
             method: SolverMethod::LocalGlobal,
             window: 5,
             rho: SpectralRadius::Auto,
-            start: 10,
+            start: 2,
         }
     }
 }
