@@ -20,9 +20,9 @@
 //! alone.
 //!
 //! `--predictor NAME` (`extrapolated`, `linear`; docs/solver.md "A better
-//! start") runs local-global, anderson and lbfgs with that predictor
-//! against the baseline of plain PD started at the inertial target, and
-//! writes `docs/stability-methods-predictor-NAME[-INTEGRATOR].md`.
+//! start") runs local-global, anderson, chebyshev and lbfgs with that
+//! predictor against the baseline of plain PD started at the inertial
+//! target, and writes `docs/stability-methods-predictor-NAME[-INTEGRATOR].md`.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -131,6 +131,7 @@ pub(super) fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
         p => [
             SolverMethod::LocalGlobal,
             SolverMethod::Anderson,
+            SolverMethod::Chebyshev,
             SolverMethod::Lbfgs,
         ]
         .map(|m| (m, p))
@@ -218,8 +219,8 @@ pub(super) fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
     if predictor != Predictor::Inertial {
         let _ = writeln!(
             out,
-            "\nWith the predictor (docs/solver.md, \"A better start\"): local-global, anderson \
-             and lbfgs start each step from the `{}` predictor; the baseline (`local-global`) \
+            "\nWith the predictor (docs/solver.md, \"A better start\"): local-global, anderson, \
+             chebyshev and lbfgs start each step from the `{}` predictor; the baseline (`local-global`) \
              starts at the inertial target, as by default.",
             predictor.name()
         );

@@ -82,17 +82,8 @@ impl PositionSolver for LocalGlobal {
         // implicit midpoint the energy then grows (docs/solver.md, "A better
         // start"), as after an accelerated method's overshoot. Steps from
         // `y` are plain PD's and are never checked.
-        if step.predicted && !converged && RayCheck::applies(step) {
-            let mut ray = std::mem::take(&mut step.buffers.ray);
-            let mut partials = std::mem::take(&mut step.buffers.partials);
-            let chunks = step.local_chunks();
-            if partials.len() != chunks {
-                partials = vec![pd_constraints::EnergyBound::default(); chunks];
-            }
-            ray.finish(step, &mut partials);
-            step.buffers.ray = ray;
-            step.buffers.partials = partials;
-            step.record_objective();
+        if !converged {
+            step.check_predicted_end();
         }
         Ok(())
     }
@@ -173,8 +164,8 @@ pub struct StepProblem<'a> {
     pub(crate) trace: Option<&'a mut Vec<f64>>,
     pub(crate) contact: Option<&'a mut crate::contact::ContactState>,
     /// Whether the displacement starts from a predicted point rather than
-    /// the inertial target (step/predictor.rs): every method but Chebyshev
-    /// and Newton then runs implicit midpoint's end-of-step check
+    /// the inertial target (step/predictor.rs): every method but Newton
+    /// then runs implicit midpoint's end-of-step check
     /// (step/ray.rs), plain local-global PD included, and the accelerated
     /// ones even when they took no accelerated iterate.
     pub(crate) predicted: bool,
@@ -285,6 +276,29 @@ impl StepProblem<'_> {
     pub fn objective(&mut self) -> f64 {
         self.stats.objective_evaluations += 1;
         super::objective::step_objective(self)
+    }
+
+    /// Implicit midpoint's end-of-step check (step/ray.rs) of a step that
+    /// started at a predicted point and did not converge: such a start can
+    /// lie past the step objective's line minimum in slow modes, and
+    /// iterations from it stay past it, so that the energy grows
+    /// (docs/solver.md, "A better start"). Nothing for other steps and
+    /// integrators. Plain PD and Chebyshev call it; Anderson and L-BFGS run
+    /// their own.
+    pub(crate) fn check_predicted_end(&mut self) {
+        if !(self.predicted && RayCheck::applies(self)) {
+            return;
+        }
+        let mut ray = std::mem::take(&mut self.buffers.ray);
+        let mut partials = std::mem::take(&mut self.buffers.partials);
+        let chunks = self.local_chunks();
+        if partials.len() != chunks {
+            partials = vec![pd_constraints::EnergyBound::default(); chunks];
+        }
+        ray.finish(self, &mut partials);
+        self.buffers.ray = ray;
+        self.buffers.partials = partials;
+        self.record_objective();
     }
 
     /// Appends the current objective to the simulation's objective trace,
