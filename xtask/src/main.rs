@@ -181,13 +181,16 @@ fn run_all(commands: &[&[&str]]) -> ExitCode {
     ExitCode::SUCCESS
 }
 
+/// `list` as owned arguments, for the tests of argument parsing here and
+/// in `stability/shard.rs`.
+#[cfg(test)]
+fn strings(list: &[&str]) -> Vec<String> {
+    list.iter().map(|s| s.to_string()).collect()
+}
+
 #[cfg(test)]
 mod tests {
-    use super::check_options;
-
-    fn args(list: &[&str]) -> Vec<String> {
-        list.iter().map(|s| s.to_string()).collect()
-    }
+    use super::{check_options, strings as args};
 
     #[test]
     fn known_options_pass() {

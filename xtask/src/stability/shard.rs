@@ -188,10 +188,7 @@ pub fn read(dir: &Path, quick: bool, total: usize) -> Result<(Vec<(usize, Ending
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn strings(list: &[&str]) -> Vec<String> {
-        list.iter().map(|s| s.to_string()).collect()
-    }
+    use crate::strings;
 
     #[test]
     fn shard_arguments_parse_and_reject_nonsense() {

@@ -117,7 +117,9 @@ impl Chebyshev {
         let rhs = &step.buffers.rhs;
         if self.last_rhs.len() != rhs.len() {
             self.last_rhs = vec![Point::zeros(); rhs.len()];
-            self.krylov = (0..ESTIMATION)
+            // d_1 .. d_(ESTIMATION - 1): the first iteration's d_0 has no
+            // known A d_0.
+            self.krylov = (1..ESTIMATION)
                 .map(|_| {
                     (
                         vec![Point::zeros(); free.len()],
