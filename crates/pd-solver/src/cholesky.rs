@@ -24,7 +24,7 @@ use crate::SolverError;
 mod calibration;
 #[cfg(feature = "metis")]
 mod metis;
-mod solve_kernels;
+pub(crate) mod solve_kernels;
 pub(crate) use solve_kernels::{Simd, vectorized};
 #[cfg(all(test, target_arch = "x86_64"))]
 pub(crate) use solve_kernels::{limit_width, widths};

@@ -190,9 +190,10 @@ fn every_method_and_predictor() {
                         };
                         let name = damping.name();
                         // 12 iterations: Chebyshev's first step
-                        // estimates `rho` from 10 plain iterations (its
-                        // later steps accelerate from the 2nd), and the
-                        // methods' rings wrap.
+                        // estimates `rho` after 4 plain iterations (its
+                        // later steps accelerate from the 2nd), its Ritz
+                        // window fills at the 10th and starts again, and
+                        // the methods' rings wrap.
                         let mut sim = two_beams(scheme, damping, threads, 12);
                         let spec = SolverSpec {
                             method,

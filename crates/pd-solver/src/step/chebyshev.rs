@@ -22,48 +22,41 @@
 //! (docs/solver.md, "Chebyshev on the map's own spectrum"). The first
 //! `start` iterations of each step are plain.
 //!
-//! `rho = "auto"` is estimated once per scene, from the first step that
-//! runs at least [`MIN_ESTIMATION`] iterations, whose first [`ESTIMATION`]
-//! (or all, if fewer) are then plain: the largest Ritz value of `T` on the
-//! Krylov space they span. With `d_k = G(x_k) - x_k`, `T d_k = d_(k+1)` for
-//! the linearisation, and `A d_k = b_k - b_(k-1)` (the right-hand sides the
-//! iterations solved, so no product with `A` is needed); `T` is
-//! self-adjoint in the `A` inner product, so the Ritz values come from the
-//! symmetric pencil `(d_i . A d_(j+1), d_i . A d_j)`. Like every Ritz
-//! value it lies inside the spectrum, so it errs low, the safe side: on
-//! the benchmark beam it gives 0.65 (backward Euler) and 0.58 (implicit
-//! midpoint) where plain PD's asymptotic rate is 0.78 and 0.70, and the
-//! ratio of successive changes, a power iteration, 0.59 and 0.51
-//! (docs/solver.md, "Chebyshev on the map's own spectrum"). Fallback when
-//! it oscillates: if an accelerated iteration's change grows (`|G(x_k) -
-//! x_k|_M` above the previous one), that iteration is replaced by the plain
-//! `G(x_k)`, the recurrence restarts (`omega = 1`) and an estimated `rho`
-//! is lowered to `rho^2`.
+//! `rho = "auto"` is estimated from every step, for the next: the largest
+//! Ritz value of `T` on the Krylov space the step's own iterates span
+//! ([`super::ritz`]; no extra iteration and no product with `A`). The
+//! first step has no estimate: its first [`FIRST_PLAIN`] iterations are
+//! plain and give one (or, if their pencil is degenerate, the largest
+//! ratio of successive changes, a lower estimate), and it accelerates with
+//! that for the rest. The spectrum's top moves as the body deforms (on the
+//! benchmark beam, backward Euler, the per-step value rises from 0.60 to
+//! 0.77 over the first 15 steps, implicit midpoint from 0.56 to 0.69),
+//! which an estimate made once in the first step missed (0.65 and 0.58,
+//! against plain PD's asymptotic rates 0.78 and 0.70 over a run;
+//! docs/solver.md, "Chebyshev's `rho` from every step"). Like every Ritz
+//! value the estimate lies inside the spectrum, so it errs low, the safe
+//! side. Fallback when it oscillates: if an accelerated iteration's change
+//! grows (`|G(x_k) - x_k|_M` above the previous one), that iteration is
+//! replaced by the plain `G(x_k)`, the recurrence restarts (`omega = 1`),
+//! an estimated `rho` is lowered to `rho^2` and the step's own estimate is
+//! not used.
 
-use nalgebra::{SMatrix, SymmetricEigen};
 use pd_mesh::Point;
 
 use super::iteration::{PositionSolver, StepProblem};
 use super::method::SpectralRadius;
 use super::ops::{difference, mass_dot};
+use super::ritz::{Next, RitzEstimator};
 use crate::SolverError;
 
-/// Plain iterations of the step that estimates `rho = "auto"` (a budget of
-/// 10 or more; the benchmark beam's Ritz value: 0.60 after 6, 0.65 after
-/// 10).
-pub(crate) const ESTIMATION: usize = 10;
+/// Plain iterations of the first step of `rho = "auto"`, before the first
+/// estimate (from their two complete pairs; the step then accelerates and
+/// keeps collecting pairs for the next step's estimate).
+const FIRST_PLAIN: usize = 4;
 
-/// The size of the Ritz pencil: the pairs of [`ESTIMATION`] plain
-/// iterations, `d_1 .. d_(ESTIMATION - 1)`, less the last one (only its
-/// image `T d` is used).
-const PENCIL: usize = ESTIMATION - 2;
-
-/// The pencil's fixed-size matrices.
-type Pencil = SMatrix<f64, PENCIL, PENCIL>;
-
-/// The fewest iterations a step needs to estimate `rho = "auto"` (its
-/// whole budget then, if below [`ESTIMATION`]).
-const MIN_ESTIMATION: usize = 4;
+/// How much a window's estimate must exceed the `rho` in use to replace
+/// it within a step (and restart the recurrence).
+const RAISE: f64 = 0.01;
 
 /// The largest `rho` used: `omega` and `alpha` stay finite below 1.
 const MAX_RHO: f64 = 0.999;
@@ -75,15 +68,14 @@ pub struct Chebyshev {
     start: usize,
     /// The estimate of `rho = "auto"`, once made.
     estimated: Option<f64>,
+
     /// `x_{k-1}` and `x_k`.
     previous: Vec<Point>,
     current: Vec<Point>,
     /// `G(x_k) - x_k`.
     change: Vec<Point>,
-    /// The estimating step's `d_k` and `A d_k` over the free vertices, and
-    /// the last right-hand side (empty once `rho` is known).
-    krylov: Vec<(Vec<Point>, Vec<Point>)>,
-    last_rhs: Vec<Point>,
+    /// The step's Krylov pairs, for `rho = "auto"`.
+    ritz: RitzEstimator,
 }
 
 impl Chebyshev {
@@ -94,113 +86,21 @@ impl Chebyshev {
             rho,
             start: start.max(2),
             estimated: None,
+
             previous: Vec::new(),
             current: Vec::new(),
             change: Vec::new(),
-            krylov: Vec::new(),
-            last_rhs: Vec::new(),
+            ritz: RitzEstimator::default(),
         }
     }
 
-    /// The spectral radius in use (`None` while `auto` is still estimating).
+    /// The spectral radius in use (`None` while `auto` has no estimate
+    /// yet).
     pub fn spectral_radius(&self) -> Option<f64> {
         match self.rho {
             SpectralRadius::Fixed(rho) => Some(rho),
             SpectralRadius::Auto => self.estimated,
         }
-    }
-
-    /// Keeps plain iteration `k`'s `d_k` (in `self.change`) and `A d_k`
-    /// from the right-hand side it solved, for the estimate.
-    fn record_krylov(&mut self, step: &StepProblem<'_>, k: usize) {
-        let free = step.global.free();
-        let rhs = &step.buffers.rhs;
-        if self.last_rhs.len() != rhs.len() {
-            self.last_rhs = vec![Point::zeros(); rhs.len()];
-            // d_1 .. d_(ESTIMATION - 1): the first iteration's d_0 has no
-            // known A d_0.
-            self.krylov = (1..ESTIMATION)
-                .map(|_| {
-                    (
-                        vec![Point::zeros(); free.len()],
-                        vec![Point::zeros(); free.len()],
-                    )
-                })
-                .collect();
-        }
-        // A x_k = b_(k-1) once x_k came from a plain iteration (k >= 1), so
-        // A d_k = A x_(k+1) - A x_k = b_k - b_(k-1).
-        if k >= 1 {
-            let (d, a_d) = &mut self.krylov[k - 1];
-            for (((d, a_d), &v), (b, last)) in d
-                .iter_mut()
-                .zip(a_d.iter_mut())
-                .zip(free)
-                .zip(rhs.iter().zip(&self.last_rhs))
-            {
-                *d = self.change[v];
-                *a_d = b - last;
-            }
-        }
-        self.last_rhs.copy_from_slice(rhs);
-    }
-
-    /// The largest Ritz value of `T` from the first `pairs` recorded
-    /// `(d_k, A d_k)`, `k = 1..=pairs`, or `None` if the pencil is
-    /// degenerate (the iteration converged or stalled). Fixed-size
-    /// matrices: the estimate may come in any step, and steps allocate
-    /// nothing.
-    fn ritz_estimate(&self, pairs: usize) -> Option<f64> {
-        let m = pairs.checked_sub(1).filter(|&m| m > 0)?.min(PENCIL);
-        let dot = |a: &[Point], b: &[Point]| a.iter().zip(b).map(|(a, b)| a.dot(b)).sum::<f64>();
-        let (mut g0, mut g1) = (Pencil::zeros(), Pencil::zeros());
-        for i in 0..m {
-            for j in 0..m {
-                let d_i = &self.krylov[i].0;
-                g0[(i, j)] = dot(d_i, &self.krylov[j].1);
-                g1[(i, j)] = dot(d_i, &self.krylov[j + 1].1);
-            }
-        }
-        // Symmetric in exact arithmetic on the linearisation; the map's
-        // nonlinearity and round-off leave a small skew part.
-        let mut g0 = (g0 + g0.transpose()) * 0.5;
-        let g1 = (g1 + g1.transpose()) * 0.5;
-        // Unused rows: identity in G0 at its largest diagonal entry (no
-        // larger than its largest eigenvalue), zero in G1, so the pencil's
-        // extra eigenvalues are 0 and the largest one is the estimate.
-        let scale = (0..m).map(|i| g0[(i, i)]).fold(0.0, f64::max);
-        if !(scale > 0.0 && scale.is_finite()) {
-            return None;
-        }
-        for i in m..PENCIL {
-            g0[(i, i)] = scale;
-        }
-        // G0 = V D V^T; the Krylov vectors grow nearly parallel, so
-        // directions below 1e-12 of the largest are dropped, and
-        // W = V_kept D_kept^(-1/2) whitens the rest.
-        let eigen = SymmetricEigen::new(g0);
-        let largest = eigen.eigenvalues.max();
-        let mut w = Pencil::zeros();
-        for c in 0..PENCIL {
-            let d = eigen.eigenvalues[c];
-            if d > 1e-12 * largest {
-                w.set_column(c, &(eigen.eigenvectors.column(c) / d.sqrt()));
-            }
-        }
-        let theta = SymmetricEigen::new(w.transpose() * g1 * w)
-            .eigenvalues
-            .max();
-        (theta.is_finite() && theta > 0.0).then_some(theta)
-    }
-
-    /// Sets `rho` from the `pairs` recorded so far, or from `ratio_max`,
-    /// the largest ratio of successive changes (a lower estimate), if the
-    /// pencil is degenerate; frees the estimation's vectors.
-    fn finish_estimate(&mut self, pairs: usize, ratio_max: f64) {
-        let rho = self.ritz_estimate(pairs).unwrap_or(ratio_max);
-        self.estimated = Some(rho.min(MAX_RHO));
-        self.krylov = Vec::new();
-        self.last_rhs = Vec::new();
     }
 }
 
@@ -217,9 +117,13 @@ impl PositionSolver for Chebyshev {
             self.change = vec![Point::zeros(); n];
         }
         step.record_objective();
-        let estimating = self.spectral_radius().is_none() && step.iterations() >= MIN_ESTIMATION;
-        let plain = if estimating {
-            step.iterations().min(ESTIMATION)
+        let auto = self.rho == SpectralRadius::Auto;
+        if auto {
+            self.ritz.begin_step(step.global.free().len());
+        }
+        // Without an estimate yet, the first iterations are plain and give it.
+        let plain = if self.spectral_radius().is_none() {
+            self.start.max(FIRST_PLAIN)
         } else {
             self.start
         };
@@ -227,38 +131,61 @@ impl PositionSolver for Chebyshev {
         let mut omega = 1.0;
         let mut last_change = f64::INFINITY;
         let mut converged = false;
+        let mut restarted = false;
+        // The largest estimate of this step's full windows.
+        let mut windows: Option<f64> = None;
         for k in 0..step.iterations() {
             self.current.copy_from_slice(step.displacement());
             step.local_global_iteration();
             difference(step.displacement(), &self.current, &mut self.change);
-            if estimating && k < plain {
-                self.record_krylov(step, k);
+            if auto {
+                self.ritz.solved(&step.buffers.rhs);
             }
             let masses = step.masses();
             let change = mass_dot(masses, &self.change, &self.change);
             let size = mass_dot(masses, step.displacement(), step.displacement());
             if step.record_residual(change, size) {
-                if estimating && k + 1 >= MIN_ESTIMATION && k < plain {
-                    // Converged before the estimate: its iterations so far.
-                    self.finish_estimate(k, ratio_max);
-                }
                 step.record_objective();
                 converged = true;
                 break;
             }
             let change = change.sqrt();
-            if k < plain {
-                if estimating && k > 0 && last_change > 0.0 {
-                    ratio_max = ratio_max.max(change / last_change);
+            if k < plain && k > 0 && last_change > 0.0 {
+                ratio_max = ratio_max.max(change / last_change);
+            }
+            if auto && self.estimated.is_none() && k + 1 == plain {
+                // The first estimate, from the plain iterations so far (or
+                // the largest ratio of successive changes, a lower
+                // estimate, if their pencil is degenerate).
+                let rho = self.ritz.estimate().unwrap_or(ratio_max);
+                self.estimated = Some(rho.min(MAX_RHO));
+            }
+            if auto && self.ritz.full() {
+                // A long step (a tolerance or a large budget): a window of
+                // later iterates replaces a lower rho at once (the
+                // recurrence restarts), and a new window begins.
+                let window = self.ritz.estimate();
+                self.ritz.restart_window();
+                if let Some(window) = window {
+                    windows = Some(windows.map_or(window, |w| w.max(window)));
+                    if let Some(rho) = self.estimated
+                        && !restarted
+                        && window > rho + RAISE
+                    {
+                        self.estimated = Some(window.min(MAX_RHO));
+                        omega = 1.0;
+                    }
                 }
-                if estimating && k + 1 == plain {
-                    self.finish_estimate(plain - 1, ratio_max);
-                }
-            } else if let Some(rho) = self.spectral_radius().filter(|&rho| rho > 0.0) {
+            }
+            let mut how = Next::Plain;
+            if k >= plain
+                && let Some(rho) = self.spectral_radius().filter(|&rho| rho > 0.0)
+            {
                 if omega > 1.0 && change > last_change {
                     // Oscillation: keep the plain iterate G(x_k), restart.
                     omega = 1.0;
-                    if self.rho == SpectralRadius::Auto {
+                    restarted = true;
+                    if auto {
                         self.estimated = Some(rho * rho);
                     }
                 } else {
@@ -281,11 +208,28 @@ impl PositionSolver for Chebyshev {
                         let relaxed = *c + (*x - c) * alpha;
                         *x = (relaxed - p) * omega + p;
                     }
+                    how = Next::Combined { alpha, omega };
                 }
+            }
+            if auto {
+                self.ritz
+                    .advanced(step.global.free(), step.displacement(), &self.current, how);
             }
             last_change = change;
             std::mem::swap(&mut self.previous, &mut self.current);
             step.record_objective();
+        }
+        // The next step's rho: this step's largest Ritz value, unless the
+        // step oscillated (then the lowered rho above stands).
+        if auto && !restarted {
+            let last = self.ritz.estimate();
+            let best = match (last, windows) {
+                (Some(a), Some(b)) => Some(a.max(b)),
+                (a, b) => a.or(b),
+            };
+            if let Some(rho) = best {
+                self.estimated = Some(rho.min(MAX_RHO));
+            }
         }
         // With the linear predictor and implicit midpoint, 3 of 576 runs
         // of the method axis diverged without this check where plain PD

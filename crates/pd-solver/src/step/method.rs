@@ -71,9 +71,10 @@ impl SolverMethod {
 pub enum SpectralRadius {
     /// Given, in `(0, 1)`.
     Fixed(f64),
-    /// Estimated in the scene's first step, from the Ritz values of its
-    /// first plain iterations (`step/chebyshev.rs`), lowered when the
-    /// iteration oscillates.
+    /// Estimated from every step's iterates for the next (and within long
+    /// steps), as the largest Ritz value of the local-global map's
+    /// linearisation (`step/chebyshev.rs`, `step/ritz.rs`); lowered when
+    /// the iteration oscillates.
     Auto,
 }
 
@@ -87,7 +88,8 @@ pub struct SolverSpec {
     /// Chebyshev's spectral radius.
     pub rho: SpectralRadius,
     /// Plain iterations Chebyshev runs in each step before it accelerates,
-    /// >= 2 (the step that estimates `rho = "auto"` runs up to 10).
+    /// at least 2 (the first step with `rho = "auto"` runs at least 4,
+    /// which give the first estimate).
     pub start: usize,
 }
 

@@ -27,6 +27,7 @@ pub(crate) mod ops;
 pub(crate) mod predictor;
 pub(crate) mod predictor_fit;
 pub(crate) mod ray;
+pub(crate) mod ritz;
 pub(crate) mod tail;
 
 use std::time::Instant;
