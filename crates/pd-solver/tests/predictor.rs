@@ -179,3 +179,27 @@ fn a_worse_predicted_start_falls_back_to_the_inertial_target() {
     };
     assert_eq!(first(Predictor::Extrapolated), first(Predictor::Inertial));
 }
+
+/// Plain PD and Chebyshev take the safeguard's projections at the kept
+/// start as their first local step instead of projecting there again (as
+/// Anderson and L-BFGS do): a predicted backward-Euler step (no end-of-step
+/// check) counts one objective evaluation, the safeguard's two less the one
+/// the first iteration takes back, where a second projection pass counted
+/// two (kept start or `y`, the safeguard leaves the projections of the one
+/// it keeps).
+#[test]
+fn plain_pd_and_chebyshev_reuse_the_safeguard_projections() {
+    for method in [SolverMethod::LocalGlobal, SolverMethod::Chebyshev] {
+        let mut sim = beam(Scheme::BackwardEuler, 5, 0.0);
+        let spec = SolverSpec {
+            method,
+            ..SolverSpec::default()
+        };
+        sim.set_position_solver(spec.create().unwrap());
+        sim.set_predictor(Predictor::Linear);
+        sim.run(4).unwrap();
+        let stats = sim.step().unwrap();
+        assert_eq!(stats.iterations, 5, "{method:?}");
+        assert_eq!(stats.objective_evaluations, 1, "{method:?}");
+    }
+}

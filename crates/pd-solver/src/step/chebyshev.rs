@@ -136,7 +136,11 @@ impl PositionSolver for Chebyshev {
         let mut windows: Option<f64> = None;
         for k in 0..step.iterations() {
             self.current.copy_from_slice(step.displacement());
-            step.local_global_iteration();
+            if k == 0 {
+                step.first_local_global_iteration();
+            } else {
+                step.local_global_iteration();
+            }
             difference(step.displacement(), &self.current, &mut self.change);
             if auto {
                 self.ritz.solved(&step.buffers.rhs);

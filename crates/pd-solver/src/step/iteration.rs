@@ -200,7 +200,17 @@ impl StepProblem<'_> {
     /// new displacement. Counts the iteration and its time in the step's
     /// statistics.
     pub fn local_global_iteration(&mut self) -> IterationChange {
-        self.iteration(false, false)
+        self.iteration(false, false, false)
+    }
+
+    /// A step's first local-global iteration: as
+    /// [`StepProblem::local_global_iteration`], but when the predictor's
+    /// safeguard left the start's projections in the buffer (see
+    /// [`StepProblem::take_start_projections`]) they are its local step,
+    /// the same values a second projection pass would give, and the
+    /// safeguard's evaluation is not counted twice.
+    pub(crate) fn first_local_global_iteration(&mut self) -> IterationChange {
+        self.iteration(false, false, true)
     }
 
     /// [`LocalGlobal`]'s iterations: up to [`StepProblem::iterations`],
@@ -213,7 +223,7 @@ impl StepProblem<'_> {
     pub(crate) fn plain_iterations(&mut self) -> bool {
         let iterations = self.iterations();
         for k in 0..iterations {
-            let change = self.iteration(k > 0, k + 1 < iterations);
+            let change = self.iteration(k > 0, k + 1 < iterations, k == 0);
             self.record_objective();
             if self.converged(change) {
                 return true;
@@ -224,19 +234,25 @@ impl StepProblem<'_> {
 
     /// One local-global iteration; `q_current`: the buffers' `q` already
     /// holds `x_n + c2 dx` (the last tail wrote it), `next_q`: the tail
-    /// writes it for the new displacement.
-    fn iteration(&mut self, q_current: bool, next_q: bool) -> IterationChange {
+    /// writes it for the new displacement; `reuse_start`: the projections
+    /// the predictor's safeguard left are this iteration's local step, if
+    /// there are any.
+    fn iteration(&mut self, q_current: bool, next_q: bool, reuse_start: bool) -> IterationChange {
         let t0 = Instant::now();
         let c2 = self.coefficients.c2;
         let x_n = self.positions;
-        let b = &mut *self.buffers;
-        if !q_current {
-            let displacement = &b.displacement;
-            b.q.par_iter_mut()
-                .enumerate()
-                .for_each(|(v, q)| *q = x_n[v] + displacement[v] * c2);
+        if reuse_start && self.take_start_projections().is_some() {
+            self.stats.objective_evaluations = self.stats.objective_evaluations.saturating_sub(1);
+        } else {
+            let b = &mut *self.buffers;
+            if !q_current {
+                let displacement = &b.displacement;
+                b.q.par_iter_mut()
+                    .enumerate()
+                    .for_each(|(v, q)| *q = x_n[v] + displacement[v] * c2);
+            }
+            self.local.project(&b.q, &mut b.projections);
         }
-        self.local.project(&b.q, &mut b.projections);
         let t1 = Instant::now();
 
         self.rhs_from_projections();

@@ -22,7 +22,8 @@
 //!
 //! The safeguard ([`keep_the_better_start`]): a predicted start is kept
 //! only if the step objective is lower there than at `y` (two objective
-//! evaluations a predicted step). It does not make the predictor as stable
+//! evaluations a predicted step, the kept one's projections then serving
+//! every method's first local step but Newton's). It does not make the predictor as stable
 //! as the inertial start at large steps: docs/solver.md, "A better start".
 
 use pd_mesh::Point;
