@@ -22,6 +22,15 @@
 //! }
 //! ```
 //!
+//! Optional keys, written only when there is something to keep: `contact`
+//! (the active contacts), `predictor` (the predictor's corrections) and
+//! `solver` (what the iteration method carries between steps: `[rho]`, the
+//! estimate of Chebyshev with `rho = "auto"`), e.g.
+//!
+//! ```json
+//! { "...": "...", "solver": [0.7712] }
+//! ```
+//!
 //! The scene's text is embedded (with the absolute path it was read from, so
 //! that relative mesh paths still resolve) and a 64-bit FNV-1a hash of it,
 //! which reading checks: an edited or damaged scene text is refused. Files
@@ -128,6 +137,10 @@ struct Raw {
     /// there is one (pd_solver::PredictorState).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     predictor: Option<RawPredictor>,
+    /// What the iteration method carries between steps (Chebyshev's
+    /// estimated `rho`), written only when there is something.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    solver: Vec<f64>,
 }
 
 /// `pd_solver::PredictorState`: the last step's correction (m per vertex)
@@ -175,7 +188,8 @@ pub fn write_checkpoint(path: &Path, file: &CheckpointFile) -> Result<()> {
         && finite(&c.predictor.correction)
         && finite(&c.predictor.previous)
         && c.predictor.history.iter().all(|h| finite(h))
-        && c.predictor.key.iter().all(|x| x.is_finite()))
+        && c.predictor.key.iter().all(|x| x.is_finite())
+        && c.solver.iter().all(|x| x.is_finite()))
     {
         return Err(Error::Content {
             path: path.to_path_buf(),
@@ -220,6 +234,7 @@ pub fn write_checkpoint(path: &Path, file: &CheckpointFile) -> Result<()> {
             previous: arrays(&c.predictor.previous),
             history: c.predictor.history.iter().map(|h| arrays(h)).collect(),
         }),
+        solver: c.solver.clone(),
     };
     write_atomically(path, |w| {
         serde_json::to_writer(&mut *w, &raw)?;
@@ -347,6 +362,7 @@ pub fn read_checkpoint(path: &Path) -> Result<CheckpointFile> {
                     history: p.history.iter().map(|h| points(h)).collect(),
                 })
                 .unwrap_or_default(),
+            solver: raw.solver,
         },
     })
 }
@@ -384,6 +400,7 @@ mod tests {
                 energy_scale: 1e-17 / 3.0,
                 contact: Default::default(),
                 predictor: Default::default(),
+                solver: vec![0.7234567890123457],
             },
         }
     }

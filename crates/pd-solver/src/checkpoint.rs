@@ -37,6 +37,10 @@ pub struct Checkpoint {
     /// The last step's correction of the extrapolated predictor (empty
     /// without it, step/predictor.rs).
     pub predictor: crate::step::PredictorState,
+    /// What the iteration method carries between steps
+    /// ([`crate::PositionSolver::carried`]: Chebyshev's estimated `rho`
+    /// with `rho = "auto"`; empty for the others).
+    pub solver: Vec<f64>,
 }
 
 impl Simulation {
@@ -85,6 +89,7 @@ impl Simulation {
                 .map(crate::contact::ContactState::save)
                 .unwrap_or_default(),
             predictor: self.predictor_state.clone(),
+            solver: self.position_solver.carried(),
         }
     }
 
@@ -94,8 +99,9 @@ impl Simulation {
     /// # Errors
     /// [`SolverError::InvalidState`] if the checkpoint belongs to another
     /// integrator, has the wrong number of vertices, a non-finite value, a
-    /// history the integrator cannot hold, or a predictor correction of the
-    /// wrong length; the simulation is then unchanged.
+    /// history the integrator cannot hold, a predictor correction of the
+    /// wrong length, or a method state the method cannot take; the
+    /// simulation is then unchanged.
     pub fn restore(&mut self, checkpoint: &Checkpoint) -> Result<(), SolverError> {
         let invalid = |reason: String| SolverError::InvalidState { reason };
         if checkpoint.integrator != self.integrator.name() {
@@ -128,6 +134,9 @@ impl Simulation {
             }
         }
         Self::check_predictor_state(&checkpoint.predictor, n)?;
+        self.position_solver
+            .check_carried(&checkpoint.solver)
+            .map_err(|reason| invalid(format!("solver: {reason}")))?;
         let before = self.integrator.history();
         if let Err(reason) = self.integrator.restore_history(&checkpoint.history, n) {
             // Leave the simulation as it was.
@@ -152,6 +161,7 @@ impl Simulation {
         }
         self.state = checkpoint.state.clone();
         self.replace_predictor_state(checkpoint.predictor.clone());
+        self.position_solver.restore_carried(&checkpoint.solver);
         self.steps = checkpoint.steps;
         self.time = checkpoint.time;
         self.divergence.reference = checkpoint.energy_reference;

@@ -109,6 +109,32 @@ impl PositionSolver for Chebyshev {
         "chebyshev"
     }
 
+    /// `rho = "auto"`'s estimate for the next step, once made.
+    fn carried(&self) -> Vec<f64> {
+        match (self.rho, self.estimated) {
+            (SpectralRadius::Auto, Some(rho)) => vec![rho],
+            _ => Vec::new(),
+        }
+    }
+
+    fn check_carried(&self, values: &[f64]) -> Result<(), String> {
+        match values {
+            [] => Ok(()),
+            [rho] if *rho > 0.0 && *rho <= MAX_RHO => Ok(()),
+            _ => Err(format!(
+                "chebyshev carries one spectral radius in (0, {MAX_RHO}], the checkpoint has {values:?}"
+            )),
+        }
+    }
+
+    /// With `rho = "auto"`, the saved estimate (none: the next step
+    /// estimates afresh); a fixed `rho` keeps its own.
+    fn restore_carried(&mut self, values: &[f64]) {
+        if self.rho == SpectralRadius::Auto {
+            self.estimated = values.first().copied();
+        }
+    }
+
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {
         let n = step.displacement().len();
         if self.previous.len() != n {

@@ -57,6 +57,31 @@ pub trait PositionSolver: std::fmt::Debug + Send + Sync {
     fn handles_materials(&self) -> bool {
         false
     }
+
+    /// What the method carries from one step to the next and a checkpoint
+    /// must keep for a resumed run to continue bit for bit (Chebyshev's
+    /// estimated `rho` with `rho = "auto"`); empty (the default) for a
+    /// method that starts every step afresh.
+    fn carried(&self) -> Vec<f64> {
+        Vec::new()
+    }
+
+    /// Checks values of [`PositionSolver::carried`] before anything is
+    /// restored; the default accepts any (a method that carries nothing
+    /// ignores them, so a run may resume with another method).
+    ///
+    /// # Errors
+    /// Why the method cannot take them.
+    fn check_carried(&self, values: &[f64]) -> Result<(), String> {
+        let _ = values;
+        Ok(())
+    }
+
+    /// Takes values checked by [`PositionSolver::check_carried`] (the
+    /// default ignores them).
+    fn restore_carried(&mut self, values: &[f64]) {
+        let _ = values;
+    }
 }
 
 /// Plain Projective Dynamics: local step, then global solve, `iterations`

@@ -1,0 +1,87 @@
+//! Chebyshev with `rho = "auto"` carries its estimate from step to step
+//! (step/chebyshev.rs); a checkpoint keeps it, so a resumed run continues
+//! bit for bit, as with every other method.
+
+mod common;
+
+use common::{Scheme, clamped_beam};
+use pd_damping::NoDamping;
+use pd_mesh::Point;
+use pd_solver::{Settings, Simulation, SolverMethod, SolverSpec};
+
+fn beam(scheme: Scheme) -> Simulation {
+    let (model, _) = clamped_beam([10, 2, 2], [1.0, 0.2, 0.2], 7, 1e6);
+    let settings = Settings {
+        dt: 0.01,
+        iterations: 12,
+        threads: 1,
+        ..Settings::default()
+    };
+    let mut sim =
+        Simulation::new(model, scheme.integrator(), Box::new(NoDamping), settings).unwrap();
+    let spec = SolverSpec {
+        method: SolverMethod::Chebyshev,
+        ..SolverSpec::default()
+    };
+    sim.set_position_solver(spec.create().unwrap());
+    sim
+}
+
+fn bits(points: &[Point]) -> Vec<u64> {
+    points
+        .iter()
+        .flat_map(|p| p.iter().map(|c| c.to_bits()))
+        .collect()
+}
+
+/// Resumed from a checkpoint after 4 steps, 3 more steps end where the
+/// uninterrupted run does, bit for bit; without the saved estimate (the
+/// next step then estimates afresh from 4 plain iterations) they do not,
+/// so the test can fail.
+#[test]
+fn a_resumed_run_continues_bit_for_bit() {
+    for scheme in [Scheme::BackwardEuler, Scheme::ImplicitMidpoint] {
+        let mut straight = beam(scheme);
+        straight.run(4).unwrap();
+        let saved = straight.checkpoint();
+        assert_eq!(saved.solver.len(), 1, "{scheme:?}: an estimate is saved");
+        straight.run(3).unwrap();
+
+        let mut resumed = beam(scheme);
+        resumed.restore(&saved).unwrap();
+        resumed.run(3).unwrap();
+        assert_eq!(
+            bits(&resumed.state().positions),
+            bits(&straight.state().positions),
+            "{scheme:?}"
+        );
+        assert_eq!(resumed.checkpoint(), straight.checkpoint(), "{scheme:?}");
+
+        let mut forgetful = beam(scheme);
+        let mut without = saved.clone();
+        without.solver.clear();
+        forgetful.restore(&without).unwrap();
+        forgetful.run(3).unwrap();
+        assert_ne!(
+            bits(&forgetful.state().positions),
+            bits(&straight.state().positions),
+            "{scheme:?}: the estimate makes no difference"
+        );
+    }
+}
+
+/// A saved estimate outside (0, 0.999] (or more than one value) is refused
+/// with an error naming it, and the simulation is unchanged.
+#[test]
+fn an_impossible_estimate_is_refused() {
+    let mut sim = beam(Scheme::BackwardEuler);
+    sim.run(2).unwrap();
+    let mut saved = sim.checkpoint();
+    let before = sim.checkpoint();
+    for bad in [vec![1.5], vec![0.0], vec![0.5, 0.5]] {
+        saved.solver = bad.clone();
+        let error = sim.restore(&saved).unwrap_err().to_string();
+        assert!(error.contains("solver"), "{bad:?}: {error}");
+        assert_eq!(sim.checkpoint(), before, "{bad:?}: changed");
+    }
+}
