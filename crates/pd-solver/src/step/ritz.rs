@@ -102,8 +102,10 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 
 /// `out[i] = vectors[i] . target` for the first `out.len()` vectors,
 /// compiled for the widest instruction set the CPU has. A step makes up
-/// to 108 of these products over `3 x` free vertices: 0.17-0.2 ms a step
-/// on the 2,304-vertex beam with one scalar sum each, 5 % of the step.
+/// to 108 of these products over `3 x` free vertices: about 80 us of the
+/// estimator's 0.16-0.19 ms a step on the 2,304-vertex beam at 9
+/// iterations (4-5 % of the step; docs/solver.md, "Chebyshev's `rho` from
+/// every step").
 fn dots(vectors: &[Vec<f64>], target: &[f64], out: &mut [f64]) {
     crate::cholesky::solve_kernels::vectorized(
         #[inline(always)]
