@@ -4,10 +4,9 @@
 
 mod common;
 
-use common::{Scheme, clamped_beam};
+use common::{Scheme, bits, clamped_beam};
 use pd_damping::NoDamping;
-use pd_mesh::Point;
-use pd_solver::{Settings, Simulation, SolverMethod, SolverSpec};
+use pd_solver::{Checkpoint, Settings, Simulation, SolverMethod, SolverSpec};
 
 fn beam(scheme: Scheme) -> Simulation {
     let (model, _) = clamped_beam([10, 2, 2], [1.0, 0.2, 0.2], 7, 1e6);
@@ -27,13 +26,6 @@ fn beam(scheme: Scheme) -> Simulation {
     sim
 }
 
-fn bits(points: &[Point]) -> Vec<u64> {
-    points
-        .iter()
-        .flat_map(|p| p.iter().map(|c| c.to_bits()))
-        .collect()
-}
-
 /// Resumed from a checkpoint after 4 steps, 3 more steps end where the
 /// uninterrupted run does, bit for bit; without the saved estimate (the
 /// next step then estimates afresh from 4 plain iterations) they do not,
@@ -46,10 +38,15 @@ fn a_resumed_run_continues_bit_for_bit() {
         let saved = straight.checkpoint();
         assert_eq!(saved.solver.len(), 1, "{scheme:?}: an estimate is saved");
         straight.run(3).unwrap();
+        // A new simulation restored from `checkpoint`, 3 steps on.
+        let resume = |checkpoint: &Checkpoint| {
+            let mut sim = beam(scheme);
+            sim.restore(checkpoint).unwrap();
+            sim.run(3).unwrap();
+            sim
+        };
 
-        let mut resumed = beam(scheme);
-        resumed.restore(&saved).unwrap();
-        resumed.run(3).unwrap();
+        let resumed = resume(&saved);
         assert_eq!(
             bits(&resumed.state().positions),
             bits(&straight.state().positions),
@@ -57,11 +54,10 @@ fn a_resumed_run_continues_bit_for_bit() {
         );
         assert_eq!(resumed.checkpoint(), straight.checkpoint(), "{scheme:?}");
 
-        let mut forgetful = beam(scheme);
-        let mut without = saved.clone();
-        without.solver.clear();
-        forgetful.restore(&without).unwrap();
-        forgetful.run(3).unwrap();
+        let forgetful = resume(&Checkpoint {
+            solver: Vec::new(),
+            ..saved.clone()
+        });
         assert_ne!(
             bits(&forgetful.state().positions),
             bits(&straight.state().positions),

@@ -7,6 +7,14 @@ use pd_mesh::{Mesh, Point, VertexSelection};
 use pd_solver::contact::{Collider, ColliderShape};
 use pd_solver::{BodyId, Model, Simulation};
 
+/// The bits of every coordinate, for bit-for-bit comparisons.
+pub fn bits(points: &[Point]) -> Vec<u64> {
+    points
+        .iter()
+        .flat_map(|p| p.iter().map(|c| c.to_bits()))
+        .collect()
+}
+
 /// Unit round-off of f64.
 pub const U: f64 = f64::EPSILON / 2.0;
 

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{Scheme, clamped_beam};
+use common::{Scheme, bits, clamped_beam};
 use pd_damping::NoDamping;
 use pd_mesh::Point;
 use pd_solver::{Predictor, Settings, Simulation, SolverMethod, SolverSpec};
@@ -22,13 +22,6 @@ fn beam(scheme: Scheme, iterations: usize, tolerance: f64) -> Simulation {
         ..Settings::default()
     };
     Simulation::new(model, scheme.integrator(), Box::new(NoDamping), settings).unwrap()
-}
-
-fn bits(points: &[Point]) -> Vec<u64> {
-    points
-        .iter()
-        .flat_map(|p| p.iter().map(|c| c.to_bits()))
-        .collect()
 }
 
 /// The step objective's gap `g(x^0) - g(x*)` at the start of the next step

@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{Scheme, clamped_beam};
+use common::{Scheme, bits, clamped_beam};
 use pd_damping::NoDamping;
 use pd_mesh::Point;
 use pd_solver::{Predictor, Settings, Simulation, SolverMethod, SolverSpec};
@@ -36,13 +36,6 @@ fn beam(scheme: Scheme, predictor: Predictor, iterations: usize, threads: usize)
     sim.set_position_solver(spec.create().unwrap());
     sim.set_predictor(predictor);
     sim
-}
-
-fn bits(points: &[Point]) -> Vec<u64> {
-    points
-        .iter()
-        .flat_map(|p| p.iter().map(|c| c.to_bits()))
-        .collect()
 }
 
 /// The history grows to `order + equations` corrections and stays there.

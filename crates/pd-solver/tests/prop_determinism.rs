@@ -20,7 +20,7 @@ mod prop_common;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use common::{Scheme, jittered_box};
+use common::{Scheme, bits, jittered_box};
 use pd_io::state::{read_state, write_state};
 use pd_mesh::Point;
 use pd_solver::{Model, Settings, Simulation, State};
@@ -129,13 +129,6 @@ fn scheme() -> impl Strategy<Value = Scheme> {
         Just(Scheme::ImplicitMidpoint),
         Just(Scheme::Bdf2)
     ]
-}
-
-fn bits(points: &[Point]) -> Vec<u64> {
-    points
-        .iter()
-        .flat_map(|p| p.iter().map(|c| c.to_bits()))
-        .collect()
 }
 
 const STEPS: usize = 6;

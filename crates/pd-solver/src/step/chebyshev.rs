@@ -68,7 +68,6 @@ pub struct Chebyshev {
     start: usize,
     /// The estimate of `rho = "auto"`, once made.
     estimated: Option<f64>,
-
     /// `x_{k-1}` and `x_k`.
     previous: Vec<Point>,
     current: Vec<Point>,
@@ -86,7 +85,6 @@ impl Chebyshev {
             rho,
             start: start.max(2),
             estimated: None,
-
             previous: Vec::new(),
             current: Vec::new(),
             change: Vec::new(),
@@ -197,7 +195,7 @@ impl PositionSolver for Chebyshev {
                 let window = self.ritz.estimate();
                 self.ritz.restart_window();
                 if let Some(window) = window {
-                    windows = Some(windows.map_or(window, |w| w.max(window)));
+                    windows = windows.into_iter().chain([window]).reduce(f64::max);
                     if let Some(rho) = self.estimated
                         && !restarted
                         && window > rho + RAISE
@@ -252,12 +250,8 @@ impl PositionSolver for Chebyshev {
         // The next step's rho: this step's largest Ritz value, unless the
         // step oscillated (then the lowered rho above stands).
         if auto && !restarted {
-            let last = self.ritz.estimate();
-            let best = match (last, windows) {
-                (Some(a), Some(b)) => Some(a.max(b)),
-                (a, b) => a.or(b),
-            };
-            if let Some(rho) = best {
+            let best = self.ritz.estimate().into_iter().chain(windows);
+            if let Some(rho) = best.reduce(f64::max) {
                 self.estimated = Some(rho.min(MAX_RHO));
             }
         }

@@ -242,7 +242,7 @@ impl RitzEstimator {
     }
 
     /// The number of pairs with both entries known.
-    pub(crate) fn pairs(&self) -> usize {
+    fn pairs(&self) -> usize {
         self.stored - usize::from(self.pending)
     }
 
