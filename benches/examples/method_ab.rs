@@ -3,7 +3,7 @@
 //! [--warmup W] [--cells NX,NY,NZ] [--window W]`: runs the benchmark beam
 //! (one thread) with one iteration method and budget and prints, on one
 //! line, the median and mean wall time per step (ms) after `W` warm-up
-//! steps, the local-global iterations and objective evaluations per step,
+//! steps (and the medians of its local and global phases' times), the local-global iterations and objective evaluations per step,
 //! and an FNV-1a hash of every final position and velocity bit. For quick
 //! A/B comparisons of a method's cost (run the two builds alternately) and
 //! for checking that a change keeps its results bit for bit.
@@ -58,6 +58,8 @@ fn main() -> Result<(), String> {
     sim.run(warmup).map_err(|e| e.to_string())?;
     let stats = sim.run(steps).map_err(|e| e.to_string())?;
     let times: Vec<f64> = stats.iter().map(|s| s.total_seconds * 1e3).collect();
+    let local: Vec<f64> = stats.iter().map(|s| s.local_seconds * 1e3).collect();
+    let global: Vec<f64> = stats.iter().map(|s| s.global_seconds * 1e3).collect();
     let n = stats.len().max(1) as f64;
     let iterations = stats.iter().map(|s| s.iterations as f64).sum::<f64>() / n;
     let evaluations = stats
@@ -66,12 +68,15 @@ fn main() -> Result<(), String> {
         .sum::<f64>()
         / n;
     println!(
-        "{} {budget} {} {integrator} {damping}: median {:.3} ms mean {:.3} ms, \
+        "{} {budget} {} {integrator} {damping}: median {:.3} ms mean {:.3} ms \
+         (local {:.3}, global {:.3}), \
          {iterations:.2} iterations {evaluations:.2} evaluations a step, hash {:016x}",
         method.name(),
         predictor.name(),
         median(&times),
         times.iter().sum::<f64>() / n,
+        median(&local),
+        median(&global),
         pd_benches::state_hash(sim.state())
     );
     Ok(())

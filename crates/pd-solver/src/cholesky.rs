@@ -29,6 +29,8 @@ pub(crate) use solve_kernels::{Simd, vectorized};
 #[cfg(all(test, target_arch = "x86_64"))]
 pub(crate) use solve_kernels::{limit_width, widths};
 #[cfg(test)]
+mod precision_probe;
+#[cfg(test)]
 mod solve_profile;
 mod solve_tree;
 mod supernodal_solve;
