@@ -14,9 +14,9 @@
 //! after each of two defect corrections (`x += solve32(b - A x)`, the
 //! residual in f64).
 
+use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::LltRef;
 use faer::{Conj, Mat, Par};
-use faer::dyn_stack::{MemBuffer, MemStack};
 
 use super::calibration::{armadillo, laplacian_factor};
 
@@ -34,9 +34,8 @@ fn min_time(rounds: usize, mut f: impl FnMut()) -> f64 {
 fn product(p: &super::LowerPattern, values: &[f64], x: &Mat<f64>) -> Mat<f64> {
     let mut y = Mat::<f64>::zeros(p.n, 3);
     for c in 0..p.n {
-        for k in p.col_ptr[c]..p.col_ptr[c + 1] {
-            let r = p.row_idx[k];
-            let v = values[k];
+        let range = p.col_ptr[c]..p.col_ptr[c + 1];
+        for (&r, &v) in p.row_idx[range.clone()].iter().zip(&values[range]) {
             for j in 0..3 {
                 y[(r, j)] += v * x[(c, j)];
                 if r != c {
@@ -62,7 +61,9 @@ fn max_rel(a: &Mat<f64>, b: &Mat<f64>) -> f64 {
 
 fn probe(label: &str, mesh: &pd_mesh::Mesh, rounds: usize) {
     let (mut factor, numeric) = laplacian_factor(mesh);
-    let b = Mat::<f64>::from_fn(factor.pattern().n, 3, |i, j| ((i * (j + 3)) % 17) as f64 - 8.0);
+    let b = Mat::<f64>::from_fn(factor.pattern().n, 3, |i, j| {
+        ((i * (j + 3)) % 17) as f64 - 8.0
+    });
     let n = factor.pattern().n;
     let values64 = factor.faer_values(&numeric).into_owned();
     let values32: Vec<f32> = values64.iter().map(|&v| v as f32).collect();
@@ -72,7 +73,10 @@ fn probe(label: &str, mesh: &pd_mesh::Mesh, rounds: usize) {
         factor.factor_len(),
         factor.supernodes()
     );
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
     pool.install(|| {
         // pd's own solve (f64).
         let mut points: Vec<pd_mesh::Point> = (0..n)
@@ -134,7 +138,11 @@ fn probe(label: &str, mesh: &pd_mesh::Mesh, rounds: usize) {
         let mut values = base.clone();
         for c in 0..p.n {
             for k in p.col_ptr[c]..p.col_ptr[c + 1] {
-                values[k] = if p.row_idx[k] == c { 1.0 + scale * (base[k] - 1.0) } else { scale * base[k] };
+                values[k] = if p.row_idx[k] == c {
+                    1.0 + scale * (base[k] - 1.0)
+                } else {
+                    scale * base[k]
+                };
             }
         }
         let numeric = factor.factorise(&values).expect("positive definite");
