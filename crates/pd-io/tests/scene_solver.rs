@@ -79,3 +79,37 @@ fn mistakes_name_the_field() {
         .to_string();
     assert!(error.contains("unknown field `methods`"), "{error}");
 }
+
+#[test]
+fn a_method_s_own_keys_are_refused_with_another_method() {
+    let cases: &[(&str, &str)] = &[
+        (
+            "[solver]\nrho = 0.5",
+            "s.toml: solver.rho: applies only with method = \"chebyshev\" (method is \"local-global\")",
+        ),
+        (
+            "[solver]\nmethod = \"anderson\"\nstart = 4",
+            "s.toml: solver.start: applies only with method = \"chebyshev\" (method is \"anderson\")",
+        ),
+        (
+            "[solver]\nmethod = \"chebyshev\"\nwindow = 4",
+            "s.toml: solver.window: applies only with method = \"anderson\" or \"lbfgs\" (method is \"chebyshev\")",
+        ),
+        (
+            "[solver]\nmethod = \"newton\"\nwindow = 5",
+            "s.toml: solver.window: applies only with method = \"anderson\" or \"lbfgs\" (method is \"newton\")",
+        ),
+    ];
+    for (table, expected) in cases {
+        let error = parse(table).expect_err(table).to_string();
+        assert_eq!(&error, expected, "{table}");
+    }
+    // Each key with a method that reads it.
+    for table in [
+        "[solver]\nmethod = \"lbfgs\"\nwindow = 3",
+        "[solver]\nmethod = \"anderson\"\nwindow = 3",
+        "[solver]\nmethod = \"chebyshev\"\nrho = 0.7\nstart = 3",
+    ] {
+        parse(table).expect(table);
+    }
+}

@@ -68,9 +68,9 @@ impl Validator<'_> {
                 )
             })?,
         };
-        let rho = match raw.rho {
+        let rho = match &raw.rho {
             None => defaults.rho,
-            Some(Rho::Number(rho)) => SpectralRadius::Fixed(rho),
+            Some(Rho::Number(rho)) => SpectralRadius::Fixed(*rho),
             Some(Rho::Text(text)) if text == "auto" => SpectralRadius::Auto,
             Some(Rho::Text(text)) => {
                 return Err(self.field(
@@ -86,11 +86,42 @@ impl Validator<'_> {
             start: raw.start.unwrap_or(defaults.start),
         };
         match spec.validate() {
-            Ok(()) => Ok(spec),
+            Ok(()) => {}
             Err(SolverError::InvalidSetting { field, reason }) => {
-                Err(self.field(format!("solver.{field}"), reason))
+                return Err(self.field(format!("solver.{field}"), reason));
             }
-            Err(other) => Err(self.field("solver", other.to_string())),
+            Err(other) => return Err(self.field("solver", other.to_string())),
         }
+        self.keys_apply(&raw, method)?;
+        Ok(spec)
+    }
+
+    /// A method's own keys given with another method are refused rather
+    /// than ignored: `rho = 0.9` without `method = "chebyshev"` would
+    /// otherwise run plain PD without a word.
+    fn keys_apply(&self, raw: &Solver, method: SolverMethod) -> Result<()> {
+        use SolverMethod::{Anderson, Chebyshev, Lbfgs};
+        let keys: [(&str, bool, &[SolverMethod]); 3] = [
+            ("window", raw.window.is_some(), &[Anderson, Lbfgs]),
+            ("rho", raw.rho.is_some(), &[Chebyshev]),
+            ("start", raw.start.is_some(), &[Chebyshev]),
+        ];
+        for (key, given, methods) in keys {
+            if given && !methods.contains(&method) {
+                let names: Vec<String> = methods
+                    .iter()
+                    .map(|m| format!("\"{}\"", m.name()))
+                    .collect();
+                return Err(self.field(
+                    format!("solver.{key}"),
+                    format!(
+                        "applies only with method = {} (method is \"{}\")",
+                        names.join(" or "),
+                        method.name()
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 }
