@@ -1,6 +1,6 @@
 //! `cargo run --release -p pd-benches --example method_ab -- METHOD BUDGET
 //! [--predictor P|fittedK/M] [--integrator be|im|bdf2] [--damping D] [--steps N]
-//! [--warmup W] [--cells NX,NY,NZ] [--window W]`: runs the benchmark beam
+//! [--warmup W] [--cells NX,NY,NZ] [--window W] [--rho R|auto]`: runs the benchmark beam
 //! (one thread) with one iteration method and budget and prints, on one
 //! line, the median and mean wall time per step (ms) after `W` warm-up
 //! steps (and the medians of its local and global phases' times), the local-global iterations and objective evaluations per step,
@@ -10,7 +10,7 @@
 
 use pd_benches::{Beam, Options};
 use pd_io::recorder::median;
-use pd_solver::{Predictor, SolverMethod, SolverSpec};
+use pd_solver::{Predictor, SolverMethod, SolverSpec, SpectralRadius};
 
 /// A predictor name, or `fittedK/M` (the fitted predictor of order `K`
 /// over `M` steps).
@@ -48,9 +48,14 @@ fn main() -> Result<(), String> {
         beam.cells = cells.try_into().map_err(|_| "--cells needs three counts")?;
     }
     let mut sim = beam.simulation(damping, integrator)?;
+    let rho = match options.value("--rho") {
+        None | Some("auto") => SpectralRadius::Auto,
+        Some(text) => SpectralRadius::Fixed(text.parse().map_err(|_| format!("--rho: {text:?}"))?),
+    };
     let spec = SolverSpec {
         method,
         window: options.parse("--window", SolverSpec::default().window)?,
+        rho,
         ..SolverSpec::default()
     };
     sim.set_position_solver(spec.create().map_err(|e| e.to_string())?);

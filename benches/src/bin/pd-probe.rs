@@ -9,6 +9,7 @@
 //! pd-probe phases   [beam options] [--mesh BASE] [--model M] [--reps R] [--evict-mib M] [--idle-us U] [--parts P]
 //! pd-probe accuracy [beam options] [--integrator be|im] [--time T] [--iters-list 1,2,...]
 //! pd-probe bandwidth [--mib M] [--reps R] [--threads T]
+//! pd-probe cache-scaling [--mib M] [--reps R]
 //! pd-probe methods  [beam options] [--mesh BASE] [--integrator be|im|bdf2] [--model M] [--steps N] [--budgets 1,2,...]
 //!                   [--methods local-global,anderson,...] [--window W] [--start S] [--cheb-rho R|auto]
 //!                   [--predicted anderson,lbfgs:linear,...]   (those methods again with a predictor, default extrapolated)
@@ -170,6 +171,7 @@ fn run(args: &[String]) -> Result<Value, String> {
         Some("phases") => phases(&options, &beam),
         Some("accuracy") => accuracy(&options, &beam),
         Some("bandwidth") => bandwidth(&options),
+        Some("cache-scaling") => cache_scaling(&options),
         Some("methods") => methods(&options, &beam),
         Some("contact") => pd_benches::contact::measure(
             options.parse("--side-cells", 4usize)?,
@@ -177,7 +179,7 @@ fn run(args: &[String]) -> Result<Value, String> {
             options.parse("--steps", 100usize)?,
         ),
         _ => Err(
-            "usage: pd-probe step|overhead|phases|accuracy|bandwidth [options] (see the source)"
+            "usage: pd-probe step|overhead|phases|accuracy|bandwidth|cache-scaling [options] (see the source)"
                 .into(),
         ),
     }
@@ -236,6 +238,57 @@ fn bandwidth(options: &Options<'_>) -> Result<Value, String> {
         "threads": threads,
         "best_seconds": best,
         "bytes_per_second": (len * 8) as f64 / best,
+        "checksum": checksum,
+    }))
+}
+
+/// How a plain read loop over a working set of `--mib` MiB (default 16)
+/// scales from 1 to 2 threads when it is read again and again, as the
+/// local step reads its elements in every iteration: each thread sums its
+/// contiguous half (or the whole, alone) `--reps` times (default enough
+/// for about 2 GB) without leaving the thread, the best of 5 trials. No
+/// state is shared, so above 2 the speed-up is the caches (two cores
+/// holding more of the set than one), not parallel work. `cargo xtask
+/// bench-report` runs it at the local step's working set beside its noise
+/// check (docs/performance.md, "Two cores cache more than one").
+fn cache_scaling(options: &Options<'_>) -> Result<Value, String> {
+    let mib: usize = options.parse("--mib", 16)?;
+    if mib == 0 {
+        return Err("--mib: must be at least 1".into());
+    }
+    let reps: usize = options.parse("--reps", (2048 / mib).max(4))?;
+    let len = mib * 1024 * 1024 / 8 / 16 * 16;
+    let data: Vec<f64> = (0..len).map(|i| (i % 7) as f64).collect();
+    let repeated = |part: &[f64]| {
+        let mut total = 0.0;
+        for _ in 0..reps {
+            total += sum_streaming(std::hint::black_box(part));
+        }
+        total
+    };
+    let mut best = [f64::INFINITY; 2];
+    let mut checksum = 0.0;
+    for _ in 0..5 {
+        let t = Instant::now();
+        checksum += std::hint::black_box(repeated(&data));
+        best[0] = best[0].min(t.elapsed().as_secs_f64());
+        let (a, b) = data.split_at(len / 2);
+        let t = Instant::now();
+        let (x, y) = std::thread::scope(|scope| {
+            let other = scope.spawn(|| repeated(b));
+            let mine = repeated(a);
+            (mine, other.join().unwrap_or(f64::NAN))
+        });
+        checksum += std::hint::black_box(x + y);
+        best[1] = best[1].min(t.elapsed().as_secs_f64());
+    }
+    let bytes = (len * 8 * reps) as f64;
+    Ok(json!({
+        "mib": mib,
+        "reps": reps,
+        "bytes_per_second_1_thread": bytes / best[0],
+        "bytes_per_second_2_threads": bytes / best[1],
+        "speedup": best[0] / best[1],
         "checksum": checksum,
     }))
 }
@@ -310,9 +363,15 @@ fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     let positions = &sim.state().positions;
     let centroid = positions.iter().sum::<Point>() / positions.len() as f64;
     let min_y = positions.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
+    // What one local pass reads and writes: every element and its 3 x 3
+    // projection, and the positions (the bench report's cache control).
+    let local_bytes = n_tets
+        * (std::mem::size_of::<pd_constraints::TetStrain>() + 9 * std::mem::size_of::<f64>())
+        + n_verts * std::mem::size_of::<Point>();
     let value = json!({
         "n_verts": n_verts,
         "n_tets": n_tets,
+        "local_bytes": local_bytes,
         "n_free": sim.num_free_vertices(),
         "nnz_L_factor": sim.factor_len(),
         "nnz_L_exact": sim.factor_nnz(),
