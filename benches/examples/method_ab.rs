@@ -10,7 +10,7 @@
 
 use pd_benches::{Beam, Options};
 use pd_io::recorder::median;
-use pd_solver::{Predictor, SolverMethod, SolverSpec, SpectralRadius};
+use pd_solver::{Predictor, SolverMethod, SolverSpec};
 
 /// A predictor name, or `fittedK/M` (the fitted predictor of order `K`
 /// over `M` steps).
@@ -48,14 +48,10 @@ fn main() -> Result<(), String> {
         beam.cells = cells.try_into().map_err(|_| "--cells needs three counts")?;
     }
     let mut sim = beam.simulation(damping, integrator)?;
-    let rho = match options.value("--rho") {
-        None | Some("auto") => SpectralRadius::Auto,
-        Some(text) => SpectralRadius::Fixed(text.parse().map_err(|_| format!("--rho: {text:?}"))?),
-    };
     let spec = SolverSpec {
         method,
         window: options.parse("--window", SolverSpec::default().window)?,
-        rho,
+        rho: options.spectral_radius("--rho")?,
         ..SolverSpec::default()
     };
     sim.set_position_solver(spec.create().map_err(|e| e.to_string())?);

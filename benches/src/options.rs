@@ -40,6 +40,18 @@ impl<'a> Options<'a> {
         }
     }
 
+    /// Chebyshev's `rho` after `name`: a number or `auto` (also without
+    /// `name`).
+    ///
+    /// # Errors
+    /// A value that is neither, naming the option.
+    pub fn spectral_radius(&self, name: &str) -> Result<pd_solver::SpectralRadius, String> {
+        match self.value(name) {
+            None | Some("auto") => Ok(pd_solver::SpectralRadius::Auto),
+            Some(_) => self.parse(name, 0.0).map(pd_solver::SpectralRadius::Fixed),
+        }
+    }
+
     /// Checks that every argument spelled as an option (`--name`) is one
     /// of `known`, so that a typo stops the program instead of running it
     /// with the default.

@@ -652,7 +652,7 @@ fn accuracy(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
 /// Error against cost per step for every iteration method
 /// (`pd_benches::methods`).
 fn methods(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
-    use pd_solver::{SolverMethod, SolverSpec, SpectralRadius};
+    use pd_solver::{SolverMethod, SolverSpec};
     let defaults = SolverSpec::default();
     let mesh = match options.value("--mesh") {
         Some(base) => pd_io::tetgen::read_tetgen_base(std::path::Path::new(base))
@@ -679,13 +679,7 @@ fn methods(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         parameters: SolverSpec {
             window: options.parse("--window", defaults.window)?,
             start: options.parse("--start", defaults.start)?,
-            rho: match options.value("--cheb-rho") {
-                None | Some("auto") => SpectralRadius::Auto,
-                Some(text) => SpectralRadius::Fixed(
-                    text.parse()
-                        .map_err(|_| format!("--cheb-rho: cannot parse {text:?}"))?,
-                ),
-            },
+            rho: options.spectral_radius("--cheb-rho")?,
             ..defaults
         },
         predicted: match options.value("--predicted") {

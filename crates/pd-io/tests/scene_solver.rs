@@ -18,6 +18,14 @@ fn parse(solver: &str) -> pd_io::Result<Scene> {
     Scene::parse(&scene(solver), Syntax::Toml, Path::new("s.toml"))
 }
 
+/// Each `(table, expected)`: the table is refused with exactly that error.
+fn assert_errors(cases: &[(&str, &str)]) {
+    for (table, expected) in cases {
+        let error = parse(table).expect_err(table).to_string();
+        assert_eq!(&error, expected, "{table}");
+    }
+}
+
 #[test]
 fn without_a_table_the_method_is_local_global() {
     let s = parse("").unwrap();
@@ -70,10 +78,7 @@ fn mistakes_name_the_field() {
             "s.toml: solver.start: must be at least 2, got 1",
         ),
     ];
-    for (table, expected) in cases {
-        let error = parse(table).expect_err(table).to_string();
-        assert_eq!(&error, expected, "{table}");
-    }
+    assert_errors(cases);
     let error = parse("[solver]\nmethods = \"anderson\"")
         .unwrap_err()
         .to_string();
@@ -100,10 +105,7 @@ fn a_method_s_own_keys_are_refused_with_another_method() {
             "s.toml: solver.window: applies only with method = \"anderson\" or \"lbfgs\" (method is \"newton\")",
         ),
     ];
-    for (table, expected) in cases {
-        let error = parse(table).expect_err(table).to_string();
-        assert_eq!(&error, expected, "{table}");
-    }
+    assert_errors(cases);
     // Each key with a method that reads it.
     for table in [
         "[solver]\nmethod = \"lbfgs\"\nwindow = 3",

@@ -4,26 +4,17 @@
 
 mod common;
 
-use common::{Scheme, bits, clamped_beam};
-use pd_damping::NoDamping;
-use pd_solver::{Checkpoint, Settings, Simulation, SolverMethod, SolverSpec};
+use common::{Scheme, bits, method_beam};
+use pd_solver::{Checkpoint, Settings, Simulation, SolverMethod};
 
 fn beam(scheme: Scheme) -> Simulation {
-    let (model, _) = clamped_beam([10, 2, 2], [1.0, 0.2, 0.2], 7, 1e6);
     let settings = Settings {
         dt: 0.01,
         iterations: 12,
         threads: 1,
         ..Settings::default()
     };
-    let mut sim =
-        Simulation::new(model, scheme.integrator(), Box::new(NoDamping), settings).unwrap();
-    let spec = SolverSpec {
-        method: SolverMethod::Chebyshev,
-        ..SolverSpec::default()
-    };
-    sim.set_position_solver(spec.create().unwrap());
-    sim
+    method_beam(scheme, SolverMethod::Chebyshev, settings)
 }
 
 /// Resumed from a checkpoint after 4 steps, 3 more steps end where the

@@ -2,10 +2,11 @@
 #![allow(dead_code)]
 
 use pd_constraints::assembly::{self, LaplacianKind};
+use pd_damping::NoDamping;
 use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
 use pd_mesh::{Mesh, Point, VertexSelection};
 use pd_solver::contact::{Collider, ColliderShape};
-use pd_solver::{BodyId, Model, Simulation};
+use pd_solver::{BodyId, Model, Settings, Simulation, SolverMethod, SolverSpec};
 
 /// The bits of every coordinate, for bit-for-bit comparisons.
 pub fn bits(points: &[Point]) -> Vec<u64> {
@@ -67,6 +68,21 @@ pub fn clamped_beam(
     model.add_tet_strain(body, stiffness, None).unwrap();
     model.fix_vertices(body, &clamp).unwrap();
     (model, body)
+}
+
+/// The solver tests' 1 x 0.2 x 0.2 m beam ([`clamped_beam`] of 10 x 2 x
+/// 2 cells, seed 7, 1e6 Pa), undamped, stepped by `scheme` with `method`
+/// (its default parameters) and `settings`.
+pub fn method_beam(scheme: Scheme, method: SolverMethod, settings: Settings) -> Simulation {
+    let (model, _) = clamped_beam([10, 2, 2], [1.0, 0.2, 0.2], 7, 1e6);
+    let mut sim =
+        Simulation::new(model, scheme.integrator(), Box::new(NoDamping), settings).unwrap();
+    let spec = SolverSpec {
+        method,
+        ..SolverSpec::default()
+    };
+    sim.set_position_solver(spec.create().unwrap());
+    sim
 }
 
 /// Largest absolute row sum of the system Laplacian (N/m): a bound on its

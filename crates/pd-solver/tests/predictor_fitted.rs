@@ -6,10 +6,9 @@
 
 mod common;
 
-use common::{Scheme, bits, clamped_beam};
-use pd_damping::NoDamping;
+use common::{Scheme, bits, method_beam};
 use pd_mesh::Point;
-use pd_solver::{Predictor, Settings, Simulation, SolverMethod, SolverSpec};
+use pd_solver::{Predictor, Settings, Simulation, SolverMethod};
 
 const FITTED: Predictor = Predictor::Fitted {
     order: 2,
@@ -19,7 +18,6 @@ const FITTED: Predictor = Predictor::Fitted {
 /// The 1 x 0.2 x 0.2 m clamped beam of `tests/predictor.rs`, released from
 /// rest under gravity, steps of 10 ms, Anderson at `iterations`.
 fn beam(scheme: Scheme, predictor: Predictor, iterations: usize, threads: usize) -> Simulation {
-    let (model, _) = clamped_beam([10, 2, 2], [1.0, 0.2, 0.2], 7, 1e6);
     let settings = Settings {
         dt: 0.01,
         iterations,
@@ -27,13 +25,7 @@ fn beam(scheme: Scheme, predictor: Predictor, iterations: usize, threads: usize)
         threads,
         ..Settings::default()
     };
-    let mut sim =
-        Simulation::new(model, scheme.integrator(), Box::new(NoDamping), settings).unwrap();
-    let spec = SolverSpec {
-        method: SolverMethod::Anderson,
-        ..SolverSpec::default()
-    };
-    sim.set_position_solver(spec.create().unwrap());
+    let mut sim = method_beam(scheme, SolverMethod::Anderson, settings);
     sim.set_predictor(predictor);
     sim
 }

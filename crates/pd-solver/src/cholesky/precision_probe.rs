@@ -10,63 +10,96 @@
 //! armadillo (skipped if absent) it times, one thread, the minimum of
 //! `PD_SOLVE_ROUNDS` (21) three-column solves by pd's supernodal solve
 //! (f64), by faer's (f64) and by faer's on the same factor rounded to
-//! f32, and prints the f32 solve's error against the f64 one's, alone and
-//! after each of two defect corrections (`x += solve32(b - A x)`, the
-//! residual in f64).
+//! f32, and prints the f32 solve's error against faer's f64 one, alone
+//! and after each of two defect corrections (`x += solve32(b - A x)`, the
+//! residual in f64), then the same for stiffer matrices (three
+//! corrections).
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::LltRef;
 use faer::{Conj, Mat, Par};
+use pd_mesh::Point;
 
-use super::calibration::{armadillo, laplacian_factor};
+use super::SymbolicFactor;
+use super::calibration::{armadillo, laplacian_factor, laplacian_values};
+use crate::step::krylov::fastest;
 
-fn min_time(rounds: usize, mut f: impl FnMut()) -> f64 {
-    (0..rounds)
-        .map(|_| {
-            let t = std::time::Instant::now();
-            f();
-            t.elapsed().as_secs_f64()
-        })
-        .fold(f64::INFINITY, f64::min)
+/// The largest difference of `a` and `b` over the largest value of `b`.
+fn max_rel(a: &[Point], b: &[Point]) -> f64 {
+    let largest = |v: &mut dyn Iterator<Item = f64>| v.fold(0.0, f64::max);
+    largest(&mut a.iter().zip(b).map(|(a, b)| (a - b).amax()))
+        / largest(&mut b.iter().map(|b| b.amax()))
 }
 
-/// `y = A x` for the scalar lower pattern `p` with `values`, 3 columns.
-fn product(p: &super::LowerPattern, values: &[f64], x: &Mat<f64>) -> Mat<f64> {
-    let mut y = Mat::<f64>::zeros(p.n, 3);
-    for c in 0..p.n {
-        let range = p.col_ptr[c]..p.col_ptr[c + 1];
-        for (&r, &v) in p.row_idx[range.clone()].iter().zip(&values[range]) {
-            for j in 0..3 {
-                y[(r, j)] += v * x[(c, j)];
-                if r != c {
-                    y[(c, j)] += v * x[(r, j)];
-                }
-            }
-        }
-    }
-    y
+fn to_mat<T: faer::traits::ComplexField>(points: &[Point], cast: impl Fn(f64) -> T) -> Mat<T> {
+    Mat::from_fn(points.len(), 3, |i, j| cast(points[i][j]))
 }
 
-fn max_rel(a: &Mat<f64>, b: &Mat<f64>) -> f64 {
-    let mut num = 0.0f64;
-    let mut den = 0.0f64;
-    for j in 0..3 {
-        for i in 0..a.nrows() {
-            num = num.max((a[(i, j)] - b[(i, j)]).abs());
-            den = den.max(b[(i, j)].abs());
+fn to_points<T: Copy>(m: &Mat<T>, cast: impl Fn(T) -> f64) -> Vec<Point> {
+    (0..m.nrows())
+        .map(|i| Point::new(cast(m[(i, 0)]), cast(m[(i, 1)]), cast(m[(i, 2)])))
+        .collect()
+}
+
+/// The errors against the `f64` solve of `A x = b`, `A` with the lower
+/// triangle `values` on `factor`'s pattern: of the solve with the factor
+/// rounded to `f32`, then after each of `corrections` defect corrections
+/// `x += solve_f32(b - A x)` (the residual in `f64`).
+fn accuracy(
+    factor: &mut SymbolicFactor,
+    values: &[f64],
+    b: &[Point],
+    corrections: usize,
+) -> Vec<f64> {
+    let numeric = factor.factorise(values).expect("positive definite");
+    let values64 = factor.faer_values(&numeric).into_owned();
+    let values32: Vec<f32> = values64.iter().map(|&v| v as f32).collect();
+    let symbolic = &factor.symbolic;
+    let mut s64 = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(3, Par::Seq));
+    let mut s32 = MemBuffer::new(symbolic.solve_in_place_scratch::<f32>(3, Par::Seq));
+    let l32 = LltRef::<usize, f32>::new(symbolic, &values32);
+    let mut solve32 = |rhs: &[Point]| {
+        let mut w = to_mat(rhs, |v| v as f32);
+        l32.solve_in_place_with_conj(Conj::No, w.as_mut(), Par::Seq, MemStack::new(&mut s32));
+        to_points(&w, f64::from)
+    };
+    let mut w64 = to_mat(b, |v| v);
+    LltRef::<usize, f64>::new(symbolic, &values64).solve_in_place_with_conj(
+        Conj::No,
+        w64.as_mut(),
+        Par::Seq,
+        MemStack::new(&mut s64),
+    );
+    let x64 = to_points(&w64, |v| v);
+    let a = factor.pattern().to_symmetric(values);
+    let mut x = solve32(b);
+    let mut errors = vec![max_rel(&x, &x64)];
+    let mut ax = vec![Point::zeros(); b.len()];
+    for _ in 0..corrections {
+        a.mul_points(&x, &mut ax);
+        let residual: Vec<Point> = b.iter().zip(&ax).map(|(b, ax)| b - ax).collect();
+        for (x, c) in x.iter_mut().zip(solve32(&residual)) {
+            *x += c;
         }
+        errors.push(max_rel(&x, &x64));
     }
-    num / den
+    errors
+}
+
+fn print_errors(label: &str, errors: &[f64]) {
+    print!("  {label}: f32 error {:.2e}", errors[0]);
+    for e in &errors[1..] {
+        print!(", corrected {e:.2e}");
+    }
+    println!();
 }
 
 fn probe(label: &str, mesh: &pd_mesh::Mesh, rounds: usize) {
     let (mut factor, numeric) = laplacian_factor(mesh);
-    let b = Mat::<f64>::from_fn(factor.pattern().n, 3, |i, j| {
-        ((i * (j + 3)) % 17) as f64 - 8.0
-    });
     let n = factor.pattern().n;
-    let values64 = factor.faer_values(&numeric).into_owned();
-    let values32: Vec<f32> = values64.iter().map(|&v| v as f32).collect();
+    let b: Vec<Point> = (0..n)
+        .map(|i| Point::from_fn(|j, _| ((i * (j + 3)) % 17) as f64 - 8.0))
+        .collect();
     println!(
         "{label}: {n} unknowns, {} values in A's lower triangle, {} stored values, {} supernodes",
         factor.pattern().row_idx.len(),
@@ -78,30 +111,26 @@ fn probe(label: &str, mesh: &pd_mesh::Mesh, rounds: usize) {
         .build()
         .unwrap();
     pool.install(|| {
-        // pd's own solve (f64).
-        let mut points: Vec<pd_mesh::Point> = (0..n)
-            .map(|i| pd_mesh::Point::new(b[(i, 0)], b[(i, 1)], b[(i, 2)]))
-            .collect();
-        let original = points.clone();
-        let ours = min_time(rounds, || {
-            points.copy_from_slice(&original);
+        // pd's own solve (f64), and faer's in f64 and f32.
+        let mut points = b.clone();
+        let ours = fastest(rounds, || {
+            points.copy_from_slice(&b);
             factor.solve_points(&numeric, &mut points);
         });
-        let x64 = Mat::<f64>::from_fn(n, 3, |i, j| points[i][j]);
-        // faer's solve, f64 and f32.
         let symbolic = &factor.symbolic;
+        let values64 = factor.faer_values(&numeric).into_owned();
+        let values32: Vec<f32> = values64.iter().map(|&v| v as f32).collect();
         let mut s64 = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(3, Par::Seq));
         let mut s32 = MemBuffer::new(symbolic.solve_in_place_scratch::<f32>(3, Par::Seq));
         let l64 = LltRef::<usize, f64>::new(symbolic, &values64);
         let l32 = LltRef::<usize, f32>::new(symbolic, &values32);
-        let mut w64 = b.clone();
-        let faer64 = min_time(rounds, || {
-            w64.copy_from(&b);
+        let (b64, b32) = (to_mat(&b, |v| v), to_mat(&b, |v| v as f32));
+        let (mut w64, mut w32) = (b64.clone(), b32.clone());
+        let faer64 = fastest(rounds, || {
+            w64.copy_from(&b64);
             l64.solve_in_place_with_conj(Conj::No, w64.as_mut(), Par::Seq, MemStack::new(&mut s64));
         });
-        let b32 = Mat::<f32>::from_fn(n, 3, |i, j| b[(i, j)] as f32);
-        let mut w32 = b32.clone();
-        let faer32 = min_time(rounds, || {
+        let faer32 = fastest(rounds, || {
             w32.copy_from(&b32);
             l32.solve_in_place_with_conj(Conj::No, w32.as_mut(), Par::Seq, MemStack::new(&mut s32));
         });
@@ -114,25 +143,14 @@ fn probe(label: &str, mesh: &pd_mesh::Mesh, rounds: usize) {
             faer64 / faer32,
             ours / faer32
         );
-        // Accuracy: the f32 solve, then defect corrections in f64.
-        let a_values = super::calibration::laplacian_values(factor.pattern());
-        let mut x = Mat::<f64>::from_fn(n, 3, |i, j| w32[(i, j)] as f64);
-        print!("  f32 error against f64: {:.2e}", max_rel(&x, &x64));
-        for _ in 0..2 {
-            let ax = product(factor.pattern(), &a_values, &x);
-            let mut r = Mat::<f32>::from_fn(n, 3, |i, j| (b[(i, j)] - ax[(i, j)]) as f32);
-            l32.solve_in_place_with_conj(Conj::No, r.as_mut(), Par::Seq, MemStack::new(&mut s32));
-            x += Mat::<f64>::from_fn(n, 3, |i, j| r[(i, j)] as f64);
-            print!(", corrected {:.2e}", max_rel(&x, &x64));
-        }
-        println!();
     });
-    // Stiffer matrices, `I + s L` (`L` the graph Laplacian): the f32
-    // solve's error grows with the condition number (about `1 + 16 s`
-    // here), and each defect correction shrinks the error by about that
-    // error's size, so a matrix whose condition nears 1 / eps_f32 (1.7e7)
-    // cannot be solved this way.
-    let base = super::calibration::laplacian_values(factor.pattern());
+    // The probe's matrix `I + L` (`L` the graph Laplacian), then stiffer
+    // ones, `I + s L`: the f32 solve's error grows with the condition
+    // number (about `1 + 16 s` here), and each defect correction shrinks
+    // the error by about that error's size, so a matrix whose condition
+    // nears 1 / eps_f32 (1.7e7) cannot be solved this way.
+    let base = laplacian_values(factor.pattern());
+    print_errors("I + L", &accuracy(&mut factor, &base, &b, 2));
     let p = factor.pattern().clone();
     for scale in [1e2, 1e4, 1e6] {
         let mut values = base.clone();
@@ -145,27 +163,10 @@ fn probe(label: &str, mesh: &pd_mesh::Mesh, rounds: usize) {
                 };
             }
         }
-        let numeric = factor.factorise(&values).expect("positive definite");
-        let values64 = factor.faer_values(&numeric).into_owned();
-        let values32: Vec<f32> = values64.iter().map(|&v| v as f32).collect();
-        let l64 = LltRef::<usize, f64>::new(&factor.symbolic, &values64);
-        let l32 = LltRef::<usize, f32>::new(&factor.symbolic, &values32);
-        let mut s64 = MemBuffer::new(factor.symbolic.solve_in_place_scratch::<f64>(3, Par::Seq));
-        let mut s32 = MemBuffer::new(factor.symbolic.solve_in_place_scratch::<f32>(3, Par::Seq));
-        let mut x64 = b.clone();
-        l64.solve_in_place_with_conj(Conj::No, x64.as_mut(), Par::Seq, MemStack::new(&mut s64));
-        let mut w32 = Mat::<f32>::from_fn(n, 3, |i, j| b[(i, j)] as f32);
-        l32.solve_in_place_with_conj(Conj::No, w32.as_mut(), Par::Seq, MemStack::new(&mut s32));
-        let mut x = Mat::<f64>::from_fn(n, 3, |i, j| w32[(i, j)] as f64);
-        print!("  I + {scale:.0e} L: f32 error {:.2e}", max_rel(&x, &x64));
-        for _ in 0..3 {
-            let ax = product(&p, &values, &x);
-            let mut r = Mat::<f32>::from_fn(n, 3, |i, j| (b[(i, j)] - ax[(i, j)]) as f32);
-            l32.solve_in_place_with_conj(Conj::No, r.as_mut(), Par::Seq, MemStack::new(&mut s32));
-            x += Mat::<f64>::from_fn(n, 3, |i, j| r[(i, j)] as f64);
-            print!(", corrected {:.2e}", max_rel(&x, &x64));
-        }
-        println!();
+        print_errors(
+            &format!("I + {scale:.0e} L"),
+            &accuracy(&mut factor, &values, &b, 3),
+        );
     }
 }
 

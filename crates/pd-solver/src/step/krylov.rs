@@ -296,7 +296,7 @@ fn minus_gradient(step: &mut StepProblem<'_>, a_values: &[f64]) -> Vec<Point> {
 }
 
 /// The fastest of `repetitions` wall times of `f`, s.
-fn fastest(repetitions: usize, mut f: impl FnMut()) -> f64 {
+pub(crate) fn fastest(repetitions: usize, mut f: impl FnMut()) -> f64 {
     (0..repetitions)
         .map(|_| {
             let t = std::time::Instant::now();
