@@ -5,7 +5,9 @@
 //! `laplacian-rot`, with the coefficients of the measured table in
 //! `docs/damping-table.md`. Integrators keep the scene's damping model.
 //! `--ratio z1,z2,...` runs the scene's model (or Laplacian damping) with
-//! each damping ratio of its lowest elastic mode.
+//! each damping ratio of its lowest elastic mode. A damping or ratio
+//! variant sets the model of every body, in place of a body's own
+//! `damping`.
 
 use pd_io::recorder::median;
 use std::fmt::Write as _;
@@ -32,7 +34,8 @@ pub(crate) fn damping_help() -> String {
         })
         .collect();
     format!(
-        "Damping models, comma separated, by preset: {}",
+        "Damping models, comma separated, each for every body (in place of a body's own \
+         damping), by preset: {}",
         presets.join("; ")
     )
 }
@@ -116,6 +119,10 @@ pub(crate) fn compare(
     let loaded = load_scene(options)?;
     let mut variants = variants(&loaded, &asked.damping, &asked.integrator, &asked.ratio)?;
     variants.extend(ratio_variants(&loaded, &asked.ratio)?);
+    let per_body = loaded.scene.bodies.iter().any(|b| b.damping.is_some());
+    if per_body && (!asked.damping.is_empty() || !asked.ratio.is_empty()) {
+        info!("each variant's damping replaces the scene's per-body damping for every body");
+    }
     let out = options
         .out
         .clone()
@@ -171,11 +178,23 @@ fn ratio_variants(loaded: &LoadedScene, ratios: &[f64]) -> Result<Vec<(String, S
         .map(|&ratio| {
             let spec = DampingSpec::new(model, [("ratio", registry::Value::Number(ratio))])
                 .map_err(|e| Failure::Input(format!("--ratio {ratio}: {e}")))?;
-            let mut scene = loaded.scene.clone();
-            scene.damping = spec;
-            Ok((format!("{model}-ratio-{ratio}"), scene))
+            Ok((
+                format!("{model}-ratio-{ratio}"),
+                with_damping(&loaded.scene, spec),
+            ))
         })
         .collect()
+}
+
+/// `scene` with `damping` for every body: a body's own `damping` would
+/// otherwise keep its model in every variant.
+fn with_damping(scene: &Scene, damping: DampingSpec) -> Scene {
+    let mut scene = scene.clone();
+    scene.damping = damping;
+    for body in &mut scene.bodies {
+        body.damping = None;
+    }
+    scene
 }
 
 fn variants(
@@ -187,9 +206,7 @@ fn variants(
     let mut variants = Vec::new();
     for name in damping {
         let spec = damping_of(name)?;
-        let mut scene = loaded.scene.clone();
-        scene.damping = spec;
-        variants.push((name.clone(), scene));
+        variants.push((name.clone(), with_damping(&loaded.scene, spec)));
     }
     for name in integrators {
         let kind = IntegratorKind::parse(name).ok_or_else(|| {

@@ -119,7 +119,8 @@ enum Command {
         integrator: Vec<String>,
         /// Damping ratios of the lowest elastic mode, comma separated
         /// (0.01,0.05,0.2): the scene's model if it takes a ratio
-        /// (laplacian, rayleigh-lagged), else Laplacian damping.
+        /// (laplacian, rayleigh-lagged), else Laplacian damping, for every
+        /// body.
         #[arg(long, value_delimiter = ',', conflicts_with_all = ["damping", "integrator"])]
         ratio: Vec<f64>,
     },

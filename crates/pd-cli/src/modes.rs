@@ -29,6 +29,12 @@ pub(crate) fn modes(options: &SceneOptions, count: usize) -> Result<(), Failure>
     if count == 0 {
         return Err(Failure::Input("--count must be at least 1".into()));
     }
+    if options.steps.is_some() {
+        return Err(Failure::Input(format!(
+            "--steps: pd modes runs no steps (each mode is animated over one period, \
+             {FRAMES} frames)"
+        )));
+    }
     let loaded = run::load_scene(options)?;
     let scene = &loaded.scene;
     let sim = run::build(scene)?;

@@ -99,6 +99,9 @@ pub(crate) fn render(
         let path = out.join(format!("frame_{i:05}.png"));
         write_png(&path, image).map_err(|e| Failure::Output(e.to_string()))?;
     }
+    // Pictures of an earlier, longer render would read as this one's.
+    pd_io::frames::remove_frames_from(out, images.len())
+        .map_err(|e| Failure::Output(e.to_string()))?;
     let gif_frames: Vec<_> = gif_indices(images.len(), options.gif_frames)
         .into_iter()
         .map(|i| images[i].downscaled(options.gif_downscale))

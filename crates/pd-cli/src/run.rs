@@ -29,10 +29,12 @@ pub(crate) struct SceneOptions {
     // `<scene name>` as an HTML tag.
     #[arg(
         long,
-        help = "Output folder [default: out/<scene name>; for compare, out/compare-<scene name>]"
+        help = "Output folder [default: out/<scene name>; for compare, out/compare-<scene name>; \
+                for modes, out/modes-<scene name>]"
     )]
     pub out: Option<PathBuf>,
-    /// Override the scene's number of steps.
+    /// Override the scene's number of steps (not with `modes`, which runs
+    /// none).
     #[arg(long)]
     pub steps: Option<usize>,
     /// Threads for the local step (0: all cores).
@@ -256,12 +258,17 @@ fn execute(
     let summary = recorder
         .finish(scene, sim, &outcome)
         .map_err(|e| Failure::Output(e.to_string()))?;
+    // No step timed (none ran, or the first failed): no median to show.
+    let median = if median_step_ms.is_nan() {
+        "no step timed".to_string()
+    } else {
+        format!("median step {median_step_ms:.2} ms")
+    };
     info!(
-        "{} of {} steps ({:.3} s simulated), median step {:.2} ms; {} frames, metrics and {} in {}",
+        "{} of {} steps ({:.3} s simulated), {median}; {} frames, metrics and {} in {}",
         sim.steps(),
         scene.steps,
         sim.time(),
-        median_step_ms,
         frames,
         summary
             .file_name()

@@ -147,8 +147,6 @@ fn output_folder_that_cannot_be_created_exits_4() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-// --- Known bugs, ignored until fixed. ---
-
 #[test]
 fn a_step_with_infinite_energy_is_never_recorded() {
     // overflowing_energy_scale.toml explains the arithmetic.

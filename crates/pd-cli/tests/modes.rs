@@ -46,6 +46,10 @@ fn modes_writes_frequencies_ratios_and_animations() {
             .count();
         assert_eq!(frames, 24);
     }
+    // `--steps` means nothing to a modal analysis: an error, not ignored.
+    let output = pd(&["modes", arg(&scene), "--steps", "5", "--out", arg(&out)]);
+    assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
+    assert!(stderr(&output).contains("--steps"), "{}", stderr(&output));
 }
 
 #[test]

@@ -109,6 +109,23 @@ fn render_and_plot_report_bad_input_and_output() {
     );
     std::fs::remove_file(run.join("frames/frame_00003.obj")).unwrap();
 
+    // Pictures too large to hold are bad input, before any is drawn
+    // (100,000 x 100,000 pixels, six frames: 180 GB).
+    let output = pd(&[
+        "render",
+        arg(&run),
+        "--width",
+        "100000",
+        "--height",
+        "100000",
+    ]);
+    assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
+    assert!(
+        stderr(&output).contains("GB of memory"),
+        "{}",
+        stderr(&output)
+    );
+
     // An output folder that cannot be created (below a file): exit code 4.
     let blocker = dir.join("file");
     std::fs::write(&blocker, "").unwrap();

@@ -267,6 +267,34 @@ pub(crate) fn check_cells<const K: usize>(
     Ok(())
 }
 
+/// Removes the files named `frame_NNNNN.*` (any extension: the frames of
+/// a run, the pictures of `pd render`) numbered `first` or higher in `dir`;
+/// other files stay. A missing `dir` has none.
+///
+/// # Errors
+/// [`Error::Io`] naming the folder or the file that could not be read or
+/// removed.
+pub fn remove_frames_from(dir: &Path, first: usize) -> Result<()> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(Error::io(dir, e)),
+    };
+    for entry in entries {
+        let entry = entry.map_err(|e| Error::io(dir, e))?;
+        let name = entry.file_name();
+        let name = name.to_string_lossy();
+        let index = name
+            .strip_prefix("frame_")
+            .and_then(|rest| rest.split('.').next())
+            .and_then(|digits| digits.parse::<usize>().ok());
+        if index.is_some_and(|i| i >= first) {
+            std::fs::remove_file(entry.path()).map_err(|e| Error::io(entry.path(), e))?;
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

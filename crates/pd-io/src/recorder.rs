@@ -17,6 +17,12 @@
 //!
 //! Rows are flushed every step, so a run that stops early (divergence, a
 //! signal) keeps every row written before it.
+//!
+//! A new run in a folder that holds an earlier one first removes that
+//! run's `frames/frame_*`, `frames.pvd` and (if it writes none) `probes.csv`,
+//! so no file of the earlier run passes for this one's; the other files are
+//! rewritten. The scene is built before that, so a scene that fails to
+//! build leaves the folder as it was.
 
 mod metrics;
 mod resume;
@@ -126,8 +132,15 @@ impl Recorder {
     /// The folder or a file cannot be created or written.
     pub fn create(dir: &Path, scene: &Scene, sim: &Simulation) -> Result<Self> {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        // An earlier run's frames, series and probes in the same folder
+        // would read as this run's (ParaView groups `frame_*`).
+        let frames = dir.join("frames");
+        crate::frames::remove_frames_from(&frames, 0)?;
+        remove_if_present(&dir.join("frames.pvd"))?;
+        if scene.output.probes.is_empty() {
+            remove_if_present(&dir.join("probes.csv"))?;
+        }
         if scene.output.every > 0 {
-            let frames = dir.join("frames");
             std::fs::create_dir_all(&frames).map_err(|e| Error::io(&frames, e))?;
         }
         let metrics_path = dir.join(MetricsRow::FILE);
@@ -327,6 +340,14 @@ impl Recorder {
         self.dir
             .join("frames")
             .join(format!("frame_{:05}.{extension}", self.frames))
+    }
+}
+
+/// Removes the file at `path` if there is one.
+fn remove_if_present(path: &Path) -> Result<()> {
+    match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(Error::io(path, e)),
+        _ => Ok(()),
     }
 }
 

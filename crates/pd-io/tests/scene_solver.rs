@@ -115,3 +115,20 @@ fn a_method_s_own_keys_are_refused_with_another_method() {
         parse(table).expect(table);
     }
 }
+
+#[test]
+fn a_method_that_cannot_run_the_damping_is_refused_when_the_scene_builds() {
+    for method in ["newton", "lbfgs"] {
+        let table = format!(
+            "[solver]\nmethod = \"{method}\"\n\n[damping]\nmodel = \"rayleigh-lagged\"\nstiffness = 0.01"
+        );
+        let error = parse(&table).unwrap().build().unwrap_err().to_string();
+        assert!(
+            error.starts_with("s.toml: solver.method: ") && error.contains("rayleigh-lagged"),
+            "{method}: {error}"
+        );
+    }
+    // Anderson runs the lagged model.
+    let table = "[solver]\nmethod = \"anderson\"\n\n[damping]\nmodel = \"rayleigh-lagged\"\nstiffness = 0.01";
+    parse(table).unwrap().build().unwrap().step().unwrap();
+}

@@ -269,7 +269,9 @@ fn every_method_but_newton_takes_per_body_coefficients() {
     }
     let mut newton = simulation(Box::new(mixed()), dt);
     newton.set_position_solver(spec(SolverMethod::Newton).create().unwrap());
+    let early = newton.check_position_solver().unwrap_err().to_string();
     let error = newton.step().unwrap_err().to_string();
+    assert_eq!(early, error);
     assert!(error.contains("per-body"), "{error}");
 }
 

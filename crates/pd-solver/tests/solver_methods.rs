@@ -266,10 +266,14 @@ fn newton_and_lbfgs_refuse_lagged_damping() {
         )
         .unwrap();
         sim.set_position_solver(spec(method).create().unwrap());
+        // Refused before the first step, and again by the step itself.
+        let early = sim.check_position_solver().unwrap_err().to_string();
         let error = sim.step().unwrap_err().to_string();
+        assert_eq!(early, error);
         assert!(
             error.contains(method.name()) && error.contains("lagged"),
             "{error}"
         );
+        assert_eq!(sim.steps(), 0);
     }
 }

@@ -34,6 +34,36 @@ const BODY: [[f64; 3]; 5] = [
 /// Supersampling factor per axis.
 const SUPERSAMPLE: u32 = 2;
 
+/// The most memory one [`render_panels`] call may take, bytes: every
+/// frame's picture (3 bytes a pixel, all kept for the caller) and one
+/// panel's supersampled canvas with its depth buffer (11 bytes a sample).
+pub const MAX_RENDER_BYTES: u64 = 4 << 30;
+
+/// [`Error::Input`] if `count` frames of `panels` panels of `width x
+/// height` pixels are empty or would take more than [`MAX_RENDER_BYTES`].
+fn check_size(panels: usize, count: usize, width: u32, height: u32) -> Result<()> {
+    if width == 0 || height == 0 {
+        return Err(Error::Input(format!(
+            "a picture needs a positive size, got {width} x {height} pixels"
+        )));
+    }
+    let pixels = u64::from(width) * u64::from(height);
+    let pictures = (pixels * 3)
+        .saturating_mul(panels as u64)
+        .saturating_mul(count as u64);
+    let canvas = pixels * u64::from(SUPERSAMPLE * SUPERSAMPLE) * 11;
+    let bytes = pictures.saturating_add(canvas);
+    if bytes > MAX_RENDER_BYTES {
+        return Err(Error::Input(format!(
+            "{count} frame(s) of {panels} panel(s) at {width} x {height} pixels would take \
+             {:.1} GB of memory, more than the {} GB allowed; draw smaller pictures",
+            bytes as f64 / 1e9,
+            MAX_RENDER_BYTES >> 30
+        )));
+    }
+    Ok(())
+}
+
 /// One panel: a label and a sequence of frames.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Panel {
@@ -383,8 +413,9 @@ pub fn render_surface_with(
 /// its label. One camera is fitted to all frames of all panels.
 ///
 /// # Errors
-/// [`Error::Input`] for no panels, a panel without frames or nothing to
-/// draw; [`Error::Encode`] if drawing a label fails.
+/// [`Error::Input`] for no panels, a panel without frames, nothing to
+/// draw, or pictures of no pixels or too large to hold
+/// ([`MAX_RENDER_BYTES`]); [`Error::Encode`] if drawing a label fails.
 pub fn render_panels(panels: &[Panel], width: u32, height: u32) -> Result<Vec<RgbImage>> {
     render_panels_with(panels, &Scenery::default(), width, height)
 }
@@ -408,8 +439,9 @@ pub fn render_panels_with(
             empty.label
         )));
     }
-    let camera = Camera::fit_with(panels, scenery, width, height)?;
     let count = panels.iter().map(|p| p.frames.len()).max().unwrap_or(0);
+    check_size(panels.len(), count, width, height)?;
+    let camera = Camera::fit_with(panels, scenery, width, height)?;
     let total_width = width * panels.len() as u32;
     let mut images = Vec::with_capacity(count);
     for frame in 0..count {

@@ -8,6 +8,7 @@ use pd_solver::Simulation;
 
 use super::{MetricsRow, Recorder, Topology};
 use crate::atomic::write_atomically;
+use crate::frames::remove_frames_from;
 use crate::scene::{FrameFormat, Scene};
 use crate::vtu::{PvdEntry, write_pvd};
 use crate::{Error, Result};
@@ -47,7 +48,9 @@ impl Recorder {
         // Frames 0..=steps/every exist at the checkpoint; none without frames.
         let frames = match steps.checked_div(scene.output.every) {
             Some(last) => {
-                remove_frames_from(&dir.join("frames"), last + 1)?;
+                let frames = dir.join("frames");
+                remove_frames_from(&frames, last + 1)?;
+                std::fs::create_dir_all(&frames).map_err(|e| Error::io(&frames, e))?;
                 last + 1
             }
             None => 0,
@@ -134,29 +137,4 @@ fn append(path: &Path) -> Result<BufWriter<File>> {
         .open(path)
         .map(BufWriter::new)
         .map_err(|e| Error::io(path, e))
-}
-
-/// Removes `frame_NNNNN.*` files numbered `first` or higher.
-fn remove_frames_from(frames: &Path, first: usize) -> Result<()> {
-    let entries = match std::fs::read_dir(frames) {
-        Ok(entries) => entries,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            std::fs::create_dir_all(frames).map_err(|e| Error::io(frames, e))?;
-            return Ok(());
-        }
-        Err(e) => return Err(Error::io(frames, e)),
-    };
-    for entry in entries {
-        let entry = entry.map_err(|e| Error::io(frames, e))?;
-        let name = entry.file_name();
-        let name = name.to_string_lossy();
-        let index = name
-            .strip_prefix("frame_")
-            .and_then(|rest| rest.split('.').next())
-            .and_then(|digits| digits.parse::<usize>().ok());
-        if index.is_some_and(|i| i >= first) {
-            std::fs::remove_file(entry.path()).map_err(|e| Error::io(entry.path(), e))?;
-        }
-    }
-    Ok(())
 }

@@ -57,6 +57,11 @@ impl Scene {
             (simulation.set_surface_contact(bodies.clone(), self.surface_pairs))
                 .map_err(|e| self.field_error("contact", e))?;
         }
+        // A method that cannot run this damping (or these materials or
+        // colliders) is refused here, before a run writes anything.
+        simulation
+            .check_position_solver()
+            .map_err(|e| self.field_error("solver.method", e))?;
         self.apply_initial_states(&mut simulation, &offsets)?;
         for (b, body) in self.bodies.iter().enumerate() {
             if body.initial_velocity != Point::zeros() || body.angular_velocity != Point::zeros() {

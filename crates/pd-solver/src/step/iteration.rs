@@ -58,6 +58,20 @@ pub trait PositionSolver: std::fmt::Debug + Send + Sync {
         false
     }
 
+    /// Whether the method runs with a lagged damping model
+    /// (`rayleigh-lagged`), whose step matrix is the lagged 3n system, not
+    /// the prefactored n x n one. Local-global methods do (the default).
+    fn handles_lagged_damping(&self) -> bool {
+        true
+    }
+
+    /// Whether the method runs with damping set per body (`[[body]]
+    /// damping`), which weighs the damping matrices body by body. The
+    /// default says yes.
+    fn handles_per_body_damping(&self) -> bool {
+        true
+    }
+
     /// What the method carries from one step to the next and a checkpoint
     /// must keep for a resumed run to continue bit for bit (Chebyshev's
     /// estimated `rho` with `rho = "auto"`); empty (the default) for a

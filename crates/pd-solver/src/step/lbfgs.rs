@@ -104,13 +104,6 @@ impl Lbfgs {
     }
 
     fn prepare(&mut self, step: &StepProblem<'_>) -> Result<(), SolverError> {
-        if step.damping.lagged_stiffness != 0.0 {
-            return Err(SolverError::Unsupported {
-                what: "solver method \"lbfgs\" with a lagged damping model (rayleigh-lagged): \
-                       its step matrix is the lagged 3n system; use another method"
-                    .into(),
-            });
-        }
         let n = step.positions.len();
         let system = step.global.system();
         if self.direction.len() != n {
@@ -196,6 +189,11 @@ impl PositionSolver for Lbfgs {
 
     fn handles_materials(&self) -> bool {
         true
+    }
+
+    /// Its initial Hessian is the prefactored n x n matrix.
+    fn handles_lagged_damping(&self) -> bool {
+        false
     }
 
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {

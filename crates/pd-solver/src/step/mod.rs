@@ -14,6 +14,7 @@
 
 pub(crate) mod anderson;
 pub(crate) mod chebyshev;
+pub(crate) mod compatibility;
 pub(crate) mod divergence;
 pub(crate) mod fitted;
 pub(crate) mod iteration;
@@ -229,10 +230,7 @@ impl Simulation {
         if let Some(trace) = &mut self.objective_trace {
             trace.clear();
         }
-        if self.contact.is_some() {
-            self.check_solver_handles_contact()?;
-        }
-        self.check_solver_handles_materials()?;
+        self.check_position_solver()?;
         let mut problem = StepProblem {
             local: &self.local,
             global: &mut self.global,

@@ -109,22 +109,6 @@ pub(crate) fn hessian_coefficients(
 impl Newton {
     /// Builds the Hessian system on first use, sizes the buffers.
     fn prepare(&mut self, step: &StepProblem<'_>) -> Result<(), SolverError> {
-        if step.damping.lagged_stiffness != 0.0 {
-            return Err(SolverError::Unsupported {
-                what: "solver method \"newton\" with a lagged damping model (rayleigh-lagged): \
-                       its step matrix is the lagged 3n system; use another method"
-                    .into(),
-            });
-        }
-        if step.global.damping_weights().is_some() {
-            // Its Hessian reuses L_d as the elastic part of L_sys, which
-            // per-body weights would scale too.
-            return Err(SolverError::Unsupported {
-                what: "solver method \"newton\" with per-body damping ([[body]] damping): \
-                       use another method or one [damping] for every body"
-                    .into(),
-            });
-        }
         if self.hessian.is_none() {
             let system = step.global.system();
             self.hessian = Some(Box::new(LaggedSystem::new(system, step.local.blocks())?));
@@ -177,6 +161,17 @@ impl PositionSolver for Newton {
 
     fn handles_materials(&self) -> bool {
         true
+    }
+
+    /// Its Hessian is built on the n x n system's pattern.
+    fn handles_lagged_damping(&self) -> bool {
+        false
+    }
+
+    /// Its Hessian reuses `L_d` as the elastic part of `L_sys`, which
+    /// per-body weights would scale too.
+    fn handles_per_body_damping(&self) -> bool {
+        false
     }
 
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {
