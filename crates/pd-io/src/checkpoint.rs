@@ -311,6 +311,37 @@ pub fn read_checkpoint(path: &Path) -> Result<CheckpointFile> {
             ),
         ));
     }
+    if raw.steps_requested < raw.steps {
+        return Err(field(
+            "steps_requested",
+            format!(
+                "is {}, below the {} steps already run",
+                raw.steps_requested, raw.steps
+            ),
+        ));
+    }
+    if !(raw.time.is_finite() && raw.time >= 0.0) {
+        return Err(field(
+            "time",
+            format!("must be finite and >= 0 s, got {}", raw.time),
+        ));
+    }
+    if !(raw.energy_scale.is_finite() && raw.energy_scale > 0.0) {
+        return Err(field(
+            "energy_scale",
+            format!("must be finite and > 0 J, got {}", raw.energy_scale),
+        ));
+    }
+    if raw.threads > pd_solver::Settings::MAX_THREADS {
+        return Err(field(
+            "threads",
+            format!(
+                "must be at most {}, got {}",
+                pd_solver::Settings::MAX_THREADS,
+                raw.threads
+            ),
+        ));
+    }
     let n = raw.positions.len();
     if raw.velocities.len() != n {
         return Err(field(
@@ -455,6 +486,27 @@ mod tests {
 
         std::fs::write(&path, "").unwrap();
         assert!(read_checkpoint(&path).is_err());
+    }
+
+    #[test]
+    fn refuses_edited_counters_naming_the_field() {
+        let path = temp("counters");
+        let cases: [(&str, fn(&mut CheckpointFile)); 4] = [
+            ("steps_requested", |f| f.steps_requested = 2),
+            ("time", |f| f.checkpoint.time = -1.0),
+            ("energy_scale", |f| f.checkpoint.energy_scale = -1.0),
+            ("threads", |f| f.threads = 1_000_000),
+        ];
+        for (name, edit) in cases {
+            let mut file = sample();
+            edit(&mut file);
+            write_checkpoint(&path, &file).unwrap();
+            let err = read_checkpoint(&path).unwrap_err().to_string();
+            assert!(
+                err.starts_with(&format!("{}: {name}: ", path.display())),
+                "{name}: {err}"
+            );
+        }
     }
 
     #[test]

@@ -317,6 +317,21 @@ fn negative_tolerance() {
 }
 
 #[test]
+fn absurd_thread_count() {
+    expect_field_error(
+        parse(&edit(
+            "tolerance = 0.0",
+            "tolerance = 0.0\nthreads = 100000",
+        )),
+        "simulation.threads",
+        &["at most 1024", "100000"],
+    );
+    // The largest accepted count builds.
+    let scene = parse(&edit("tolerance = 0.0", "tolerance = 0.0\nthreads = 1024")).unwrap();
+    assert_eq!(scene.settings.threads, 1024);
+}
+
+#[test]
 fn negative_density() {
     expect_field_error(
         parse(&edit("density = 1000.0", "density = -1000.0")),

@@ -19,12 +19,13 @@ pub struct Settings {
     pub tolerance: f64,
     /// Uniform gravitational acceleration in m/s^2.
     pub gravity: Point,
-    /// Threads for the local step and the right-hand side; 0 uses rayon's
-    /// global pool. Results are bit-identical for every thread count.
+    /// Threads for the local step and the right-hand side, at most
+    /// [`Settings::MAX_THREADS`]; 0 uses rayon's global pool. Results are
+    /// bit-identical for every thread count.
     pub threads: usize,
-    /// The run is declared divergent when the kinetic plus gravitational
-    /// energy exceeds its initial total by more than this many times the
-    /// system's energy scale (see `docs/solver.md`).
+    /// The run is declared divergent when the total energy (kinetic,
+    /// gravitational and elastic) exceeds its initial total by more than
+    /// this many times the system's energy scale (see `docs/solver.md`).
     pub divergence_energy_factor: f64,
 }
 
@@ -42,6 +43,12 @@ impl Default for Settings {
 }
 
 impl Settings {
+    /// The most `threads` accepted: far more than any machine has cores
+    /// (each thread beyond a core only adds scheduling), and few enough
+    /// that a mistyped count fails at once instead of spawning threads for
+    /// minutes.
+    pub const MAX_THREADS: usize = 1024;
+
     /// Checks every field.
     ///
     /// # Errors
@@ -66,6 +73,16 @@ impl Settings {
             return bad(
                 "gravity",
                 format!("must be finite, got {:?}", self.gravity.as_slice()),
+            );
+        }
+        if self.threads > Self::MAX_THREADS {
+            return bad(
+                "threads",
+                format!(
+                    "must be at most {} (0: all cores), got {}",
+                    Self::MAX_THREADS,
+                    self.threads
+                ),
             );
         }
         if !(self.divergence_energy_factor.is_finite() && self.divergence_energy_factor > 0.0) {

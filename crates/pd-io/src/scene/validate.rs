@@ -125,7 +125,18 @@ impl Validator<'_> {
                 Some(g) => self.vector("simulation.gravity", g)?,
                 None => defaults.gravity,
             },
-            threads: s.threads.unwrap_or(0),
+            threads: match s.threads {
+                Some(t) if t > Settings::MAX_THREADS => {
+                    return Err(self.error(
+                        "simulation.threads",
+                        format!(
+                            "must be at most {} (0: all cores), got {t}",
+                            Settings::MAX_THREADS
+                        ),
+                    ));
+                }
+                t => t.unwrap_or(0),
+            },
             divergence_energy_factor: self.positive(
                 "simulation.divergence_energy_factor",
                 s.divergence_energy_factor
