@@ -491,7 +491,8 @@ mod tests {
     #[test]
     fn refuses_edited_counters_naming_the_field() {
         let path = temp("counters");
-        let cases: [(&str, fn(&mut CheckpointFile)); 4] = [
+        type Edit = fn(&mut CheckpointFile);
+        let cases: [(&str, Edit); 4] = [
             ("steps_requested", |f| f.steps_requested = 2),
             ("time", |f| f.checkpoint.time = -1.0),
             ("energy_scale", |f| f.checkpoint.energy_scale = -1.0),
