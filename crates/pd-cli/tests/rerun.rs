@@ -145,3 +145,21 @@ fn compare_variants_damp_every_body() {
     assert!(summary.contains("\"damping\": \"none\""), "{summary}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn an_empty_format_list_writes_and_counts_no_frame() {
+    let dir = temp_dir("no-formats");
+    let scene = tiny_scene(&dir, "beam", "backward-euler", "model = \"none\"");
+    let text = std::fs::read_to_string(&scene).unwrap();
+    std::fs::write(
+        &scene,
+        text.replace("formats = [\"vtk\", \"obj\"]", "formats = []"),
+    )
+    .unwrap();
+    let out = dir.join("out");
+    pd_ok(&["run", arg(&scene), "--out", arg(&out)]);
+    assert!(!out.join("frames").exists());
+    let summary = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    assert!(summary.contains("\"frames\": 0"), "{summary}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -140,7 +140,7 @@ impl Recorder {
         if scene.output.probes.is_empty() {
             remove_if_present(&dir.join("probes.csv"))?;
         }
-        if scene.output.every > 0 {
+        if scene.output.frame_every() > 0 {
             std::fs::create_dir_all(&frames).map_err(|e| Error::io(&frames, e))?;
         }
         let metrics_path = dir.join(MetricsRow::FILE);
@@ -180,7 +180,7 @@ impl Recorder {
             pvd: Vec::new(),
         };
         recorder.write_rows(sim, None)?;
-        if recorder.output.every > 0 {
+        if recorder.output.frame_every() > 0 {
             recorder.write_frame(sim)?;
         }
         Ok(recorder)
@@ -195,7 +195,8 @@ impl Recorder {
         self.local_ms.push(stats.local_seconds * 1e3);
         self.global_ms.push(stats.global_seconds * 1e3);
         self.write_rows(sim, Some(stats))?;
-        if self.output.every > 0 && sim.steps().is_multiple_of(self.output.every) {
+        let every = self.output.frame_every();
+        if every > 0 && sim.steps().is_multiple_of(every) {
             self.write_frame(sim)?;
         }
         Ok(())

@@ -46,7 +46,8 @@ impl Recorder {
             Some((append(&path)?, path))
         };
         // Frames 0..=steps/every exist at the checkpoint; none without frames.
-        let frames = match steps.checked_div(scene.output.every) {
+        let every = scene.output.frame_every();
+        let frames = match steps.checked_div(every) {
             Some(last) => {
                 let frames = dir.join("frames");
                 remove_frames_from(&frames, last + 1)?;
@@ -59,7 +60,7 @@ impl Recorder {
         let pvd: Vec<PvdEntry> = if scene.output.formats.contains(&FrameFormat::Vtu) {
             (0..frames)
                 .map(|i| PvdEntry {
-                    time: times[i * scene.output.every],
+                    time: times[i * every],
                     file: format!("frames/frame_{i:05}.vtu"),
                 })
                 .collect()

@@ -237,6 +237,18 @@ pub struct OutputSpec {
     pub probes: Vec<usize>,
 }
 
+impl OutputSpec {
+    /// Steps between frames as written: `every`, or 0 (no frames) when no
+    /// format is asked for.
+    pub fn frame_every(&self) -> usize {
+        if self.formats.is_empty() {
+            0
+        } else {
+            self.every
+        }
+    }
+}
+
 /// A validated scene.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scene {
