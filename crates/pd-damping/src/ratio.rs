@@ -119,7 +119,16 @@ impl RatioTarget {
             Self::One { mode, ratio, mass } => {
                 let data = get("mode", mode)?;
                 let stiffness = (2.0 * ratio * data.omega - mass) / quotient.of(data);
-                if !(stiffness >= 0.0) || !stiffness.is_finite() {
+                if !stiffness.is_finite() {
+                    return Err(DampingError::Conflict {
+                        parameter: "ratio",
+                        reason: format!(
+                            "ratio {ratio} of mode {mode} needs a stiffness a2 beyond the largest \
+                             number ({stiffness:e} s); choose a smaller ratio"
+                        ),
+                    });
+                }
+                if stiffness < 0.0 {
                     return Err(negative(
                         "ratio",
                         format!(

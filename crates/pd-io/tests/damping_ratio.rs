@@ -159,6 +159,16 @@ fn ratio_mistakes_are_clear_errors() {
         far.contains("damping.mode") && far.contains("only 10"),
         "{far}"
     );
+    // A ratio whose stiffness overflows says so (it used to read as a
+    // negative stiffness and a too large mass of 0).
+    let huge = scene(&chain(0.01, "ratio = 1e308"))
+        .build()
+        .unwrap_err()
+        .to_string();
+    assert!(
+        huge.contains("damping.ratio") && huge.contains("smaller ratio"),
+        "{huge}"
+    );
 }
 
 /// The beam's first mode released at `1e-3 L` and recorded for `periods`
