@@ -272,3 +272,42 @@ fn colliders_with_an_objective_judging_method_are_refused_at_solver_method() {
     .unwrap();
     assert!(scene.build().unwrap().contact().is_some());
 }
+
+#[test]
+fn a_malformed_mesh_collider_is_named_by_its_field_and_line() {
+    let dir = std::env::temp_dir().join(format!("pd-io-collider-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("bad.obj"), "v 0 0 0\nv 1 0 0\nf 1 2 9\n").unwrap();
+    let text = format!("{BODY}\n[[collider]]\nshape = \"mesh\"\nfile = \"bad.obj\"\n");
+    let message = Scene::parse(&text, Syntax::Toml, &dir.join("s.toml"))
+        .unwrap_err()
+        .to_string();
+    std::fs::remove_dir_all(&dir).unwrap();
+    if cfg!(feature = "mesh-collider") {
+        // The scene's field, then the OBJ file's own line.
+        assert!(
+            message.contains("s.toml: collider[0].file: ") && message.contains("bad.obj:3"),
+            "{message}"
+        );
+    }
+}
+
+#[test]
+fn a_plane_normal_of_extreme_entries_is_normalised() {
+    for (normal, expected) in [
+        ("[0.0, 1e308, 1e308]", [0.0, 1.0, 1.0]),
+        ("[0.0, 1e-320, 0.0]", [0.0, 1.0, 0.0]),
+    ] {
+        let scene = parse(&format!(
+            "[[collider]]\nshape = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = {normal}\n"
+        ))
+        .unwrap();
+        let ColliderShape::Plane { normal: n, .. } = scene.contact.unwrap().colliders[0].shape
+        else {
+            panic!("not a plane");
+        };
+        let expected = Point::from(expected).normalize();
+        // One rounding per division and in the square root: a few ulps.
+        assert!((n - expected).norm() < 4.0 * f64::EPSILON, "{normal}: {n}");
+    }
+}

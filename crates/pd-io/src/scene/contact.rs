@@ -161,14 +161,19 @@ fn collider(source: &Path, i: usize, raw: RawCollider) -> Result<Collider> {
         "plane" => {
             let point = vector("point", raw.point)?;
             let normal = vector("normal", raw.normal)?;
-            let length = normal.norm();
-            if length == 0.0 {
+            let largest = normal.amax();
+            if largest == 0.0 {
                 return Err(error("normal", "zero vector".into()));
             }
-            ColliderShape::Plane {
-                point,
-                normal: normal / length,
-            }
+            let length = normal.norm();
+            let normal = if length.is_normal() {
+                normal / length
+            } else {
+                // Entries so large or small that the length overflows or
+                // underflows: scaled by the largest entry first.
+                (normal / largest).normalize()
+            };
+            ColliderShape::Plane { point, normal }
         }
         "sphere" => {
             let center = vector("center", raw.center)?;
@@ -247,7 +252,8 @@ fn mesh(source: &Path, i: usize, file: Option<&Path>) -> Result<ColliderShape> {
             "mesh colliders need the `mesh-collider` feature (on in the `pd` binary; docs/contact.md)",
         ));
     }
-    let surface = crate::obj::read_obj(&path)?;
+    let surface =
+        crate::obj::read_obj(&path).map_err(|e| super::field_error(source, field("file"), e))?;
     if surface.triangles().is_empty() {
         return Err(super::field_error(
             source,
