@@ -35,6 +35,18 @@ pub enum MeshError {
         /// The repeated vertex.
         vertex: usize,
     },
+    /// An element's rest size (volume, area or edge length, squared or
+    /// cubed) overflows `f64`: its coordinates are too large.
+    #[error(
+        "{kind} {element} is too large: its rest size overflows (coordinates of order 1e100 or \
+         more); use other units"
+    )]
+    SizeOverflow {
+        /// Kind of element.
+        kind: ElementKind,
+        /// Index of the element.
+        element: usize,
+    },
     /// A tetrahedron has zero or negative rest volume (inverted or flat).
     #[error(
         "tetrahedron {element} has non-positive rest volume {volume:e} m^3 (inverted or flat; \

@@ -112,6 +112,10 @@ impl Mesh {
             // Relative threshold: a tet whose volume is at round-off level
             // compared with its edge lengths cubed is degenerate.
             let scale = max_edge_length(&vertices, t).powi(3);
+            if !(volume.is_finite() && scale.is_finite()) {
+                let kind = ElementKind::Tet;
+                return Err(MeshError::SizeOverflow { kind, element });
+            }
             if !(volume > 1e-12 * scale) {
                 return Err(MeshError::NonPositiveVolume { element, volume });
             }
@@ -119,6 +123,10 @@ impl Mesh {
         for (element, t) in triangles.iter().enumerate() {
             let area = triangle_area(&vertices, t);
             let scale = max_edge_length(&vertices, t).powi(2);
+            if !(area.is_finite() && scale.is_finite()) {
+                let kind = ElementKind::Triangle;
+                return Err(MeshError::SizeOverflow { kind, element });
+            }
             if !(area > 1e-12 * scale) {
                 return Err(MeshError::ZeroArea { element });
             }
@@ -335,6 +343,27 @@ mod tests {
             matches!(err, MeshError::NonPositiveVolume { element: 1, .. }),
             "{err}"
         );
+    }
+
+    #[test]
+    fn elements_whose_size_overflows_say_so() {
+        // Edge lengths of 1e120 m: the volume (order 1e360) overflows; a
+        // triangle of 1e160 m edges has an area of order 1e320.
+        let huge: Vec<Point> = unit_tet().iter().map(|p| p * 1e120).collect();
+        let err = Mesh::from_tets(huge, vec![[0, 1, 2, 3]]).unwrap_err();
+        assert!(
+            matches!(err, MeshError::SizeOverflow { element: 0, .. }),
+            "{err}"
+        );
+        let huge: Vec<Point> = unit_tet()[..3].iter().map(|p| p * 1e160).collect();
+        let err = Mesh::from_triangles(huge, vec![[0, 1, 2]]).unwrap_err();
+        assert!(
+            err.to_string().starts_with("triangle 0 is too large"),
+            "{err}"
+        );
+        // At 1e100 m a tetrahedron still fits (volume 1e300).
+        let large: Vec<Point> = unit_tet().iter().map(|p| p * 1e100).collect();
+        assert!(Mesh::from_tets(large, vec![[0, 1, 2, 3]]).is_ok());
     }
 
     #[test]
