@@ -48,7 +48,7 @@ use std::path::Path;
 use pd_mesh::{Mesh, Point};
 
 use crate::error::{Error, Result};
-use crate::lines::{DataLines, Line, read_text};
+use crate::lines::{DataLines, Line, quoted, read_text};
 use crate::readers::{build_mesh, check_distinct, finite_point};
 
 /// Reads a Gmsh 4.1 ASCII `.msh` file (see the [module docs](self)).
@@ -89,8 +89,8 @@ pub fn read_gmsh(path: &Path) -> Result<Mesh> {
     })?;
     if first.fields != ["$MeshFormat"] {
         return Err(first.error(format!(
-            "expected `$MeshFormat`, found `{}`: not a Gmsh .msh file",
-            first.fields.join(" ")
+            "expected `$MeshFormat`, found {}: not a Gmsh .msh file",
+            quoted(&first.fields.join(" "))
         )));
     }
     read_format(&mut lines)?;
@@ -122,8 +122,8 @@ pub fn read_gmsh(path: &Path) -> Result<Mesh> {
             }
             _ => {
                 return Err(line.error(format!(
-                    "expected a section such as `$Nodes` or `$Elements`, found `{}`",
-                    line.fields.join(" ")
+                    "expected a section such as `$Nodes` or `$Elements`, found {}",
+                    quoted(&line.fields.join(" "))
                 )));
             }
         }
@@ -167,8 +167,9 @@ fn read_format(lines: &mut DataLines<'_>) -> Result<()> {
     let version = line.text(0);
     if version != "4.1" {
         return Err(line.error(format!(
-            "Gmsh format version {version} is not supported: only 4.1 is (save as \"Version 4 \
-             ASCII\", e.g. `gmsh -format msh41`)"
+            "Gmsh format version {} is not supported: only 4.1 is (save as \"Version 4 \
+             ASCII\", e.g. `gmsh -format msh41`)",
+            quoted(version)
         )));
     }
     match line.text(1) {
@@ -181,7 +182,10 @@ fn read_format(lines: &mut DataLines<'_>) -> Result<()> {
             ));
         }
         other => {
-            return Err(line.error(format!("the file type must be 0 (ASCII), found `{other}`")));
+            return Err(line.error(format!(
+                "the file type must be 0 (ASCII), found {}",
+                quoted(other)
+            )));
         }
     }
     line.unsigned(2, "data size")?;
@@ -194,8 +198,8 @@ fn expect_end(lines: &mut DataLines<'_>, name: &str) -> Result<()> {
     match lines.next_line() {
         Some(line) if line.fields == [end.as_str()] => Ok(()),
         Some(line) => Err(line.error(format!(
-            "expected `{end}`, found `{}`",
-            line.fields.join(" ")
+            "expected `{end}`, found {}",
+            quoted(&line.fields.join(" "))
         ))),
         None => Err(lines.error_at_end(format!("the file is truncated: `{end}` is missing"))),
     }
@@ -209,8 +213,10 @@ fn skip_section(lines: &mut DataLines<'_>, start: &Line<'_>, name: &str) -> Resu
         }
     }
     Err(lines.error_at_end(format!(
-        "the file is truncated: section `${name}` opened on line {} has no `{end}`",
-        start.line
+        "the file is truncated: section {} opened on line {} has no {}",
+        quoted(&format!("${name}")),
+        start.line,
+        quoted(&end)
     )))
 }
 

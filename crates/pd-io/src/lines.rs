@@ -7,7 +7,13 @@
 //! Counted sections (a header declaring how many data lines follow, as
 //! TetGen's files have) are read with [`DataLines::header`],
 //! [`DataLines::data_line`] and [`DataLines::expect_end`].
+//!
+//! A leading UTF-8 byte order mark (as some Windows editors write) is
+//! skipped. Text from the file is quoted in messages with [`quoted`], which
+//! shortens a long token so that one malformed line cannot flood the
+//! terminal.
 
+use std::fmt;
 use std::path::Path;
 use std::str::FromStr;
 
@@ -44,6 +50,7 @@ pub(crate) struct Line<'a> {
 
 impl<'a> DataLines<'a> {
     pub(crate) fn new(path: &'a Path, text: &'a str) -> Self {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         Self {
             path,
             lines: text.lines().enumerate(),
@@ -175,7 +182,7 @@ impl Line<'_> {
         let value = self.parse(index, what, "a non-negative integer");
         let text = self.text(index);
         if value.is_err() && !text.is_empty() && text.bytes().all(|b| b.is_ascii_digit()) {
-            return Err(self.error(format!("the {what} `{text}` is too large")));
+            return Err(self.error(format!("the {what} {} is too large", quoted(text))));
         }
         value
     }
@@ -198,8 +205,39 @@ impl Line<'_> {
 
     fn parse<T: FromStr>(&self, index: usize, what: &str, expected: &str) -> Result<T> {
         let text = self.text(index);
-        text.parse()
-            .map_err(|_| self.error(format!("the {what} must be {expected}, found `{text}`")))
+        text.parse().map_err(|_| {
+            self.error(format!(
+                "the {what} must be {expected}, found {}",
+                quoted(text)
+            ))
+        })
+    }
+}
+
+/// Longest text, in characters, that [`quoted`] shows whole.
+const QUOTE_LIMIT: usize = 60;
+
+/// Text from a file, for a message: in backticks, and if longer than
+/// [`QUOTE_LIMIT`] characters cut there with an ellipsis and its length
+/// (`` `1234…` (10000000 characters) ``).
+pub(crate) fn quoted(text: &str) -> Quoted<'_> {
+    Quoted(text)
+}
+
+/// See [`quoted`].
+pub(crate) struct Quoted<'a>(&'a str);
+
+impl fmt::Display for Quoted<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.0.char_indices().nth(QUOTE_LIMIT) {
+            None => write!(f, "`{}`", self.0),
+            Some((cut, _)) => write!(
+                f,
+                "`{}…` ({} characters)",
+                &self.0[..cut],
+                self.0.chars().count()
+            ),
+        }
     }
 }
 
@@ -220,5 +258,22 @@ mod tests {
         );
         assert!(lines.next_line().is_none());
         assert_eq!(lines.last_line, 6);
+    }
+
+    #[test]
+    fn a_leading_byte_order_mark_is_skipped() {
+        let mut lines = DataLines::new(Path::new("t.obj"), "\u{feff}v 0 0 0\n");
+        assert_eq!(lines.next_line().unwrap().fields, vec!["v", "0", "0", "0"]);
+    }
+
+    #[test]
+    fn long_quotes_are_cut_with_their_length() {
+        let limit = "é".repeat(QUOTE_LIMIT);
+        assert_eq!(quoted(&limit).to_string(), format!("`{limit}`"));
+        let long = format!("{limit}xyz");
+        assert_eq!(
+            quoted(&long).to_string(),
+            format!("`{limit}…` ({} characters)", QUOTE_LIMIT + 3)
+        );
     }
 }

@@ -39,7 +39,7 @@ use std::path::Path;
 use pd_mesh::{Mesh, Point};
 
 use crate::error::Result;
-use crate::lines::{DataLines, Line, read_text};
+use crate::lines::{DataLines, Line, quoted, read_text};
 use crate::readers::{build_mesh, check_distinct, finite_point, vertex_index};
 
 /// Reads a Medit `.mesh` file (see the [module docs](self)).
@@ -67,7 +67,8 @@ pub fn read_medit(path: &Path) -> Result<Mesh> {
         let keyword = line.fields[0];
         if !version_seen && keyword != "MeshVersionFormatted" {
             return Err(line.error(format!(
-                "expected `MeshVersionFormatted`, found `{keyword}`: not a Medit .mesh file"
+                "expected `MeshVersionFormatted`, found {}: not a Medit .mesh file",
+                quoted(keyword)
             )));
         }
         match keyword {
@@ -289,9 +290,10 @@ fn unsupported(keyword: &str) -> String {
             "`{keyword}` are not supported: only tetrahedra and triangles are (convert the \
              mesh to tetrahedra)"
         ),
-        k if k.ends_with("P2") || k.contains("Order") => {
-            format!("`{keyword}`: higher-order elements are not supported, only linear ones")
-        }
-        _ => format!("unknown or unsupported keyword `{keyword}`"),
+        k if k.ends_with("P2") || k.contains("Order") => format!(
+            "{}: higher-order elements are not supported, only linear ones",
+            quoted(keyword)
+        ),
+        _ => format!("unknown or unsupported keyword {}", quoted(keyword)),
     }
 }

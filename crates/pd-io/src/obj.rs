@@ -13,7 +13,8 @@
 //!   from its first corner (`v1 v2 v3`, `v1 v3 v4`, ...), which is right for
 //!   convex polygons such as quads; export with Blender's "Triangulate
 //!   Faces" for anything else;
-//! - `l v1 v2 ...`: a polyline, one edge per consecutive pair;
+//! - `l v1 v2 ...`: a polyline, one edge per consecutive pair (joining two
+//!   vertices at different positions);
 //! - `vt`, `vn`, `vp`, `o`, `g`, `s`, `usemtl`, `mtllib`, `p`: ignored.
 //!
 //! Any other statement (free-form curves and surfaces: `cstype`, `curv`,
@@ -29,7 +30,7 @@ use std::path::Path;
 use pd_mesh::{Mesh, Point};
 
 use crate::error::Result;
-use crate::lines::{DataLines, Line, read_text};
+use crate::lines::{DataLines, Line, quoted, read_text};
 use crate::readers::{build_mesh, check_distinct, finite_point};
 
 /// Reads a Wavefront OBJ file (see the [module docs](self)).
@@ -40,8 +41,9 @@ use crate::readers::{build_mesh, check_distinct, finite_point};
 ///   unsupported statement, a vertex with the wrong number of fields or a
 ///   non-finite coordinate, a face with fewer than 3 corners or a line with
 ///   fewer than 2, an index that is 0, not an integer or refers to a vertex
-///   not yet defined, a face repeating a vertex, a file with both faces and
-///   lines or with neither, and a zero-area triangle (named by its index
+///   not yet defined, a face repeating a vertex, a line joining two vertices
+///   at the same position, a file with both faces and lines or with
+///   neither, and a zero-area triangle (named by its index
 ///   from 0 among the triangles after polygons are split, in file order);
 /// - [`crate::Error::Mesh`] for any other validation failure.
 ///
@@ -118,6 +120,16 @@ pub fn read_obj(path: &Path) -> Result<Mesh> {
                             line.error(format!("the line joins vertex {} to itself", pair[0] + 1))
                         );
                     }
+                    // A zero-length edge has no rest length, and lumps no
+                    // mass onto its vertices.
+                    if points[pair[0]] == points[pair[1]] {
+                        return Err(line.error(format!(
+                            "the line joins vertices {} and {}, which are at the same position: \
+                             an edge must have a non-zero length",
+                            pair[0] + 1,
+                            pair[1] + 1
+                        )));
+                    }
                     edges.push([pair[0], pair[1]]);
                     edge_lines.push(line.line);
                 }
@@ -126,8 +138,9 @@ pub fn read_obj(path: &Path) -> Result<Mesh> {
             "vt" | "vn" | "vp" | "o" | "g" | "s" | "usemtl" | "mtllib" | "p" => {}
             other => {
                 return Err(line.error(format!(
-                    "unsupported OBJ statement `{other}`: only v, f and l are read (vt, vn, vp, \
-                     o, g, s, usemtl, mtllib and p are ignored)"
+                    "unsupported OBJ statement {}: only v, f and l are read (vt, vn, vp, o, g, \
+                     s, usemtl, mtllib and p are ignored)",
+                    quoted(other)
                 )));
             }
         }
@@ -167,13 +180,16 @@ fn corners(line: &Line<'_>, defined: usize) -> Result<Vec<usize>> {
                 // `v//vn` leaves the texture index empty.
                 if i > 1 || (!part.is_empty() && part.parse::<i64>().is_err()) {
                     return Err(line.error(format!(
-                        "corner `{text}` must be v, v/vt, v//vn or v/vt/vn with integer indices"
+                        "corner {} must be v, v/vt, v//vn or v/vt/vn with integer indices",
+                        quoted(text)
                     )));
                 }
             }
             let index: i64 = vertex.parse().map_err(|_| {
                 line.error(format!(
-                    "the vertex index of corner `{text}` must be an integer, found `{vertex}`"
+                    "the vertex index of corner {} must be an integer, found {}",
+                    quoted(text),
+                    quoted(vertex)
                 ))
             })?;
             resolve(line, index, defined)

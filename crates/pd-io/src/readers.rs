@@ -6,7 +6,7 @@ use std::path::Path;
 use pd_mesh::{Mesh, MeshError, Point};
 
 use crate::error::{Error, Result};
-use crate::lines::Line;
+use crate::lines::{Line, quoted};
 
 /// Fields `start..start + 3` of `line` as a finite point; `what` names the
 /// vertex in messages (e.g. `vertex 3`).
@@ -16,8 +16,8 @@ pub(crate) fn finite_point(line: &Line<'_>, start: usize, what: &str) -> Result<
         let value = line.number(start + axis, &format!("{name} coordinate"))?;
         if !value.is_finite() {
             return Err(line.error(format!(
-                "{name} coordinate of {what} is not finite: `{}`",
-                line.text(start + axis)
+                "{name} coordinate of {what} is not finite: {}",
+                quoted(line.text(start + axis))
             )));
         }
         *coordinate = value;

@@ -32,7 +32,7 @@ use pd_mesh::{Mesh, Point};
 use crate::atomic::write_atomically;
 use crate::error::{Error, Result};
 use crate::frames::Float;
-use crate::lines::{DataLines, Line, read_text};
+use crate::lines::{DataLines, Line, quoted, read_text};
 use crate::readers::{build_mesh, check_distinct};
 
 /// Reads a tetrahedral mesh from a TetGen `.node` file and its `.ele` file.
@@ -240,8 +240,8 @@ fn read_nodes(path: &Path) -> Result<Nodes> {
             let value = line.number(1 + axis, &format!("{name} coordinate"))?;
             if !value.is_finite() {
                 return Err(line.error(format!(
-                    "{name} coordinate of node {index} is not finite: `{}`",
-                    line.text(1 + axis)
+                    "{name} coordinate of node {index} is not finite: {}",
+                    quoted(line.text(1 + axis))
                 )));
             }
             *coordinate = value;

@@ -14,6 +14,9 @@ use pd_io::obj::read_obj;
 use pd_io::tetgen::{read_tetgen_surface, read_tetgen_surface_base};
 use pd_mesh::{Mesh, Point};
 
+/// A mesh reader of this crate.
+type Reader = fn(&Path) -> Result<Mesh, Error>;
+
 fn fixture(name: &str) -> PathBuf {
     common::data_dir().join("formats").join(name)
 }
@@ -123,7 +126,7 @@ fn gmsh_malformed_inputs_name_file_and_line() {
         "gmsh_v22",
         "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n",
         2,
-        "version 2.2 is not supported",
+        "version `2.2` is not supported",
     );
     e(
         "gmsh_binary",
@@ -518,6 +521,12 @@ fn obj_malformed_inputs_name_file_and_line() {
         "joins vertex 2 to itself",
     );
     e(
+        "obj_zero_length_line",
+        "v 0 0 0\nv 1 0 0\nv 1 0 0\nl 1 2 3\n",
+        4,
+        "joins vertices 2 and 3, which are at the same position",
+    );
+    e(
         "obj_mixed",
         &format!("{V}f 1 2 3\nl 1 2\n"),
         5,
@@ -657,6 +666,81 @@ fn missing_files_are_io_errors_naming_them() {
             matches!(&err, Error::Io { path: p, .. } if *p == path),
             "{err}"
         );
+    }
+}
+
+#[test]
+fn a_byte_order_mark_is_skipped_by_every_reader() {
+    let dir = common::scratch_dir("byte_order_mark");
+    let with_mark = |name: &str| {
+        let mut bytes = vec![0xef, 0xbb, 0xbf];
+        bytes.extend(std::fs::read(fixture(name)).unwrap());
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).unwrap();
+        path
+    };
+    let read: [(&str, Reader); 3] = [
+        ("quad_cloth.obj", read_obj),
+        ("two_tets.msh", read_gmsh),
+        ("two_tets.mesh", read_medit),
+    ];
+    for (name, read) in read {
+        let marked = read(&with_mark(name)).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(marked, read(&fixture(name)).unwrap(), "{name}");
+    }
+    let marked = read_tetgen_surface(&with_mark("two_tets.1.node"), &with_mark("two_tets.1.face"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    let plain =
+        read_tetgen_surface(&fixture("two_tets.1.node"), &fixture("two_tets.1.face")).unwrap();
+    assert_eq!(marked, plain);
+}
+
+#[test]
+fn long_tokens_are_quoted_cut_with_their_length() {
+    let digits = "1".repeat(100_000);
+    let word = "x".repeat(100_000);
+    let cases: [(&str, String, Reader, &str); 6] = [
+        // Parses as infinity.
+        (
+            "m.obj",
+            format!("v 0 0 {digits}\n"),
+            read_obj,
+            "not finite: `111",
+        ),
+        (
+            "m.obj",
+            format!("v 0 {digits}x 0\n"),
+            read_obj,
+            "must be a number, found `111",
+        ),
+        (
+            "m.obj",
+            format!("{word}\n"),
+            read_obj,
+            "unsupported OBJ statement `xxx",
+        ),
+        (
+            "m.msh",
+            format!("{word}\n"),
+            read_gmsh,
+            "expected `$MeshFormat`, found `xxx",
+        ),
+        ("m.mesh", format!("{word}\n"), read_medit, "found `xxx"),
+        (
+            "m.mesh",
+            format!("MeshVersionFormatted 1\nDimension 3\n{word}\n"),
+            read_medit,
+            "unknown or unsupported keyword `xxx",
+        ),
+    ];
+    for (case, (name, text, read, needle)) in cases.into_iter().enumerate() {
+        let dir = common::scratch_dir(&format!("long_token_{case}"));
+        let path = dir.join(name);
+        std::fs::write(&path, &text).unwrap();
+        let message = read(&path).unwrap_err().to_string();
+        assert!(message.contains(needle), "case {case}: {message:.300}");
+        assert!(message.contains("…` (100"), "case {case}: {message:.300}");
+        assert!(message.len() < 400, "case {case}: {message:.300}");
     }
 }
 

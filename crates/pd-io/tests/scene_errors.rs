@@ -549,6 +549,39 @@ fn missing_mesh_file_is_an_io_error_at_build() {
 }
 
 #[test]
+fn empty_mesh_file_names_the_field() {
+    // Joined to the scene's folder, an empty path would be read as the
+    // TetGen base `folder/` and reported as a missing `folder/.node`.
+    let text = edit(
+        "mesh = { generator = \"box\", size = [1.0, 0.2, 0.2], cells = [4, 1, 1] }",
+        "mesh = { file = \"\" }",
+    );
+    let message = expect_field_error(parse(&text), "body[0].mesh.file", &["is empty"]);
+    assert!(!message.contains(".node"), "{message}");
+}
+
+#[test]
+fn mesh_file_that_is_a_directory_names_the_field() {
+    let dir = scratch_dir("mesh_directory");
+    std::fs::create_dir(dir.join("meshes")).unwrap();
+    let source = dir.join("scene.toml");
+    let text = edit(
+        "mesh = { generator = \"box\", size = [1.0, 0.2, 0.2], cells = [4, 1, 1] }",
+        "mesh = { file = \"meshes\" }",
+    );
+    let err = Scene::parse(&text, Syntax::Toml, &source).unwrap_err();
+    let folder = dir.join("meshes").display().to_string();
+    let message = field_error_of(
+        err,
+        &source,
+        "body[0].mesh.file",
+        &[&folder, "is a directory"],
+    );
+    assert!(!message.contains(".node"), "{message}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn tetgen_mesh_with_a_flat_tet_names_the_tet() {
     let ele = ELE.replace("1 0 1 4 3", "1 0 1 2 4");
     let scene = tetgen_scene("flat_tet", NODE, &ele);

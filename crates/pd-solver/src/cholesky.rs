@@ -4,8 +4,8 @@
 //! right-hand side.
 //!
 //! The file runs past 600 lines because of its tests (the code ends near
-//! line 490); the supernodal solve and its two-thread split are in
-//! `cholesky/`.
+//! line 600); the supernodal solve and its two-thread split, and faer's
+//! errors in words (`failure.rs`), are in `cholesky/`.
 
 use std::sync::Arc;
 
@@ -19,9 +19,11 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
 use crate::SolverError;
+use failure::{numeric_failure, resource_failure};
 
 #[cfg(test)]
 mod calibration;
+mod failure;
 #[cfg(feature = "metis")]
 mod metis;
 pub(crate) mod solve_kernels;
@@ -357,7 +359,7 @@ impl SymbolicFactor {
                 CholeskySymbolicParams::default(),
             )
             .map_err(|e| SolverError::Factorisation {
-                reason: format!("symbolic analysis failed: {e:?}"),
+                reason: format!("symbolic analysis failed: {}", resource_failure(e)),
             })
         }
         let mut symbolic = analyse(&pattern, SymmetricOrdering::Amd)?;
@@ -529,7 +531,7 @@ impl SymbolicFactor {
                 Default::default(),
             )
             .map_err(|e| SolverError::Factorisation {
-                reason: format!("the global matrix is not positive definite ({e})"),
+                reason: numeric_failure(e),
             })?;
         if packed {
             self.pack(factor);

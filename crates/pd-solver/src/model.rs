@@ -333,6 +333,44 @@ impl Model {
         &self.bodies
     }
 
+    /// Checks that every free (not fixed) vertex has a positive mass, as
+    /// the global matrix's mass term needs; a vertex that no element
+    /// touches gets no mass from a density.
+    ///
+    /// # Errors
+    /// [`SolverError::InvalidModel`] for the first free vertex without
+    /// mass, named by its body, its index in the body's mesh and its index
+    /// in the model.
+    ///
+    /// ```
+    /// use pd_mesh::generators;
+    /// use pd_solver::Model;
+    ///
+    /// let mut model = Model::new();
+    /// for masses in [vec![1.0; 3], vec![1.0, 0.0, 1.0]] {
+    ///     model.add_body(generators::chain(3, 1.0).unwrap(), masses).unwrap();
+    /// }
+    /// let message = model.check_free_masses().unwrap_err().to_string();
+    /// assert!(message.contains("body 1 vertex 1 (vertex 4 of the model)"));
+    /// ```
+    pub fn check_free_masses(&self) -> Result<(), SolverError> {
+        for (b, body) in self.bodies.iter().enumerate() {
+            for (local, v) in body.vertices().enumerate() {
+                let mass = self.masses[v];
+                if !self.fixed[v] && !(mass > 0.0) {
+                    return Err(SolverError::InvalidModel {
+                        reason: format!(
+                            "body {b} vertex {local} (vertex {v} of the model) is free but has \
+                             mass {mass}: every free vertex needs a positive mass (is it \
+                             touched by no element?)"
+                        ),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// The constraint sets that hold at least one constraint, one block per
     /// kind.
     pub fn constraint_blocks(&self) -> Vec<Box<dyn ConstraintBlock>> {

@@ -415,20 +415,12 @@ fn assemble(
     blocks: &[Box<dyn pd_constraints::ConstraintBlock>],
     scattered: bool,
 ) -> Result<Stiffness, SolverError> {
+    model.check_free_masses()?;
     let n = model.num_vertices();
     let mut free_index = vec![usize::MAX; n];
     let mut free = Vec::new();
-    for (v, (index, (&fixed, &mass))) in free_index
-        .iter_mut()
-        .zip(model.fixed().iter().zip(model.masses()))
-        .enumerate()
-    {
+    for (v, (index, &fixed)) in free_index.iter_mut().zip(model.fixed()).enumerate() {
         if !fixed {
-            if !(mass > 0.0) {
-                return Err(SolverError::InvalidModel {
-                    reason: format!("vertex {v} is free but has mass {mass}"),
-                });
-            }
             *index = free.len();
             free.push(v);
         }

@@ -14,7 +14,7 @@ use nalgebra::{DMatrix, SymmetricEigen};
 use pd_damping::{Damping, EtherDrag, LaplacianDamping, NoDamping, PbdDamping, RayleighLagged};
 use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
 use pd_mesh::{Point, VertexSelection};
-use pd_solver::{Model, Settings, Simulation, State};
+use pd_solver::{Model, Settings, Simulation, SolverError, State};
 
 /// A scene name and a constructor.
 type MakeIntegrator = (&'static str, fn() -> Box<dyn Integrator>);
@@ -127,5 +127,25 @@ fn global_matrix_is_spd_for_every_integrator_and_model() {
                 );
             }
         }
+    }
+}
+
+/// Coefficients beyond floating-point range (1/h^2 and a2/h overflow) break
+/// the factorisation; the reason says what to check, in words.
+#[test]
+fn a_factorisation_of_overflowing_coefficients_says_what_to_check() {
+    let settings = Settings {
+        dt: 1e-308,
+        ..Settings::default()
+    };
+    let damping = Box::new(LaplacianDamping::new(1e308, 0.0, false).unwrap());
+    match Simulation::new(model(), Box::new(BackwardEuler), damping, settings) {
+        Err(SolverError::Factorisation { reason }) => {
+            assert!(reason.contains("not positive definite"), "{reason}");
+            assert!(reason.contains("check dt, masses, stiffness"), "{reason}");
+            assert!(!reason.contains("NonPositivePivot"), "{reason}");
+        }
+        Err(other) => panic!("expected a factorisation error, got {other}"),
+        Ok(_) => panic!("expected a factorisation error"),
     }
 }

@@ -6,7 +6,7 @@ mod beam_modes;
 
 use std::f64::consts::PI;
 
-use pd_mesh::generators;
+use pd_mesh::{Mesh, Point, generators};
 use pd_solver::Model;
 use pd_solver::modes::{self, ModalAnalysis};
 
@@ -236,4 +236,23 @@ fn dense_and_subspace_iteration_agree() {
             );
         }
     }
+}
+
+#[test]
+fn a_free_vertex_without_mass_is_named_by_body_and_local_index() {
+    let mut model = Model::new();
+    let first = model
+        .add_body(generators::chain(4, 0.3).unwrap(), vec![M; 4])
+        .unwrap();
+    model.add_springs(first, K).unwrap();
+    // The second body's vertex 3 is touched by no edge, so it has no mass.
+    let vertices = (0..4).map(|i| Point::new(i as f64, 1.0, 0.0)).collect();
+    let mesh = Mesh::from_edges(vertices, vec![[0, 1], [1, 2]]).unwrap();
+    let second = model.add_body(mesh, vec![M, M, M, 0.0]).unwrap();
+    model.add_springs(second, K).unwrap();
+    let message = modes::elastic_modes(&model, 2).unwrap_err().to_string();
+    assert!(
+        message.contains("body 1 vertex 3 (vertex 7 of the model) is free but has mass 0"),
+        "{message}"
+    );
 }

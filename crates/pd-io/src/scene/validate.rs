@@ -4,7 +4,10 @@
 //! the first error reported is the first in the file.
 //!
 //! What needs the mesh (selections in range, generator counts, masses) is
-//! checked when the scene is built, not here.
+//! checked when the scene is built, not here. The one look at the file
+//! system is for a mesh `file` that names a directory, which would
+//! otherwise be taken for a TetGen base name and reported as a missing
+//! `.node` file.
 
 use std::path::{Path, PathBuf};
 
@@ -304,7 +307,19 @@ impl Validator<'_> {
             ],
             "a mesh file",
         )?;
+        let file_field = || format!("{field}.file");
+        if file.as_os_str().is_empty() {
+            return Err(self.error(file_field(), "is empty"));
+        }
         let path = self.path(file);
+        // Checked here, before the extension picks a reader: a directory
+        // has none, and would be taken for a TetGen base name (`dir.node`).
+        if path.is_dir() {
+            return Err(self.error(
+                file_field(),
+                format!("{} is a directory, not a mesh file", path.display()),
+            ));
+        }
         match path.extension().and_then(|e| e.to_str()) {
             // TetGen names its outputs `bar.1.node`; the base `bar.1` ends in
             // the iteration number.
@@ -315,7 +330,7 @@ impl Validator<'_> {
             Some(e) if e.eq_ignore_ascii_case("obj") => Ok(MeshSource::Obj(path)),
             Some(e) if e.eq_ignore_ascii_case("mesh") => Ok(MeshSource::Medit(path)),
             Some(other) => Err(self.error(
-                format!("{field}.file"),
+                file_field(),
                 format!(
                     "unsupported mesh format \".{other}\"; supported: TetGen .node/.ele \
                      (or .face for a surface), Gmsh .msh, Wavefront .obj, Medit .mesh"
