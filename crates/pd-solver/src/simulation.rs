@@ -165,6 +165,9 @@ impl Simulation {
         settings: Settings,
     ) -> Result<Self, SolverError> {
         settings.validate()?;
+        // Named by body and the body's own vertex number, before the global
+        // system, which knows only the model's numbering, would refuse it.
+        model.check_free_masses()?;
         let d = damping.implicit_matrix();
         for (field, value) in [
             ("damping.mass", d.mass),
