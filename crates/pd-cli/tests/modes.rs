@@ -4,11 +4,7 @@
 
 mod common;
 
-use common::{arg, pd, pd_ok, stderr, temp_dir, tiny_scene};
-
-fn json(path: &std::path::Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
+use common::{arg, json, pd, pd_ok, stderr, temp_dir, tiny_scene};
 
 const RATIO: &str = "model = \"laplacian\"\nratio = 0.05";
 

@@ -6,7 +6,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{arg, pd, pd_ok, stderr, temp_dir, tiny_scene};
+use common::{arg, json, pd, pd_ok, stderr, temp_dir, tiny_scene};
 
 /// Decodes a PNG: (width, height, RGB or RGBA bytes, bytes per pixel).
 fn read_png(path: &Path) -> (u32, u32, Vec<u8>, usize) {
@@ -180,9 +180,7 @@ fn compare_damping_models_and_integrators() {
         "--out",
         arg(&out),
     ]);
-    let table: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("comparison.json")).unwrap())
-            .unwrap();
+    let table = json(&out.join("comparison.json"));
     let rows = table["variants"].as_array().unwrap();
     assert_eq!(
         rows.iter()

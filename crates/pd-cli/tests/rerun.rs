@@ -8,7 +8,7 @@ mod common;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use common::{arg, pd, pd_ok, stderr, temp_dir, tiny_scene};
+use common::{arg, file_names, json, pd, pd_ok, stderr, temp_dir, tiny_scene};
 
 /// Every file below `dir` with its bytes.
 fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
@@ -27,16 +27,6 @@ fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
     files
 }
 
-/// The names in `dir`, sorted.
-fn names(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
-}
-
 #[test]
 fn a_shorter_rerun_leaves_no_frame_of_the_earlier_run() {
     let dir = temp_dir("rerun-frames");
@@ -45,20 +35,20 @@ fn a_shorter_rerun_leaves_no_frame_of_the_earlier_run() {
     // 10 steps, a frame every 2: frames 0 to 5, and their pictures.
     pd_ok(&["run", arg(&scene), "--out", arg(&out)]);
     pd_ok(&["render", arg(&out), "--width", "64", "--height", "48"]);
-    assert_eq!(names(&out.join("frames")).len(), 12);
-    assert_eq!(names(&out.join("render")).len(), 7);
+    assert_eq!(file_names(&out.join("frames")).len(), 12);
+    assert_eq!(file_names(&out.join("render")).len(), 7);
 
     // 4 steps into the same folder: frames 0 to 2 only.
     pd_ok(&["run", arg(&scene), "--out", arg(&out), "--steps", "4"]);
     let expected: Vec<String> = (0..3)
         .flat_map(|i| [format!("frame_{i:05}.obj"), format!("frame_{i:05}.vtk")])
         .collect();
-    assert_eq!(names(&out.join("frames")), expected);
+    assert_eq!(file_names(&out.join("frames")), expected);
     let summary = std::fs::read_to_string(out.join("summary.json")).unwrap();
     assert!(summary.contains("\"frames\": 3"), "{summary}");
     pd_ok(&["render", arg(&out), "--width", "64", "--height", "48"]);
     assert_eq!(
-        names(&out.join("render")),
+        file_names(&out.join("render")),
         [
             "animation.gif",
             "frame_00000.png",
@@ -132,9 +122,7 @@ fn compare_variants_damp_every_body() {
         "--out",
         arg(&out),
     ]);
-    let table: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("comparison.json")).unwrap())
-            .unwrap();
+    let table = json(&out.join("comparison.json"));
     let rows = table["variants"].as_array().unwrap();
     let final_energy = |i: usize| rows[i]["final_energy"].as_f64().unwrap();
     // Undamped, the swinging beam keeps more energy than under Laplacian

@@ -238,6 +238,29 @@ fn dense_and_subspace_iteration_agree() {
     }
 }
 
+/// `Auto` takes the dense solver for a request of a quarter or more of a
+/// mid-sized model's dofs, and block Lanczos for a few modes of it.
+#[test]
+fn auto_solves_many_modes_of_a_mid_sized_model_densely() {
+    // 40 x 2 x 2 cells, one end clamped: 360 free vertices, 1,080 dofs.
+    let model = beam_modes::beam([1.0, 0.1, 0.1], [40, 2, 2]);
+    let few = modes::elastic_modes(&model, 4).unwrap();
+    assert!(few.dofs > modes::DENSE_LIMIT, "{}", few.dofs);
+    assert_eq!(few.method, "shift-invert block Lanczos");
+    let many = modes::elastic_modes(&model, few.dofs.div_ceil(4)).unwrap();
+    assert_eq!(many.method, "dense");
+    // The same lowest modes either way (Lanczos converged to 1e-9 relative,
+    // the threshold of `dense_and_subspace_iteration_agree`).
+    for (a, b) in few.modes.iter().zip(&many.modes) {
+        assert!(
+            (a.omega - b.omega).abs() <= 1e-9 * a.omega,
+            "{} vs {}",
+            a.omega,
+            b.omega
+        );
+    }
+}
+
 #[test]
 fn a_free_vertex_without_mass_is_named_by_body_and_local_index() {
     let mut model = Model::new();
