@@ -132,6 +132,8 @@ pub(crate) enum Failure {
     Input(String),
     Diverged(String),
     Output(String),
+    /// Ctrl-C: the run stopped after a whole step.
+    Interrupted(String),
 }
 
 impl Failure {
@@ -140,12 +142,17 @@ impl Failure {
             Failure::Input(_) => 2,
             Failure::Diverged(_) => 3,
             Failure::Output(_) => 4,
+            // 128 + SIGINT, as shells report a process a Ctrl-C ended.
+            Failure::Interrupted(_) => 130,
         }
     }
 
     pub(crate) fn message(&self) -> &str {
         match self {
-            Failure::Input(m) | Failure::Diverged(m) | Failure::Output(m) => m,
+            Failure::Input(m)
+            | Failure::Diverged(m)
+            | Failure::Output(m)
+            | Failure::Interrupted(m) => m,
         }
     }
 }

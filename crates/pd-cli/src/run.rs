@@ -1,6 +1,8 @@
 //! `pd run` and `pd resume`.
 
 use std::path::{Path, PathBuf};
+use std::sync::Once;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
@@ -189,8 +191,29 @@ pub(crate) fn resume(dir: &Path, quiet: bool) -> Result<(), Failure> {
     execute(&loaded, &mut sim, recorder, file.checkpoint_every, quiet)
 }
 
+/// Set by Ctrl-C (SIGINT): the run stops after the step in progress.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// Catches Ctrl-C from now on (once per process): the first stops the run
+/// after the step in progress, so that its files are whole and say where it
+/// stopped; a second one ends the process at once.
+fn catch_interrupts() {
+    static INSTALLED: Once = Once::new();
+    INSTALLED.call_once(|| {
+        let handler = || {
+            if INTERRUPTED.swap(true, Ordering::SeqCst) {
+                std::process::exit(130);
+            }
+        };
+        if let Err(e) = ctrlc::set_handler(handler) {
+            debug!("Ctrl-C is not caught ({e}): it ends the run where it is");
+        }
+    });
+}
+
 /// Steps `sim` to the scene's end, recording and checkpointing, then writes
-/// the summary and final state.
+/// the summary and final state. Ctrl-C stops it after a whole step, with a
+/// checkpoint there when checkpoints are on.
 fn execute(
     loaded: &LoadedScene,
     sim: &mut Simulation,
@@ -212,27 +235,53 @@ fn execute(
         bar
     };
     let checkpoint_path = recorder.dir().join(CHECKPOINT_FILE);
+    let checkpoint = |sim: &Simulation| {
+        let file = CheckpointFile {
+            scene: loaded.text.clone(),
+            steps_requested: scene.steps,
+            threads: scene.settings.threads,
+            checkpoint_every,
+            checkpoint: sim.checkpoint(),
+        };
+        write_checkpoint(&checkpoint_path, &file).map_err(|e| Failure::Output(e.to_string()))?;
+        debug!("checkpoint at step {}", sim.steps());
+        Ok(())
+    };
+    catch_interrupts();
     let mut failure = None;
     while sim.steps() < scene.steps {
+        if INTERRUPTED.load(Ordering::SeqCst) {
+            // A checkpoint at this step, unless the last one is at it.
+            let due = checkpoint_every > 0 && !sim.steps().is_multiple_of(checkpoint_every);
+            if let Err(e) = due.then(|| checkpoint(sim)).unwrap_or(Ok(())) {
+                failure = Some(e);
+                break;
+            }
+            failure = Some(Failure::Interrupted(format!(
+                "interrupted (Ctrl-C) after step {} of {} (t = {} s){}",
+                sim.steps(),
+                scene.steps,
+                sim.time(),
+                if checkpoint_every > 0 && sim.steps() > 0 {
+                    "; `pd resume` continues from there"
+                } else {
+                    ""
+                }
+            )));
+            break;
+        }
         match sim.step() {
             Ok(stats) => {
                 if let Err(e) = recorder.record(sim, &stats) {
                     failure = Some(Failure::Output(e.to_string()));
                     break;
                 }
-                if checkpoint_every > 0 && sim.steps().is_multiple_of(checkpoint_every) {
-                    let file = CheckpointFile {
-                        scene: loaded.text.clone(),
-                        steps_requested: scene.steps,
-                        threads: scene.settings.threads,
-                        checkpoint_every,
-                        checkpoint: sim.checkpoint(),
-                    };
-                    if let Err(e) = write_checkpoint(&checkpoint_path, &file) {
-                        failure = Some(Failure::Output(e.to_string()));
-                        break;
-                    }
-                    debug!("checkpoint at step {}", sim.steps());
+                if checkpoint_every > 0
+                    && sim.steps().is_multiple_of(checkpoint_every)
+                    && let Err(e) = checkpoint(sim)
+                {
+                    failure = Some(e);
+                    break;
                 }
             }
             Err(e @ SolverError::Diverged { .. }) => {
@@ -250,6 +299,7 @@ fn execute(
 
     let outcome = match &failure {
         None => Outcome::Completed,
+        Some(Failure::Interrupted(m)) => Outcome::Interrupted(m.clone()),
         Some(f) => Outcome::Failed(f.message().to_string()),
     };
     let median_step_ms = recorder.median_step_ms();

@@ -101,6 +101,9 @@ pub enum Outcome {
     Completed,
     /// The run stopped with this error message.
     Failed(String),
+    /// The user stopped the run (Ctrl-C) after a whole step; the message
+    /// says where.
+    Interrupted(String),
 }
 
 /// Writes a run's outputs step by step.
@@ -232,6 +235,7 @@ impl Recorder {
         let (status, error) = match outcome {
             Outcome::Completed => ("completed", None),
             Outcome::Failed(message) => ("failed", Some(message.clone())),
+            Outcome::Interrupted(message) => ("interrupted", Some(message.clone())),
         };
         let summary = serde_json::json!({
             "scene": scene.source.display().to_string(),
