@@ -252,8 +252,10 @@ fn execute(
     while sim.steps() < scene.steps {
         if INTERRUPTED.load(Ordering::SeqCst) {
             // A checkpoint at this step, unless the last one is at it.
-            let due = checkpoint_every > 0 && !sim.steps().is_multiple_of(checkpoint_every);
-            if let Err(e) = due.then(|| checkpoint(sim)).unwrap_or(Ok(())) {
+            if checkpoint_every > 0
+                && !sim.steps().is_multiple_of(checkpoint_every)
+                && let Err(e) = checkpoint(sim)
+            {
                 failure = Some(e);
                 break;
             }
