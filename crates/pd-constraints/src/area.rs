@@ -5,7 +5,7 @@
 use nalgebra::{Matrix2, Vector2};
 use pd_mesh::Point;
 
-use crate::tet_strain::check_stiffness;
+use crate::tet_strain::{check_stiffness, check_vertices};
 use crate::triangle_frame::{
     IsotropicProjection, gradient_of, isotropic_hessian, rest_frame, thin_svd,
 };
@@ -37,6 +37,7 @@ impl Area {
         triangle: [usize; 3],
         stiffness: f64,
     ) -> Result<Self, ConstraintError> {
+        check_vertices(rest, &triangle)?;
         check_stiffness(stiffness)?;
         let (operator, area) = rest_frame(rest, triangle)?;
         Ok(Self {

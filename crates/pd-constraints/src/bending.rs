@@ -26,7 +26,7 @@
 
 use pd_mesh::Point;
 
-use crate::tet_strain::check_stiffness;
+use crate::tet_strain::{check_stiffness, check_vertices};
 use crate::{Constraint, ConstraintError};
 
 /// A bending hinge on an interior edge (see the module documentation).
@@ -86,6 +86,7 @@ impl Bending {
     /// A negative or non-finite stiffness, or a zero-area rest triangle
     /// ([`ConstraintError::DegenerateElement`]).
     pub fn new(rest: &[Point], hinge: [usize; 4], stiffness: f64) -> Result<Self, ConstraintError> {
+        check_vertices(rest, &hinge)?;
         check_stiffness(stiffness)?;
         let [x0, x1, x2, x3] = hinge.map(|v| rest[v]);
         let (operator, areas) = hinge_operator(rest, hinge)?;

@@ -105,6 +105,19 @@ pub enum ConstraintError {
         /// The largest index the kind stores.
         max: usize,
     },
+    /// An element refers to a vertex beyond the rest positions given.
+    #[error(
+        "element with vertices {vertices:?} refers to vertex {vertex}, but there are {count} rest \
+         positions"
+    )]
+    VertexOutOfRange {
+        /// The element's vertices.
+        vertices: Vec<usize>,
+        /// The first index out of range.
+        vertex: usize,
+        /// How many rest positions there are.
+        count: usize,
+    },
     /// An element's rest shape is flat or inverted.
     #[error("element with vertices {vertices:?} has a flat or inverted rest shape")]
     DegenerateElement {

@@ -42,6 +42,7 @@ impl MaterialTet {
     /// # Errors
     /// [`ConstraintError::DegenerateElement`] for a flat or inverted rest shape.
     pub fn new(rest: &[Point], tet: [usize; 4]) -> Result<Self, ConstraintError> {
+        crate::tet_strain::check_vertices(rest, &tet)?;
         let [x0, x1, x2, x3] = tet.map(|v| rest[v]);
         let edges = Matrix3::from_columns(&[x1 - x0, x2 - x0, x3 - x0]);
         let volume = edges.determinant() / 6.0;

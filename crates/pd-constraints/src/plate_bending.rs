@@ -23,7 +23,7 @@
 use pd_mesh::Point;
 
 use crate::bending::hinge_operator;
-use crate::tet_strain::check_stiffness;
+use crate::tet_strain::{check_stiffness, check_vertices};
 use crate::{Constraint, ConstraintError};
 
 /// Plate bending of one triangle: stencil `[t0, t1, t2, o0, o1, o2]` with
@@ -53,6 +53,11 @@ impl PlateBending {
         across: [Option<usize>; 3],
         stiffness: f64,
     ) -> Result<Self, ConstraintError> {
+        let neighbours = across.iter().flatten().copied();
+        check_vertices(
+            rest,
+            &triangle.into_iter().chain(neighbours).collect::<Vec<_>>(),
+        )?;
         check_stiffness(stiffness)?;
         let [x0, x1, x2] = triangle.map(|v| rest[v]);
         let normal = (x1 - x0).cross(&(x2 - x0));

@@ -2,7 +2,8 @@
 
 use pd_mesh::Point;
 
-use crate::{Constraint, ConstraintError, tet_strain::check_stiffness};
+use crate::tet_strain::{check_stiffness, check_vertices};
+use crate::{Constraint, ConstraintError};
 
 /// A spring between two vertices with rest length `L0` and weight
 /// `stiffness` (N/m). `G = [-1, 1]`, so `G x` is the edge vector `d`, and the
@@ -36,6 +37,7 @@ impl Spring {
         stiffness: f64,
         rest_length: Option<f64>,
     ) -> Result<Self, ConstraintError> {
+        check_vertices(rest, &edge)?;
         check_stiffness(stiffness)?;
         let d = rest[edge[1]] - rest[edge[0]];
         let rest_length = rest_length.unwrap_or_else(|| d.norm());

@@ -69,6 +69,7 @@ impl TetStrain {
         stiffness: f64,
         limits: Option<(f64, f64)>,
     ) -> Result<Self, ConstraintError> {
+        check_vertices(rest, &tet)?;
         check_stiffness(stiffness)?;
         if let Some((min, max)) = limits {
             Self::check_limits(min, max)?;
@@ -210,6 +211,19 @@ fn clamp_singular_values(f: &Matrix3<f64>, min: f64, max: f64) -> Matrix3<f64> {
     let (u, s, v) = signed_svd(f);
     let clamped = s.map(|sigma| sigma.clamp(min, max));
     u * Matrix3::from_diagonal(&clamped) * v.transpose()
+}
+
+/// [`ConstraintError::VertexOutOfRange`] unless every one of an element's
+/// `vertices` has a rest position.
+pub(crate) fn check_vertices(rest: &[Point], vertices: &[usize]) -> Result<(), ConstraintError> {
+    match vertices.iter().find(|&&v| v >= rest.len()) {
+        Some(&vertex) => Err(ConstraintError::VertexOutOfRange {
+            vertices: vertices.to_vec(),
+            vertex,
+            count: rest.len(),
+        }),
+        None => Ok(()),
+    }
 }
 
 pub(crate) fn check_stiffness(stiffness: f64) -> Result<(), ConstraintError> {

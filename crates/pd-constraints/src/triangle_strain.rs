@@ -7,7 +7,7 @@ use nalgebra::{Matrix2, Matrix3x2};
 use pd_mesh::Point;
 
 use crate::constraint::{energies_one_by_one, project_one_by_one};
-use crate::tet_strain::check_stiffness;
+use crate::tet_strain::{check_stiffness, check_vertices};
 use crate::triangle_frame::{
     IsotropicProjection, clamped_stretch, closest_orthonormal, gradient_of, isotropic_hessian,
     rest_frame, thin_svd,
@@ -56,6 +56,7 @@ impl TriangleStrain {
         stiffness: f64,
         limits: Option<(f64, f64)>,
     ) -> Result<Self, ConstraintError> {
+        check_vertices(rest, &triangle)?;
         check_stiffness(stiffness)?;
         if let Some((min, max)) = limits {
             TetStrain::check_limits(min, max)?;

@@ -439,3 +439,24 @@ fn a_recorded_run_writes_a_pvd_series_and_frames_matching_the_state() {
     // The box has 4 x 2 x 2 = 16 vertices; the chain follows.
     assert_eq!(ply.edges, [[16, 17], [17, 18]]);
 }
+
+/// A scene whose probes were changed after it built (its fields are
+/// public) is refused by the recorder, naming the probe, before it writes
+/// anything; it used to index past the positions and panic.
+#[test]
+fn the_recorder_refuses_a_probe_beyond_the_simulation() {
+    let dir = common::scratch_dir("recorder_probe_range");
+    let mut scene = Scene::parse(SCENE, Syntax::Toml, &dir.join("scene.toml")).unwrap();
+    let sim = scene.build().unwrap();
+    // A box of 16 vertices and a chain of 3.
+    scene.output.probes = vec![1, 19];
+    let out = dir.join("out");
+    let error = Recorder::create(&out, &scene, &sim)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("output.probes[1]") && error.contains("19 vertices"),
+        "{error}"
+    );
+    assert!(!out.exists());
+}

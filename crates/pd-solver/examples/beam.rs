@@ -9,7 +9,7 @@ use pd_mesh::{VertexSelection, generators};
 use pd_solver::{Model, Settings, Simulation};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    // A 1 x 0.2 x 0.2 m beam of 10 x 2 x 2 cubes (5 tets each), 1000 kg/m^3.
+    // A 1 x 0.2 x 0.2 m beam of 10 x 2 x 2 cubes (6 tets each), 1000 kg/m^3.
     let beam = generators::box_tets([1.0, 0.2, 0.2], [10, 2, 2])?;
     let clamp = VertexSelection::Box {
         min: [-1.0; 3],

@@ -133,6 +133,17 @@ impl Simulation {
                 return Err(invalid(format!("{name} is not finite")));
             }
         }
+        if checkpoint.time < 0.0 {
+            return Err(invalid(format!("time is {} s, below 0", checkpoint.time)));
+        }
+        // The divergence check's scale is positive by construction
+        // (step/divergence.rs); another one would make it fire at once.
+        if checkpoint.energy_scale <= 0.0 {
+            return Err(invalid(format!(
+                "energy_scale is {} J; it must be > 0",
+                checkpoint.energy_scale
+            )));
+        }
         Self::check_predictor_state(&checkpoint.predictor, n)?;
         self.position_solver
             .check_carried(&checkpoint.solver)

@@ -106,8 +106,13 @@ impl GlobalSystem {
             }
         }
         if free.is_empty() {
+            let reason = if masses.is_empty() {
+                "the model has no vertices: nothing to simulate"
+            } else {
+                "every vertex is fixed: nothing to simulate"
+            };
             return Err(SolverError::InvalidModel {
-                reason: "every vertex is fixed: nothing to simulate".into(),
+                reason: reason.into(),
             });
         }
         // L_sys = L_d + L_anchor: the two parts are kept apart (the step

@@ -72,3 +72,23 @@ fn an_impossible_estimate_is_refused() {
         assert_eq!(sim.checkpoint(), before, "{bad:?}: changed");
     }
 }
+
+/// A checkpoint whose time is negative or whose energy scale is not
+/// positive (an edited or damaged one) is refused, naming the value, and
+/// the simulation is unchanged: such a scale would make the divergence
+/// check fire at the next step.
+#[test]
+fn a_negative_time_or_energy_scale_is_refused() {
+    let mut sim = beam(Scheme::BackwardEuler);
+    sim.run(2).unwrap();
+    let before = sim.checkpoint();
+    let mut early = before.clone();
+    early.time = -5.0;
+    let mut unscaled = before.clone();
+    unscaled.energy_scale = -1.0;
+    for (name, bad) in [("time", early), ("energy_scale", unscaled)] {
+        let error = sim.restore(&bad).unwrap_err().to_string();
+        assert!(error.contains(name), "{name}: {error}");
+        assert_eq!(sim.checkpoint(), before, "{name}: changed");
+    }
+}

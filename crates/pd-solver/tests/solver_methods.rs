@@ -277,3 +277,58 @@ fn newton_and_lbfgs_refuse_lagged_damping() {
         assert_eq!(sim.steps(), 0);
     }
 }
+
+/// Methods built directly, not through a checked `SolverSpec`: a spectral
+/// radius outside (0, 1) is refused before the first step, and a huge
+/// window is capped instead of allocating `window^2` values.
+#[test]
+fn directly_built_methods_check_their_parameters() {
+    let beam = || {
+        let (model, _) = clamped_beam([4, 1, 1], [1.0, 0.2, 0.2], 7, 1e6);
+        Simulation::new(
+            model,
+            Scheme::BackwardEuler.integrator(),
+            Box::new(NoDamping),
+            Settings::default(),
+        )
+        .unwrap()
+    };
+    for rho in [f64::NAN, 0.0, 1.0, 1.5, -1.0] {
+        let mut sim = beam();
+        sim.set_position_solver(Box::new(pd_solver::Chebyshev::new(
+            SpectralRadius::Fixed(rho),
+            2,
+        )));
+        let early = sim.check_position_solver().unwrap_err().to_string();
+        assert!(early.contains("rho"), "{rho}: {early}");
+        assert_eq!(sim.step().unwrap_err().to_string(), early);
+    }
+    let mut sim = beam();
+    sim.set_position_solver(Box::new(pd_solver::Chebyshev::new(
+        SpectralRadius::Fixed(0.9),
+        2,
+    )));
+    sim.step().unwrap();
+    for method in [
+        Box::new(pd_solver::Anderson::new(100_000_000)) as Box<dyn pd_solver::PositionSolver>,
+        Box::new(pd_solver::Lbfgs::new(100_000_000)),
+    ] {
+        let mut sim = beam();
+        sim.set_position_solver(method);
+        sim.step().unwrap();
+    }
+}
+
+/// An empty model is called empty, not "every vertex is fixed".
+#[test]
+fn an_empty_model_says_it_has_no_vertices() {
+    let error = Simulation::new(
+        pd_solver::Model::new(),
+        Scheme::BackwardEuler.integrator(),
+        Box::new(NoDamping),
+        Settings::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(error.contains("no vertices"), "{error}");
+}

@@ -72,9 +72,12 @@ pub struct Anderson {
 }
 
 impl Anderson {
-    /// A solver keeping the last `window` (>= 1) differences.
+    /// A solver keeping the last `window` differences, taken into
+    /// `1..=`[`SolverSpec::MAX_WINDOW`](super::method::SolverSpec::MAX_WINDOW)
+    /// (its least-squares problem is `window x window`; a scene's `window`
+    /// outside that range is an error).
     pub fn new(window: usize) -> Self {
-        let window = window.max(1);
+        let window = window.clamp(1, super::method::SolverSpec::MAX_WINDOW);
         Self {
             window,
             residual_differences: vec![Vec::new(); window],

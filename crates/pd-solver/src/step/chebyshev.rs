@@ -133,6 +133,19 @@ impl PositionSolver for Chebyshev {
         }
     }
 
+    /// A fixed `rho` must lie in (0, 1), as a scene's `rho` must.
+    fn check_settings(&self) -> Result<(), SolverError> {
+        match self.rho {
+            SpectralRadius::Fixed(rho) if !(rho > 0.0 && rho < 1.0) => {
+                Err(SolverError::InvalidSetting {
+                    field: "rho",
+                    reason: format!("must be in (0, 1) or \"auto\", got {rho}"),
+                })
+            }
+            _ => Ok(()),
+        }
+    }
+
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {
         let n = step.displacement().len();
         if self.previous.len() != n {

@@ -7,7 +7,8 @@ use crate::{Simulation, SolverError};
 
 impl Simulation {
     /// Whether the position solver can run this simulation as it is set
-    /// up: its colliders ([`crate::PositionSolver::handles_contact`]), its
+    /// up: its own parameters ([`crate::PositionSolver::check_settings`]),
+    /// its colliders ([`crate::PositionSolver::handles_contact`]), its
     /// hyperelastic materials ([`crate::PositionSolver::handles_materials`])
     /// and its damping ([`crate::PositionSolver::handles_lagged_damping`],
     /// [`crate::PositionSolver::handles_per_body_damping`]). Each step
@@ -31,9 +32,11 @@ impl Simulation {
     /// ```
     ///
     /// # Errors
-    /// [`SolverError::Unsupported`] saying which part of the model the
-    /// method cannot run and what to use instead; nothing is changed.
+    /// [`SolverError::InvalidSetting`] for a parameter of the method out of
+    /// range; [`SolverError::Unsupported`] saying which part of the model
+    /// the method cannot run and what to use instead. Nothing is changed.
     pub fn check_position_solver(&self) -> Result<(), SolverError> {
+        self.position_solver.check_settings()?;
         if self.contact.is_some() {
             self.check_solver_handles_contact()?;
         }

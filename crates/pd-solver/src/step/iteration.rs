@@ -72,6 +72,15 @@ pub trait PositionSolver: std::fmt::Debug + Send + Sync {
         true
     }
 
+    /// Checks the method's own parameters (the default has none to check);
+    /// [`crate::Simulation::check_position_solver`] and every step call it.
+    ///
+    /// # Errors
+    /// [`SolverError::InvalidSetting`] naming the parameter.
+    fn check_settings(&self) -> Result<(), SolverError> {
+        Ok(())
+    }
+
     /// What the method carries from one step to the next and a checkpoint
     /// must keep for a resumed run to continue bit for bit (Chebyshev's
     /// estimated `rho` with `rho = "auto"`); empty (the default) for a

@@ -80,9 +80,11 @@ pub struct Lbfgs {
 }
 
 impl Lbfgs {
-    /// A solver keeping the last `window` (>= 1) pairs.
+    /// A solver keeping the last `window` pairs, taken into
+    /// `1..=`[`SolverSpec::MAX_WINDOW`](super::method::SolverSpec::MAX_WINDOW)
+    /// (a scene's `window` outside that range is an error).
     pub fn new(window: usize) -> Self {
-        let window = window.max(1);
+        let window = window.clamp(1, super::method::SolverSpec::MAX_WINDOW);
         Self {
             window,
             s: vec![Vec::new(); window],
