@@ -57,7 +57,8 @@ fn thrown(damping: Box<dyn Damping>) -> Result<Simulation, Box<dyn std::error::E
         ..Settings::default()
     };
     let mut sim = Simulation::new(model, Box::new(ImplicitMidpoint), damping, settings)?;
-    sim.add_rigid_velocity(0, Point::new(1.0, 1.0, 0.0), Point::zeros());
+    sim.add_rigid_velocity(0, Point::new(1.0, 1.0, 0.0), Point::zeros())
+        .unwrap();
     Ok(sim)
 }
 

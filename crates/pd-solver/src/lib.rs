@@ -27,7 +27,7 @@
 //! model.add_springs(body, 50.0).unwrap();
 //! let settings = Settings { gravity: Point::zeros(), ..Settings::default() };
 //! let mut sim = Simulation::new(model, Box::new(BackwardEuler), Box::new(NoDamping), settings).unwrap();
-//! sim.add_rigid_velocity(0, Point::new(0.0, 1.0, 0.0), Point::zeros());
+//! sim.add_rigid_velocity(0, Point::new(0.0, 1.0, 0.0), Point::zeros()).unwrap();
 //! sim.run(20).unwrap();
 //! assert!((sim.linear_momentum() - Point::new(0.0, 0.5, 0.0)).norm() < 1e-12);
 //! ```

@@ -297,11 +297,32 @@ impl Simulation {
 
     /// Adds the rigid velocity field `linear + angular x (x - c)` to every
     /// free vertex of a body, with `c` the body's centre of mass (m/s and
-    /// rad/s). Does nothing for a body index out of range.
-    pub fn add_rigid_velocity(&mut self, body: usize, linear: Point, angular: Point) {
+    /// rad/s).
+    ///
+    /// # Errors
+    /// [`SolverError::InvalidState`] for a body index out of range, a
+    /// velocity that is not finite, or one that would make a vertex's
+    /// velocity overflow; the state is then unchanged.
+    pub fn add_rigid_velocity(
+        &mut self,
+        body: usize,
+        linear: Point,
+        angular: Point,
+    ) -> Result<(), SolverError> {
+        let invalid = |reason: String| Err(SolverError::InvalidState { reason });
         let Some(range) = self.topology.bodies.get(body).cloned() else {
-            return;
+            return invalid(format!(
+                "rigid velocity of body {body}: the model has {} bodies",
+                self.topology.bodies.len()
+            ));
         };
+        if !(linear.iter().chain(angular.iter()).all(|c| c.is_finite())) {
+            return invalid(format!(
+                "rigid velocity of body {body} is not finite: linear {:?} m/s, angular {:?} rad/s",
+                linear.as_slice(),
+                angular.as_slice()
+            ));
+        }
         let masses = &self.model.masses()[range.clone()];
         let positions = &self.state.positions[range.clone()];
         let total: f64 = masses.iter().sum();
@@ -315,13 +336,25 @@ impl Simulation {
         } else {
             Point::zeros()
         };
+        let added = |v: usize| linear + angular.cross(&(self.state.positions[v] - centre));
+        let fixed = self.model.fixed();
+        if let Some(v) = range.clone().find(|&v| {
+            !fixed[v]
+                && !(self.state.velocities[v] + added(v))
+                    .iter()
+                    .all(|c| c.is_finite())
+        }) {
+            return invalid(format!(
+                "rigid velocity of body {body}: the velocity of vertex {v} would not be finite"
+            ));
+        }
         for v in range {
-            if !self.model.fixed()[v] {
-                self.state.velocities[v] +=
-                    linear + angular.cross(&(self.state.positions[v] - centre));
+            if !fixed[v] {
+                self.state.velocities[v] += added(v);
             }
         }
         self.reset_energy_reference();
+        Ok(())
     }
 
     /// Advances one time step.

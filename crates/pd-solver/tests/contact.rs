@@ -275,7 +275,8 @@ fn frictionless_contact_keeps_tangential_momentum() {
         on_floor(0.0, 0.0, thickness),
     );
     // Hits the floor obliquely, bounces elastically off it, slides along it.
-    sim.add_rigid_velocity(0, Point::new(1.0, -0.5, 0.3), Point::zeros());
+    sim.add_rigid_velocity(0, Point::new(1.0, -0.5, 0.3), Point::zeros())
+        .unwrap();
     let p0 = sim.linear_momentum();
     let mut touched = false;
     for _ in 0..100 {
@@ -318,7 +319,8 @@ fn a_fast_body_does_not_tunnel_through_a_thin_wall() {
                 thickness,
             },
         );
-        sim.add_rigid_velocity(0, Point::new(speed, 0.0, 0.0), Point::zeros());
+        sim.add_rigid_velocity(0, Point::new(speed, 0.0, 0.0), Point::zeros())
+            .unwrap();
         let mut touched = false;
         for step in 0..50 {
             touched |= sim.step().unwrap().contacts > 0;

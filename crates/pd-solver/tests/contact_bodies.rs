@@ -140,8 +140,10 @@ fn head_on(speed: f64, threads: usize) -> Simulation {
         settings,
         Vec::new(),
     );
-    sim.add_rigid_velocity(0, Point::new(speed, 0.0, 0.0), Point::zeros());
-    sim.add_rigid_velocity(1, Point::new(-speed, 0.0, 0.0), Point::zeros());
+    sim.add_rigid_velocity(0, Point::new(speed, 0.0, 0.0), Point::zeros())
+        .unwrap();
+    sim.add_rigid_velocity(1, Point::new(-speed, 0.0, 0.0), Point::zeros())
+        .unwrap();
     sim
 }
 

@@ -462,7 +462,8 @@ fn spin_growth(scheme: Scheme, damping: Box<dyn Damping>, steps: usize) -> f64 {
         ..Settings::default()
     };
     let mut sim = Simulation::new(model, scheme.integrator(), damping, settings).unwrap();
-    sim.add_rigid_velocity(0, Point::zeros(), Point::new(0.0, 0.0, 1.0));
+    sim.add_rigid_velocity(0, Point::zeros(), Point::new(0.0, 0.0, 1.0))
+        .unwrap();
     let initial = sim.angular_momentum().norm();
     (0..steps)
         .map(|_| {

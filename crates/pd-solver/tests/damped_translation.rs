@@ -206,7 +206,8 @@ fn check_translation(
         ..Settings::default()
     };
     let mut sim = Simulation::new(model, scheme.integrator(), damping, settings).unwrap();
-    sim.add_rigid_velocity(0, scene.velocity, Point::zeros());
+    sim.add_rigid_velocity(0, scene.velocity, Point::zeros())
+        .unwrap();
     let mut particle = Particle {
         displacement: Point::zeros(),
         velocity: scene.velocity,
@@ -436,7 +437,8 @@ fn bdf2_explicit_ether_drag_decays_at_the_configured_rate() {
         settings,
     )
     .unwrap();
-    sim.add_rigid_velocity(0, Point::new(1.0, 0.0, 0.0), Point::zeros());
+    sim.add_rigid_velocity(0, Point::new(1.0, 0.0, 0.0), Point::zeros())
+        .unwrap();
     let s = (-rate * dt).exp();
     let mut expected = 1.0;
     for step in 1..=30 {

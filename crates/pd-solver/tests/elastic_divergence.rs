@@ -32,7 +32,8 @@ fn thrown_stiff_box() -> Simulation {
         settings,
     )
     .unwrap();
-    sim.add_rigid_velocity(0, Point::new(1000.0, 0.0, 0.0), Point::new(0.0, 0.0, 500.0));
+    sim.add_rigid_velocity(0, Point::new(1000.0, 0.0, 0.0), Point::new(0.0, 0.0, 500.0))
+        .unwrap();
     sim
 }
 

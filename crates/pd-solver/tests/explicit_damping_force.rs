@@ -70,7 +70,8 @@ fn explicit_force_follows_each_integrators_force_law() {
             settings,
         )
         .unwrap();
-        sim.add_rigid_velocity(0, Point::new(0.0, 0.5, 0.0), Point::new(0.0, 0.0, 1.0));
+        sim.add_rigid_velocity(0, Point::new(0.0, 0.5, 0.0), Point::new(0.0, 0.0, 1.0))
+            .unwrap();
         let mut previous: Option<Point> = None;
         let mut current = sim.linear_momentum();
         for step in 1..=10 {

@@ -135,7 +135,8 @@ fn attachments_break_momentum_conservation() {
         settings(0.01, 5),
     )
     .unwrap();
-    sim.add_rigid_velocity(0, Point::new(1.0, 0.0, 0.0), Point::zeros());
+    sim.add_rigid_velocity(0, Point::new(1.0, 0.0, 0.0), Point::zeros())
+        .unwrap();
     let p0 = sim.linear_momentum();
     sim.run(10).unwrap();
     assert!((sim.linear_momentum() - p0).norm() > 1e-3);

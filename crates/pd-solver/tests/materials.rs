@@ -306,7 +306,8 @@ fn materials_keep_linear_momentum() {
                 )
                 .unwrap();
                 sim.set_position_solver(solver(method));
-                sim.add_rigid_velocity(0, Point::new(0.5, -0.2, 0.1), Point::new(1.0, 3.0, -2.0));
+                sim.add_rigid_velocity(0, Point::new(0.5, -0.2, 0.1), Point::new(1.0, 3.0, -2.0))
+                    .unwrap();
                 let p0 = sim.linear_momentum();
                 sim.run(10).unwrap();
                 let drift = (sim.linear_momentum() - p0).norm();

@@ -135,7 +135,8 @@ fn two_beams(
         ..Settings::default()
     };
     let mut sim = Simulation::new(model, scheme.integrator(), damping, settings).unwrap();
-    sim.add_rigid_velocity(1, Point::new(0.1, 0.0, 0.0), Point::new(0.0, 0.0, 2.0));
+    sim.add_rigid_velocity(1, Point::new(0.1, 0.0, 0.0), Point::new(0.0, 0.0, 2.0))
+        .unwrap();
     sim
 }
 

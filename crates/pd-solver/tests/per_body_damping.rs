@@ -298,7 +298,8 @@ fn spinning_pair(damping: Box<dyn Damping>) -> Simulation {
         ..Settings::default()
     };
     let mut sim = Simulation::new(model, Box::new(ImplicitMidpoint), damping, settings).unwrap();
-    sim.add_rigid_velocity(1, Point::zeros(), Point::new(0.0, 0.0, 3.0));
+    sim.add_rigid_velocity(1, Point::zeros(), Point::new(0.0, 0.0, 3.0))
+        .unwrap();
     sim
 }
 

@@ -359,7 +359,7 @@ proptest! {
         let damping = Box::new(LaplacianDamping::new(damping_stiffness, 0.0, false).unwrap());
         let converged = Settings { tolerance: 1e-12, ..settings(dt, 5000, false) };
         let mut sim = Simulation::new(model, Box::new(ImplicitMidpoint), damping, converged).unwrap();
-        sim.add_rigid_velocity(0, Point::zeros(), spin[0]);
+        sim.add_rigid_velocity(0, Point::zeros(), spin[0]).unwrap();
         let j0 = sim.angular_momentum().norm();
         let mut last = j0;
         for step in 1..=20 {
@@ -431,7 +431,7 @@ fn spin_error_ratio(
     })
     .unwrap();
     for body in 0..bodies {
-        sim.add_rigid_velocity(body, Point::zeros(), spin);
+        sim.add_rigid_velocity(body, Point::zeros(), spin).unwrap();
     }
     let j0 = sim.angular_momentum();
     let mut worst = 0.0f64;

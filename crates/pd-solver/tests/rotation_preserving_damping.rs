@@ -70,7 +70,8 @@ fn spin(damping: Box<dyn Damping>) -> Run {
         ..Settings::default()
     };
     let mut sim = Simulation::new(model, Box::new(ImplicitMidpoint), damping, settings).unwrap();
-    sim.add_rigid_velocity(0, Point::zeros(), Point::new(0.3, 4.0, 1.0));
+    sim.add_rigid_velocity(0, Point::zeros(), Point::new(0.3, 4.0, 1.0))
+        .unwrap();
     let mut state = sim.state().clone();
     for (v, x) in state.velocities.iter_mut().zip(&state.positions) {
         *v += Point::new(0.0, 0.5 * (6.0 * x.x).sin(), 0.0);

@@ -108,7 +108,8 @@ fn spinning_block(
         ..Settings::default()
     };
     let mut sim = Simulation::new(model, integrator, damping, settings).unwrap();
-    sim.add_rigid_velocity(0, Point::zeros(), Point::new(0.0, 0.0, 4.0));
+    sim.add_rigid_velocity(0, Point::zeros(), Point::new(0.0, 0.0, 4.0))
+        .unwrap();
     sim
 }
 
@@ -212,7 +213,8 @@ fn vibrating_block(damping: Box<dyn Damping>, spin: f64) -> Simulation {
         x.x *= 1.02;
     }
     sim.set_state(state).unwrap();
-    sim.add_rigid_velocity(0, Point::zeros(), Point::new(0.0, 0.0, spin));
+    sim.add_rigid_velocity(0, Point::zeros(), Point::new(0.0, 0.0, spin))
+        .unwrap();
     sim
 }
 

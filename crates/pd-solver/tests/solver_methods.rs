@@ -176,7 +176,8 @@ fn every_method_keeps_linear_momentum() {
             let mut sim =
                 Simulation::new(model, scheme.integrator(), damping(true), settings).unwrap();
             sim.set_position_solver(spec(method).create().unwrap());
-            sim.add_rigid_velocity(0, Point::new(0.5, -0.2, 0.1), Point::new(1.0, 3.0, -2.0));
+            sim.add_rigid_velocity(0, Point::new(0.5, -0.2, 0.1), Point::new(1.0, 3.0, -2.0))
+                .unwrap();
             let p0 = sim.linear_momentum();
             sim.run(10).unwrap();
             let scale = total * 3.0;
@@ -331,4 +332,49 @@ fn an_empty_model_says_it_has_no_vertices() {
     .unwrap_err()
     .to_string();
     assert!(error.contains("no vertices"), "{error}");
+}
+
+/// A rigid velocity for a body that does not exist, or that is not finite
+/// (or overflows a vertex's velocity), is refused and changes nothing; it
+/// used to be ignored, or to fail the next step as a "position that is not
+/// finite".
+#[test]
+fn a_bad_rigid_velocity_is_refused() {
+    let (model, _) = clamped_beam([4, 1, 1], [1.0, 0.2, 0.2], 7, 1e6);
+    let mut sim = Simulation::new(
+        model,
+        Scheme::BackwardEuler.integrator(),
+        Box::new(NoDamping),
+        Settings::default(),
+    )
+    .unwrap();
+    let before = sim.checkpoint();
+    let v = Point::new(1.0, 0.0, 0.0);
+    for (body, linear, angular, what) in [
+        (1, v, Point::zeros(), "1 bodies"),
+        (
+            0,
+            Point::new(f64::NAN, 0.0, 0.0),
+            Point::zeros(),
+            "not finite",
+        ),
+        (
+            0,
+            Point::zeros(),
+            Point::new(0.0, f64::INFINITY, 0.0),
+            "not finite",
+        ),
+        (
+            0,
+            Point::new(f64::MAX, 0.0, 0.0),
+            Point::new(0.0, 0.0, f64::MAX),
+            "vertex",
+        ),
+    ] {
+        let error = sim.add_rigid_velocity(body, linear, angular).unwrap_err();
+        assert!(error.to_string().contains(what), "{error}");
+        assert_eq!(sim.checkpoint(), before);
+    }
+    sim.add_rigid_velocity(0, v, Point::zeros()).unwrap();
+    sim.step().unwrap();
 }

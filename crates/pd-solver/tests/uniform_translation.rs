@@ -29,7 +29,7 @@ fn run_translation(model: Model, velocity: Point, steps: usize) {
         settings,
     )
     .unwrap();
-    sim.add_rigid_velocity(0, velocity, Point::zeros());
+    sim.add_rigid_velocity(0, velocity, Point::zeros()).unwrap();
     sim.run(steps).unwrap();
     let t = sim.time();
     for (v, (x, x0)) in sim.state().positions.iter().zip(&rest).enumerate() {

@@ -65,7 +65,8 @@ impl Scene {
         self.apply_initial_states(&mut simulation, &offsets)?;
         for (b, body) in self.bodies.iter().enumerate() {
             if body.initial_velocity != Point::zeros() || body.angular_velocity != Point::zeros() {
-                simulation.add_rigid_velocity(b, body.initial_velocity, body.angular_velocity);
+                (simulation.add_rigid_velocity(b, body.initial_velocity, body.angular_velocity))
+                    .map_err(|e| self.field_error(format!("body[{b}].initial_velocity"), e))?;
             }
         }
         Ok(simulation)
