@@ -430,3 +430,65 @@ fn objective_judging_solvers_are_refused_with_colliders() {
     assert_eq!(sim.state().positions, before);
     assert!(make().step().is_ok());
 }
+
+/// A plane normal whose length overflows or underflows `f64` is still
+/// made a unit vector (it used to become the zero vector, or be called
+/// one); the zero vector is refused.
+#[test]
+fn a_plane_normal_of_extreme_entries_is_made_unit() {
+    for (normal, expected) in [
+        (
+            Point::new(0.0, 1e300, 1e300),
+            Point::new(0.0, 1.0, 1.0).normalize(),
+        ),
+        (Point::new(0.0, 1e-320, 0.0), Point::y()),
+        (Point::new(0.0, 2.0, 0.0), Point::y()),
+    ] {
+        let mut sim = Simulation::new(
+            cube(0.1, 1, 1e4, 0.5),
+            Box::new(BackwardEuler),
+            Box::new(NoDamping),
+            Settings::default(),
+        )
+        .unwrap();
+        let plane = Collider {
+            shape: ColliderShape::Plane {
+                point: Point::zeros(),
+                normal,
+            },
+            friction: 0.0,
+            restitution: 0.0,
+        };
+        sim.set_contact(ContactSettings {
+            colliders: vec![plane.clone()],
+            thickness: 0.0,
+        })
+        .unwrap();
+        let ColliderShape::Plane { normal: n, .. } = &sim.contact().unwrap().colliders[0].shape
+        else {
+            panic!("not a plane");
+        };
+        // One rounding in each division and in the square root: ulps.
+        assert!((n - expected).norm() < 4.0 * f64::EPSILON, "{normal}: {n}");
+    }
+    let mut sim = Simulation::new(
+        cube(0.1, 1, 1e4, 0.5),
+        Box::new(BackwardEuler),
+        Box::new(NoDamping),
+        Settings::default(),
+    )
+    .unwrap();
+    let zero = Collider {
+        shape: ColliderShape::Plane {
+            point: Point::zeros(),
+            normal: Point::zeros(),
+        },
+        friction: 0.0,
+        restitution: 0.0,
+    };
+    let error = sim.set_contact(ContactSettings {
+        colliders: vec![zero],
+        thickness: 0.0,
+    });
+    assert!(error.unwrap_err().to_string().contains("zero vector"));
+}

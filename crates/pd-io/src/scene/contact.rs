@@ -161,18 +161,8 @@ fn collider(source: &Path, i: usize, raw: RawCollider) -> Result<Collider> {
         "plane" => {
             let point = vector("point", raw.point)?;
             let normal = vector("normal", raw.normal)?;
-            let largest = normal.amax();
-            if largest == 0.0 {
-                return Err(error("normal", "zero vector".into()));
-            }
-            let length = normal.norm();
-            let normal = if length.is_normal() {
-                normal / length
-            } else {
-                // Entries so large or small that the length overflows or
-                // underflows: scaled by the largest entry first.
-                (normal / largest).normalize()
-            };
+            let normal = pd_solver::contact::unit_vector(normal)
+                .ok_or_else(|| error("normal", "zero vector".into()))?;
             ColliderShape::Plane { point, normal }
         }
         "sphere" => {

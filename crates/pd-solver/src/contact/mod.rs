@@ -60,6 +60,23 @@ pub struct Collider {
     pub restitution: f64,
 }
 
+/// `v` scaled to unit length, `None` for the zero vector. A finite `v`
+/// whose length overflows or underflows (entries of 1e300 or 1e-320) is
+/// scaled by its largest entry first; any other `v` is divided by its
+/// length, as `v / |v|`.
+pub fn unit_vector(v: Point) -> Option<Point> {
+    let largest = v.amax();
+    if largest == 0.0 {
+        return None;
+    }
+    let length = v.norm();
+    Some(if length.is_normal() {
+        v / length
+    } else {
+        (v / largest).normalize()
+    })
+}
+
 impl Collider {
     /// The collider's velocity at `p`, m/s (zero: colliders are static, but
     /// friction and restitution are written relative to it).
@@ -105,11 +122,8 @@ impl ContactSettings {
                     if !point.iter().chain(normal.iter()).all(|v| v.is_finite()) {
                         return Err(bad(field("normal"), "point and normal must be finite"));
                     }
-                    let length = normal.norm();
-                    if length == 0.0 {
-                        return Err(bad(field("normal"), "zero vector"));
-                    }
-                    *normal /= length;
+                    *normal =
+                        unit_vector(*normal).ok_or_else(|| bad(field("normal"), "zero vector"))?;
                 }
                 ColliderShape::Sphere { center, radius } => {
                     if !(radius.is_finite() && *radius > 0.0) {
