@@ -69,7 +69,6 @@ impl TetStrain {
         stiffness: f64,
         limits: Option<(f64, f64)>,
     ) -> Result<Self, ConstraintError> {
-        check_vertices(rest, &tet)?;
         check_stiffness(stiffness)?;
         if let Some((min, max)) = limits {
             Self::check_limits(min, max)?;
@@ -81,6 +80,8 @@ impl TetStrain {
                 max: u32::MAX as usize,
             })?;
         }
+        // After the storage limit, which names an index no mesh can reach.
+        check_vertices(rest, &tet)?;
         let [x0, x1, x2, x3] = tet.map(|v| rest[v]);
         let rest_edges = Matrix3::from_columns(&[x1 - x0, x2 - x0, x3 - x0]);
         let volume = rest_edges.determinant() / 6.0;
