@@ -436,6 +436,27 @@ fn objective_judging_solvers_are_refused_with_colliders() {
 /// one); the zero vector is refused.
 #[test]
 fn a_plane_normal_of_extreme_entries_is_made_unit() {
+    // A resting cube and one plane through the origin with `normal`.
+    let set = |normal: Point| {
+        let mut sim = Simulation::new(
+            cube(0.1, 1, 1e4, 0.5),
+            Box::new(BackwardEuler),
+            Box::new(NoDamping),
+            Settings::default(),
+        )
+        .unwrap();
+        let point = Point::zeros();
+        let plane = Collider {
+            shape: ColliderShape::Plane { point, normal },
+            friction: 0.0,
+            restitution: 0.0,
+        };
+        let contact = ContactSettings {
+            colliders: vec![plane],
+            thickness: 0.0,
+        };
+        sim.set_contact(contact).map(|()| sim)
+    };
     for (normal, expected) in [
         (
             Point::new(0.0, 1e300, 1e300),
@@ -444,26 +465,7 @@ fn a_plane_normal_of_extreme_entries_is_made_unit() {
         (Point::new(0.0, 1e-320, 0.0), Point::y()),
         (Point::new(0.0, 2.0, 0.0), Point::y()),
     ] {
-        let mut sim = Simulation::new(
-            cube(0.1, 1, 1e4, 0.5),
-            Box::new(BackwardEuler),
-            Box::new(NoDamping),
-            Settings::default(),
-        )
-        .unwrap();
-        let plane = Collider {
-            shape: ColliderShape::Plane {
-                point: Point::zeros(),
-                normal,
-            },
-            friction: 0.0,
-            restitution: 0.0,
-        };
-        sim.set_contact(ContactSettings {
-            colliders: vec![plane.clone()],
-            thickness: 0.0,
-        })
-        .unwrap();
+        let sim = set(normal).unwrap();
         let ColliderShape::Plane { normal: n, .. } = &sim.contact().unwrap().colliders[0].shape
         else {
             panic!("not a plane");
@@ -471,24 +473,6 @@ fn a_plane_normal_of_extreme_entries_is_made_unit() {
         // One rounding in each division and in the square root: ulps.
         assert!((n - expected).norm() < 4.0 * f64::EPSILON, "{normal}: {n}");
     }
-    let mut sim = Simulation::new(
-        cube(0.1, 1, 1e4, 0.5),
-        Box::new(BackwardEuler),
-        Box::new(NoDamping),
-        Settings::default(),
-    )
-    .unwrap();
-    let zero = Collider {
-        shape: ColliderShape::Plane {
-            point: Point::zeros(),
-            normal: Point::zeros(),
-        },
-        friction: 0.0,
-        restitution: 0.0,
-    };
-    let error = sim.set_contact(ContactSettings {
-        colliders: vec![zero],
-        thickness: 0.0,
-    });
-    assert!(error.unwrap_err().to_string().contains("zero vector"));
+    let error = set(Point::zeros()).unwrap_err().to_string();
+    assert!(error.contains("zero vector"), "{error}");
 }
