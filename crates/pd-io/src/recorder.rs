@@ -137,21 +137,8 @@ impl Recorder {
     /// written.
     pub fn create(dir: &Path, scene: &Scene, sim: &Simulation) -> Result<Self> {
         // `Scene::build` checks the probes; a scene edited or paired with
-        // another simulation after it is checked here, before any file.
-        let n = sim.model().num_vertices();
-        if let Some((i, &v)) = scene
-            .output
-            .probes
-            .iter()
-            .enumerate()
-            .find(|(_, v)| **v >= n)
-        {
-            return Err(Error::Field {
-                path: scene.source.clone(),
-                field: format!("output.probes[{i}]"),
-                message: format!("vertex {v} is out of range: the simulation has {n} vertices"),
-            });
-        }
+        // another simulation after it is checked again, before any file.
+        scene.check_probes(sim.model().num_vertices())?;
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         // An earlier run's frames, series and probes in the same folder
         // would read as this run's (ParaView groups `frame_*`).

@@ -92,15 +92,9 @@ impl GlobalSystem {
         let mut free = Vec::with_capacity(n);
         for v in 0..n {
             if !fixed[v] {
-                if !(masses[v] > 0.0) {
-                    return Err(SolverError::InvalidModel {
-                        reason: format!(
-                            "vertex {v} is free but has mass {}: every free vertex needs a positive \
-                             mass (is it touched by no element?)",
-                            masses[v]
-                        ),
-                    });
-                }
+                // `Simulation::new` checked the masses by body
+                // (`Model::check_free_masses`), before this system.
+                debug_assert!(masses[v] > 0.0, "free vertex {v} without mass");
                 free_index[v] = free.len();
                 free.push(v);
             }

@@ -134,7 +134,7 @@ impl Scene {
             .map_err(|e| self.field_error(field("fixed"), e))
     }
 
-    fn check_probes(&self, total: usize) -> Result<()> {
+    pub(crate) fn check_probes(&self, total: usize) -> Result<()> {
         match self
             .output
             .probes

@@ -135,15 +135,7 @@ impl PositionSolver for Chebyshev {
 
     /// A fixed `rho` must lie in (0, 1), as a scene's `rho` must.
     fn check_settings(&self) -> Result<(), SolverError> {
-        match self.rho {
-            SpectralRadius::Fixed(rho) if !(rho > 0.0 && rho < 1.0) => {
-                Err(SolverError::InvalidSetting {
-                    field: "rho",
-                    reason: format!("must be in (0, 1) or \"auto\", got {rho}"),
-                })
-            }
-            _ => Ok(()),
-        }
+        self.rho.validate()
     }
 
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {

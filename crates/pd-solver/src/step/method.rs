@@ -78,6 +78,24 @@ pub enum SpectralRadius {
     Auto,
 }
 
+impl SpectralRadius {
+    /// Checks a fixed radius lies in `(0, 1)`.
+    ///
+    /// # Errors
+    /// [`SolverError::InvalidSetting`] naming `rho`.
+    pub fn validate(self) -> Result<(), SolverError> {
+        match self {
+            SpectralRadius::Fixed(rho) if !(rho > 0.0 && rho < 1.0) => {
+                Err(SolverError::InvalidSetting {
+                    field: "rho",
+                    reason: format!("must be in (0, 1) or \"auto\", got {rho}"),
+                })
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
 /// A step's iteration method and its parameters (the `[solver]` table).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SolverSpec {
@@ -128,11 +146,7 @@ impl SolverSpec {
                 ),
             );
         }
-        if let SpectralRadius::Fixed(rho) = self.rho
-            && !(rho > 0.0 && rho < 1.0)
-        {
-            return bad("rho", format!("must be in (0, 1) or \"auto\", got {rho}"));
-        }
+        self.rho.validate()?;
         if self.start < 2 {
             return bad("start", format!("must be at least 2, got {}", self.start));
         }
