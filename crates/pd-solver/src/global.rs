@@ -4,11 +4,11 @@
 
 use std::sync::Arc;
 
-use crate::cholesky::{LowerPattern, NumericFactor, SymbolicFactor, dissection_candidates};
 use crate::projection_scatter::ProjectionOperator;
 use crate::weights::combine_weighted;
 use crate::{SolverError, local::LocalStep};
 use pd_constraints::{CsrMatrix, assembly, assembly::LaplacianKind};
+use pd_linalg::cholesky::{LowerPattern, NumericFactor, SymbolicFactor, dissection_candidates};
 
 /// Marks a fixed vertex in the free-vertex map.
 pub(crate) const FIXED: usize = usize::MAX;
@@ -241,7 +241,8 @@ impl GlobalSystem {
         }
         let values = self.values(coefficients);
         let (_, factor) = &mut self.cache[index];
-        self.symbolic.refactorise(&values, factor)
+        self.symbolic.refactorise(&values, factor)?;
+        Ok(())
     }
 
     /// The global matrix's lower-triangle values for `coefficients`, in

@@ -11,8 +11,8 @@ use pd_mesh::Point;
 use rayon::prelude::*;
 
 use crate::SolverError;
-use crate::cholesky::{LowerPattern, NumericFactor, SymbolicFactor};
 use crate::global::{FIXED, GlobalSystem, MatrixCoefficients, combine};
+use pd_linalg::cholesky::{LowerPattern, NumericFactor, SymbolicFactor};
 
 /// Constraints per parallel Hessian task.
 const CHUNK: usize = 128;
@@ -170,7 +170,8 @@ impl LaggedSystem {
         stiffness: f64,
     ) -> Result<(), SolverError> {
         self.assemble(blocks, positions, coefficients, stiffness, true);
-        self.symbolic.refactorise(&self.values, &mut self.factor)
+        self.symbolic.refactorise(&self.values, &mut self.factor)?;
+        Ok(())
     }
 
     /// Recomputes the element Hessians at `positions` (projected to PSD with
@@ -236,7 +237,8 @@ impl LaggedSystem {
     /// # Errors
     /// A matrix that is not positive definite.
     pub fn factorise_assembled(&mut self) -> Result<(), SolverError> {
-        self.symbolic.refactorise(&self.values, &mut self.factor)
+        self.symbolic.refactorise(&self.values, &mut self.factor)?;
+        Ok(())
     }
 
     /// Adds `scale * K w` (K the Hessians of the last refactorisation, over

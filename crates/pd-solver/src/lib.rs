@@ -33,7 +33,6 @@
 //! ```
 
 mod checkpoint;
-mod cholesky;
 mod components;
 pub mod contact;
 mod energy;
@@ -115,4 +114,12 @@ pub enum SolverError {
         /// What was detected, naming the vertex where there is one.
         reason: String,
     },
+}
+
+impl From<pd_linalg::FactorError> for SolverError {
+    fn from(error: pd_linalg::FactorError) -> Self {
+        SolverError::Factorisation {
+            reason: error.reason,
+        }
+    }
 }

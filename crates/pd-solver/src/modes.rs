@@ -40,9 +40,9 @@ use pd_mesh::Point;
 
 use faer::MatMut;
 
-use crate::cholesky::{LowerPattern, NumericFactor, SymbolicFactor};
 use crate::components::Topology;
 use crate::{Model, SolverError};
+use pd_linalg::cholesky::{LowerPattern, NumericFactor, SymbolicFactor};
 
 /// Systems with at most this many free degrees of freedom are solved with a
 /// dense symmetric eigensolver.

@@ -29,9 +29,9 @@ use pd_constraints::{ConstraintBlock, CsrMatrix, assembly};
 use pd_mesh::Point;
 use rayon::prelude::*;
 
-use crate::cholesky::vectorized;
 use crate::global::FIXED;
 use kernels::{Acc, Group, Scratch, Tet, add_group, add_tet};
+use pd_linalg::simd::vectorized;
 use ranges::Ranges;
 
 /// More threads scatter into their own ranges of outputs only while the
@@ -522,18 +522,18 @@ mod tests {
         let scatter = ProjectionScatter::new(b).unwrap();
         // On every instruction set this CPU has (AVX-512, AVX2, plain).
         #[cfg(target_arch = "x86_64")]
-        let widths = crate::cholesky::widths();
+        let widths = pd_linalg::simd::widths();
         #[cfg(not(target_arch = "x86_64"))]
         let widths = [usize::MAX];
         for width in widths {
             #[cfg(target_arch = "x86_64")]
-            crate::cholesky::limit_width(width);
+            pd_linalg::simd::limit_width(width);
             let mut out = vec![Point::new(9.0, 9.0, 9.0); n];
             scatter.rhs(&constant, &projections, factor, &mut out);
             assert_eq!(bits(&out), bits(&gathered), "{width} lanes");
         }
         #[cfg(target_arch = "x86_64")]
-        crate::cholesky::limit_width(usize::MAX);
+        pd_linalg::simd::limit_width(usize::MAX);
         // And the operator's own dispatch on more threads: the row gather.
         let operator = ProjectionOperator::Rows(b.clone());
         let pool = rayon::ThreadPoolBuilder::new()

@@ -7,14 +7,13 @@
 //! Every operation is one correctly rounded IEEE operation per lane (no
 //! fused multiply-add, no approximate reciprocal or square root), so a lane
 //! computes the same bits at any width. AVX-512 comes from `core::arch`
-//! rather than pulp's `x86-v4` feature: cargo unifies features, and faer's
-//! kernels dispatch through pulp, so that feature could change the factor's
-//! code paths (and bits); `core::arch` touches nothing outside this module.
+//! rather than pulp's `x86-v4` feature, for the reason
+//! [`pd_linalg::simd`] gives; the dispatch is that module's.
 //!
 //! The AVX-512 intrinsics are `unsafe` to call outside a function compiled
 //! with those features, hence this module's `unsafe` blocks (the
-//! workspace's only `unsafe` besides the METIS FFI and pd-solver's call
-//! into its AVX-512 solve, `cholesky/solve_wide.rs`): each is sound
+//! workspace's only `unsafe` besides the METIS FFI and pd-linalg's SIMD
+//! dispatch): each is sound
 //! because an [`Avx512`] token exists only after the CPU has been checked.
 //!
 //! The `_mm512_*` intrinsics are stable since Rust 1.89, the workspace's
@@ -30,6 +29,7 @@ use core::arch::x86_64::{
     _mm512_storeu_pd, _mm512_sub_pd, _mm512_unpackhi_pd, _mm512_unpacklo_pd, _mm512_xor_pd,
 };
 
+use pd_linalg::simd::{Avx512, Isa, Kernel, dispatch};
 use pulp::x86::V3;
 use pulp::{f64x4, m64, m64x4};
 
@@ -129,84 +129,30 @@ pub(crate) trait WithLanes {
 }
 
 /// Runs `op` on the widest lanes the CPU offers (8 with AVX-512 F and DQ,
-/// 4 with AVX2), or returns `None` without running it.
+/// 4 with AVX2), through the workspace's one SIMD dispatch
+/// ([`pd_linalg::simd::dispatch`]), or returns `None` without running it.
 pub(crate) fn vectorize<Op: WithLanes>(op: Op) -> Option<Op::Output> {
-    if allowed(Avx512::WIDTH)
-        && let Some(s) = Avx512::try_new()
-    {
-        // SAFETY: the token proves the CPU has the features `run_avx512`
-        // is compiled with.
-        return Some(unsafe { run_avx512(s, op) });
-    }
-    if allowed(V3::WIDTH)
-        && let Some(s) = V3::try_new()
-    {
-        struct Adapter<Op>(V3, Op);
-        impl<Op: WithLanes> pulp::WithSimd for Adapter<Op> {
-            type Output = Op::Output;
-            #[inline(always)]
-            fn with_simd<S: pulp::Simd>(self, _: S) -> Op::Output {
-                self.1.run(self.0)
+    struct OnLanes<Op>(Op);
+    impl<Op: WithLanes> Kernel for OnLanes<Op> {
+        type Output = Option<Op::Output>;
+        #[inline(always)]
+        fn run(self, isa: Isa) -> Self::Output {
+            match isa {
+                Isa::Avx512(s, _) => Some(self.0.run(s)),
+                Isa::Avx2(s) => Some(self.0.run(s)),
+                Isa::Plain => None,
             }
         }
-        return Some(pulp::Simd::vectorize(s, Adapter(s, op)));
     }
-    None
-}
-
-#[target_feature(enable = "avx512f,avx512dq,avx512vl")]
-unsafe fn run_avx512<Op: WithLanes>(s: Avx512, op: Op) -> Op::Output {
-    op.run(s)
-}
-
-#[cfg(not(test))]
-#[inline(always)]
-fn allowed(_width: usize) -> bool {
-    true
-}
-
-#[cfg(test)]
-thread_local! {
-    static WIDEST: std::cell::Cell<usize> = const { std::cell::Cell::new(usize::MAX) };
-}
-
-#[cfg(test)]
-fn allowed(width: usize) -> bool {
-    WIDEST.get() >= width
+    dispatch(OnLanes(op))
 }
 
 /// Runs `check` once per SIMD width this CPU has (8, then 4), with
 /// [`vectorize`] limited to that width on this thread; says on stderr
 /// which widths could not be exercised here.
 #[cfg(test)]
-pub(crate) fn for_each_width(mut check: impl FnMut(usize)) {
-    for (width, present) in [
-        (8, Avx512::try_new().is_some()),
-        (4, V3::try_new().is_some()),
-    ] {
-        if !present {
-            eprintln!("this CPU lacks the {width}-lane instructions: that path was not tested");
-            continue;
-        }
-        WIDEST.set(width);
-        check(width);
-        WIDEST.set(usize::MAX);
-    }
-}
-
-/// Proof that the CPU has AVX-512 F, DQ and VL.
-#[derive(Clone, Copy)]
-pub(crate) struct Avx512 {
-    _detected: (),
-}
-
-impl Avx512 {
-    pub(crate) fn try_new() -> Option<Self> {
-        (is_x86_feature_detected!("avx512f")
-            && is_x86_feature_detected!("avx512dq")
-            && is_x86_feature_detected!("avx512vl"))
-        .then_some(Self { _detected: () })
-    }
+pub(crate) fn for_each_width(check: impl FnMut(usize)) {
+    pd_linalg::simd::for_each_simd_width(check)
 }
 
 // SAFETY (every `unsafe` block below): an `Avx512` exists only when the CPU

@@ -11,7 +11,7 @@
 use pd_constraints::ConstraintBlock;
 
 use super::Stiffness;
-use crate::cholesky::LowerPattern;
+use pd_linalg::cholesky::LowerPattern;
 
 /// `K` over the free dofs (`3 f + a` for free vertex `f`, axis `a`), lower
 /// triangle, diagonal first in each column. `free_index[v]` is vertex

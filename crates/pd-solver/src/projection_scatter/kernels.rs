@@ -14,7 +14,7 @@ use std::sync::{Mutex, TryLockError};
 
 use pd_mesh::Point;
 
-use crate::cholesky::Simd;
+use pd_linalg::simd::Avx2 as Simd;
 
 /// An output's running sum: x, y, z and a fourth lane that nothing reads
 /// (32 bytes: one 4-wide load and store).

@@ -17,7 +17,7 @@ use pd_mesh::Point;
 
 use super::Groups;
 use super::kernels::{Acc, add_group};
-use crate::cholesky::vectorized;
+use pd_linalg::simd::vectorized;
 
 /// Marks, in a range's list, a group with outputs outside the range.
 const STRADDLES: u32 = 1 << 31;

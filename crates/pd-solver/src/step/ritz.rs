@@ -107,7 +107,7 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// iterations (4-5 % of the step; docs/solver.md, "Chebyshev's `rho` from
 /// every step").
 fn dots(vectors: &[Vec<f64>], target: &[f64], out: &mut [f64]) {
-    crate::cholesky::solve_kernels::vectorized(
+    pd_linalg::simd::vectorized(
         #[inline(always)]
         |_| {
             for (o, vector) in out.iter_mut().zip(vectors) {

@@ -24,16 +24,15 @@
 //! it (the top of the tree) into an accumulator of its own, which the top
 //! then subtracts in a fixed order.
 
+use crate::Point;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
-use pd_mesh::Point;
 
 use super::NumericFactor;
 use super::solve_kernels::{Below, NARROW, narrow_updates, vectorized};
 use super::solve_tree::{TOP, TreeSplit};
 
 // A child of this module (it reads `Structure`'s fields), kept beside it.
-#[path = "packed_layout.rs"]
 mod packed_layout;
 pub(in crate::cholesky) use packed_layout::{pack, packed_len, unpack};
 
@@ -591,5 +590,4 @@ impl Structure<'_> {
 }
 
 #[cfg(test)]
-#[path = "supernodal_solve_tests.rs"]
 mod tests;

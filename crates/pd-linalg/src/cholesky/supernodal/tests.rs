@@ -1,11 +1,11 @@
 //! Tests of `supernodal_solve.rs` and the measurement helpers of
 //! `solve_profile.rs` (kept apart so that file stays under 600 lines).
 
-use super::super::calibration::{armadillo, laplacian_factor};
 use super::super::{NumericFactor, SymbolicFactor};
 use super::{Structure, SupernodalSolve};
+use crate::Point;
+use crate::fixtures::{armadillo, laplacian_factor};
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
-use pd_mesh::Point;
 
 /// Measurement helpers for `solve_profile.rs`.
 impl SupernodalSolve {
@@ -149,7 +149,7 @@ fn beam_and_armadillo_solves() -> Vec<(SymbolicFactor, NumericFactor, Supernodal
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn every_instruction_set_gives_the_same_bits() {
-    use super::super::solve_kernels::{limit_width, widths};
+    use crate::simd::{limit_width, widths};
     for (factor, numeric, mut solve, rhs) in beam_and_armadillo_solves() {
         let mut outcomes = Vec::new();
         for width in widths() {

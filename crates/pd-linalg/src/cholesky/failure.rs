@@ -5,7 +5,7 @@ use faer::linalg::solvers::LltError;
 use faer::sparse::FaerError;
 
 /// Why a numeric factorisation failed. The global matrix is positive definite for every
-/// valid setting (`tests/global_matrix_spd.rs`), so a pivot that is not
+/// valid setting (`crates/pd-solver/tests/global_matrix_spd.rs`), so a pivot that is not
 /// positive means coefficients that overflow or lose all precision. The
 /// pivot's index is left out: it counts in the elimination order, which
 /// names no vertex.

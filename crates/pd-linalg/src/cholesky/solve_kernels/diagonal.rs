@@ -23,7 +23,7 @@
 //! backward stable in the same way (`supernodal_solve_tests.rs` checks the
 //! bound).
 
-use pd_mesh::Point;
+use crate::Point;
 
 #[cfg(target_arch = "x86_64")]
 use super::wide_lanes;

@@ -3,7 +3,7 @@
 //! machine):
 //!
 //! ```sh
-//! cargo test --release -p pd-solver --lib precision_probe -- --ignored --nocapture
+//! cargo test --release -p pd-linalg --lib precision_probe -- --ignored --nocapture
 //! ```
 //!
 //! For the 80 x 14 x 14 beam, the 130 x 26 x 26 beam and the TetGen
@@ -15,14 +15,12 @@
 //! residual in f64), then the same for stiffer matrices (three
 //! corrections).
 
+use crate::Point;
+use crate::cholesky::SymbolicFactor;
+use crate::fixtures::{armadillo, fastest, laplacian_factor, laplacian_values};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::LltRef;
 use faer::{Conj, Mat, Par};
-use pd_mesh::Point;
-
-use super::SymbolicFactor;
-use super::calibration::{armadillo, laplacian_factor, laplacian_values};
-use crate::step::krylov::fastest;
 
 /// The largest difference of `a` and `b` over the largest value of `b`.
 fn max_rel(a: &[Point], b: &[Point]) -> f64 {

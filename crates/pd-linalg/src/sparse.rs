@@ -1,7 +1,7 @@
 //! A compressed-sparse-row matrix for the assembled operators, and the
 //! triplets they are built from.
 
-use pd_mesh::Point;
+use crate::Point;
 
 /// One entry `(row, column, value)` of a matrix under assembly; duplicates
 /// are summed.
@@ -228,6 +228,19 @@ impl CsrMatrix {
         self.values.len()
     }
 
+    /// Whether `other` has the same shape, pattern and value bits (`==`
+    /// would let `-0.0` pass for `0.0`).
+    pub fn bitwise_eq(&self, other: &CsrMatrix) -> bool {
+        (self.nrows, self.ncols) == (other.nrows, other.ncols)
+            && self.row_start == other.row_start
+            && self.columns == other.columns
+            && self
+                .values
+                .iter()
+                .map(|v| v.to_bits())
+                .eq(other.values.iter().map(|v| v.to_bits()))
+    }
+
     /// The stored entries of row `row` as `(column, value)` pairs.
     pub fn row(&self, row: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
         let range = self.row_start[row]..self.row_start[row + 1];
@@ -292,7 +305,7 @@ impl CsrMatrix {
 }
 
 #[cfg(test)]
-pub(crate) mod tests {
+mod tests {
     use super::*;
 
     #[test]
@@ -323,7 +336,8 @@ pub(crate) mod tests {
 
     /// Shape, pattern and value bits of two matrices agree (`==` on the
     /// values would let `-0.0` pass for `0.0`).
-    pub(crate) fn assert_same_bits(a: &CsrMatrix, b: &CsrMatrix) {
+    fn assert_same_bits(a: &CsrMatrix, b: &CsrMatrix) {
+        assert!(a.bitwise_eq(b));
         assert_eq!(
             (a.nrows(), a.ncols(), a.nnz()),
             (b.nrows(), b.ncols(), b.nnz())

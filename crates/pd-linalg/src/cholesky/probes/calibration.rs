@@ -1,8 +1,8 @@
-//! The measurement behind [`super::SUPERNODE_COST`] (ignored: it times
+//! The measurement behind [`crate::cholesky::SUPERNODE_COST`] (ignored: it times
 //! solves, so its numbers mean something only on a quiet machine):
 //!
 //! ```sh
-//! cargo test --release -p pd-solver --lib calibration -- --ignored --nocapture
+//! cargo test --release -p pd-linalg --lib calibration -- --ignored --nocapture
 //! ```
 //!
 //! For the 95,499-, 18,225- and 19,456-vertex beams and the TetGen armadillo (read
@@ -15,74 +15,8 @@
 //! `time = a stored + b supernodes` to pd's solves, hot and cold, that
 //! docs/performance.md quotes.
 
-use super::*;
-
-/// The lower pattern of a tet mesh's vertex graph (what the global matrix of
-/// tet strain has), diagonal included.
-pub(super) fn tet_pattern(mesh: &pd_mesh::Mesh) -> LowerPattern {
-    let n = mesh.num_vertices();
-    let mut columns: Vec<Vec<usize>> = (0..n).map(|c| vec![c]).collect();
-    for tet in mesh.tets() {
-        for &a in tet {
-            for &b in tet {
-                if a > b {
-                    columns[b].push(a);
-                }
-            }
-        }
-    }
-    let (mut col_ptr, mut row_idx) = (vec![0], Vec::new());
-    for mut column in columns {
-        column.sort_unstable();
-        column.dedup();
-        row_idx.extend(column);
-        col_ptr.push(row_idx.len());
-    }
-    LowerPattern {
-        n,
-        col_ptr,
-        row_idx,
-    }
-}
-
-/// Values of `I + graph Laplacian` on `pattern`: symmetric positive definite.
-pub(super) fn laplacian_values(p: &LowerPattern) -> Vec<f64> {
-    let mut degree = vec![1.0; p.n];
-    for c in 0..p.n {
-        for &r in &p.row_idx[p.col_ptr[c]..p.col_ptr[c + 1]] {
-            if r != c {
-                degree[r] += 1.0;
-                degree[c] += 1.0;
-            }
-        }
-    }
-    let mut values = vec![-1.0; p.row_idx.len()];
-    for c in 0..p.n {
-        values[p.col_ptr[c]] = degree[c]; // rows sorted: the diagonal first
-    }
-    values
-}
-
-/// The TetGen armadillo read from `../shared/meshes/armadillo` beside the
-/// repository, or `None` (with a line saying so) when it is absent.
-pub(super) fn armadillo() -> Option<pd_mesh::Mesh> {
-    let base = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/meshes/armadillo/armadillo");
-    pd_io::tetgen::read_tetgen_base(&base)
-        .map_err(|e| println!("armadillo skipped: {e}"))
-        .ok()
-}
-
-/// `mesh`'s tet pattern analysed as pd analyses it (AMD against the
-/// dissection candidates) and factorised with [`laplacian_values`].
-pub(super) fn laplacian_factor(mesh: &pd_mesh::Mesh) -> (SymbolicFactor, NumericFactor) {
-    let pattern = tet_pattern(mesh);
-    let candidates = dissection_candidates(&pattern, mesh.vertices());
-    let mut factor = SymbolicFactor::analyse(pattern, &candidates).unwrap();
-    let values = laplacian_values(factor.pattern());
-    let numeric = factor.factorise(&values).expect("diagonally dominant");
-    (factor, numeric)
-}
+use crate::cholesky::*;
+use crate::fixtures::{armadillo, laplacian_values, tet_pattern};
 
 /// This thread's time on a CPU so far, in seconds (Linux's schedstat; wall
 /// time elsewhere): time spent waiting for a core on a loaded machine does
@@ -292,7 +226,7 @@ fn solve_cost_calibration() {
 /// per option set. docs/performance.md ("METIS's seed") quotes the output.
 ///
 /// ```sh
-/// cargo test -p pd-solver --lib metis_option_fill -- --ignored --nocapture
+/// cargo test -p pd-linalg --lib metis_option_fill -- --ignored --nocapture
 /// ```
 #[cfg(feature = "metis")]
 #[test]
@@ -336,7 +270,7 @@ fn metis_option_fill() {
     ]);
     for (name, overrides) in runs {
         let start_time = std::time::Instant::now();
-        let order = super::metis::node_nd_with(&start, &neighbours, &overrides).unwrap();
+        let order = crate::cholesky::metis::node_nd_with(&start, &neighbours, &overrides).unwrap();
         let seconds = start_time.elapsed().as_secs_f64();
         let (inverse, symbolic) = forced(&pattern, &order);
         let nnz = exact_factor_nnz(&pattern, &inverse);

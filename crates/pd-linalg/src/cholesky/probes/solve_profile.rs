@@ -2,7 +2,7 @@
 //! solves, so its numbers mean something only on a quiet machine):
 //!
 //! ```sh
-//! cargo test -p pd-solver --lib solve_profile -- --ignored --nocapture
+//! cargo test -p pd-linalg --lib solve_profile -- --ignored --nocapture
 //! ```
 //!
 //! For the 80 x 14 x 14 beam of the bench report's limits section and the
@@ -17,8 +17,8 @@
 //! `usize::MAX`: never, the column-by-column order). `PD_SOLVE_WIDTH=4`
 //! (or `1`) times the AVX2 (or plain) path on a CPU with AVX-512.
 
-use super::calibration::{armadillo, laplacian_factor};
-use super::supernodal_solve::SupernodalSolve;
+use crate::cholesky::supernodal::SupernodalSolve;
+use crate::fixtures::{armadillo, laplacian_factor};
 
 fn profile(label: &str, mesh: &pd_mesh::Mesh) {
     let (mut factor, numeric) = laplacian_factor(mesh);
@@ -65,7 +65,7 @@ fn profile(label: &str, mesh: &pd_mesh::Mesh) {
         .ok()
         .and_then(|w| w.parse().ok())
     {
-        pool.broadcast(|_| super::solve_kernels::limit_width(width));
+        pool.broadcast(|_| crate::simd::limit_width(width));
         println!("  lanes limited to {width}");
     }
     pool.install(|| {

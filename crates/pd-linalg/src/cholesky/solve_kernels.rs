@@ -1,71 +1,18 @@
-//! The dense kernels of the supernodal solve (`supernodal_solve.rs`): the
-//! dispatch to AVX-512 or AVX2 and one supernode's rows below its diagonal
-//! block, with the forward step's update and the backward step's dot
-//! products.
+//! The dense kernels of the supernodal solve (`supernodal.rs`): one
+//! supernode's rows below its diagonal block, with the forward step's
+//! update and the backward step's dot products, run through the crate's
+//! SIMD dispatch ([`crate::simd`]); diagonal blocks in `diagonal.rs`.
 //!
 //! Every kernel computes each value with the same operations in the same
 //! order on every CPU (4 fixed lanes, no fused multiply-add), so the
 //! AVX-512, the AVX2 and the plain path give the same bits.
 
-use pd_mesh::Point;
+use crate::Point;
+pub(super) use crate::simd::{Avx2 as Simd, vectorized};
 
-#[path = "solve_diagonal.rs"]
 mod diagonal;
-#[cfg(target_arch = "x86_64")]
-#[path = "solve_wide.rs"]
-mod wide;
 #[cfg(test)]
-pub(crate) use diagonal::TILE;
-#[cfg(all(test, target_arch = "x86_64"))]
-pub(crate) use wide::{limit_width, widths};
-
-/// The AVX2 instruction set, when the CPU has it (the explicit kernels'
-/// 4-wide operations).
-#[cfg(target_arch = "x86_64")]
-pub(crate) type Simd = pulp::x86::V3;
-/// No explicit SIMD off x86-64.
-#[cfg(not(target_arch = "x86_64"))]
-#[derive(Clone, Copy)]
-pub(crate) enum Simd {}
-
-/// Runs `f` compiled for the widest instruction set the CPU has (checked
-/// at run time): AVX-512 (F, DQ, VL), else AVX2 (through `pulp`), handing
-/// it the instruction sets for the kernels written with explicit vector
-/// operations, or `None` for the plain path. Rust does not contract
-/// `a * b + c` into a fused multiply-add, the loops the compiler
-/// vectorizes compute each value on its own (no reassociated sums), and
-/// the explicit kernels do lane by lane what the plain path does, so every
-/// path computes the same bits (`every_instruction_set_gives_the_same_bits`).
-/// Each caller's closure is `#[inline(always)]`: compiled on its own, it
-/// would not get the target features.
-///
-/// With AVX-512 the compiler's loops run eight rows per instruction with
-/// 32 registers (no spilled broadcasts): the solve 4-11 % faster than
-/// with AVX2 on the beams, with the same bits (docs/performance.md, "The
-/// solve compiled for AVX-512").
-#[inline(always)]
-pub(crate) fn vectorized(f: impl FnOnce(Option<Simd>)) {
-    #[cfg(target_arch = "x86_64")]
-    if let Some(simd) = pulp::x86::V3::try_new()
-        && wide::allowed(4)
-    {
-        if let Some(avx512) = wide::Avx512::try_new()
-            && wide::allowed(8)
-        {
-            return wide::run(f, simd, avx512);
-        }
-        struct Op<F>(F, Simd);
-        impl<F: FnOnce(Option<Simd>)> pulp::WithSimd for Op<F> {
-            type Output = ();
-            #[inline(always)]
-            fn with_simd<S: pulp::Simd>(self, _: S) {
-                (self.0)(Some(self.1))
-            }
-        }
-        return pulp::Simd::vectorize(simd, Op(f, simd));
-    }
-    f(None)
-}
+pub(super) use diagonal::TILE;
 
 /// One supernode's columns of the factor, in either of its two layouts:
 /// faer's, a dense column-major `(c + r) x c` block whose diagonal block's

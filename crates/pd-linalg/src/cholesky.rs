@@ -1,11 +1,11 @@
-//! Sparse Cholesky factorisation of the global matrix with faer: symbolic
-//! analysis (AMD or nested dissection, whichever a cost model of the solve prefers) once per sparsity pattern, numeric factorisation
-//! into a preallocated buffer, and in-place solves with a 3-column
-//! right-hand side.
-//!
-//! The file runs past 600 lines because of its tests (the code ends near
-//! line 600); the supernodal solve and its two-thread split, and faer's
-//! errors in words (`failure.rs`), are in `cholesky/`.
+//! Sparse Cholesky factorisation with faer: symbolic analysis once per
+//! sparsity pattern (AMD, geometric nested dissection or METIS, whichever a
+//! cost model of the solve prefers), numeric factorisation into a
+//! preallocated buffer, and in-place solves with a 3-column right-hand
+//! side. In `cholesky/`: pd's own supernodal solve (`supernodal.rs`, with
+//! its dense kernels in `solve_kernels.rs` and its two-thread split in
+//! `solve_tree.rs`), METIS (`metis.rs`) and faer's errors in words
+//! (`failure.rs`).
 
 use std::sync::Arc;
 
@@ -18,48 +18,44 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
-use crate::SolverError;
+use crate::FactorError;
 use failure::{numeric_failure, resource_failure};
 
-#[cfg(test)]
-mod calibration;
 mod failure;
 #[cfg(feature = "metis")]
 mod metis;
-pub(crate) mod solve_kernels;
-pub(crate) use solve_kernels::{Simd, vectorized};
-#[cfg(all(test, target_arch = "x86_64"))]
-pub(crate) use solve_kernels::{limit_width, widths};
 #[cfg(test)]
-mod precision_probe;
-#[cfg(test)]
-mod solve_profile;
+mod probes;
+mod solve_kernels;
 mod solve_tree;
-mod supernodal_solve;
+mod supernodal;
 
 /// The lower triangle of a symmetric n x n sparsity pattern in compressed
 /// sparse column form, row indices sorted within each column.
 #[derive(Debug, Clone)]
-pub(crate) struct LowerPattern {
+pub struct LowerPattern {
+    /// Rows and columns.
     pub n: usize,
+    /// Where each column starts in `row_idx`, and the end (`n + 1` entries).
     pub col_ptr: Vec<usize>,
+    /// Row indices, sorted within each column, diagonal first.
     pub row_idx: Vec<usize>,
 }
 
 impl LowerPattern {
     /// The full symmetric matrix with these lower-triangle `values`.
-    pub fn to_symmetric(&self, values: &[f64]) -> pd_constraints::CsrMatrix {
+    pub fn to_symmetric(&self, values: &[f64]) -> crate::CsrMatrix {
         let mut triplets = Vec::with_capacity(2 * values.len());
         for col in 0..self.n {
             let range = self.col_ptr[col]..self.col_ptr[col + 1];
             for (&row, &value) in self.row_idx[range.clone()].iter().zip(&values[range]) {
-                triplets.push(pd_constraints::Triplet::new(row, col, value));
+                triplets.push(crate::Triplet::new(row, col, value));
                 if row != col {
-                    triplets.push(pd_constraints::Triplet::new(col, row, value));
+                    triplets.push(crate::Triplet::new(col, row, value));
                 }
             }
         }
-        pd_constraints::CsrMatrix::from_triplets(self.n, self.n, &triplets)
+        crate::CsrMatrix::from_triplets(self.n, self.n, &triplets)
     }
 
     /// Position of entry `(row, col)`, `row >= col`, in the value array.
@@ -90,9 +86,9 @@ const DISSECTION_LEAF: usize = 64;
 /// [`solve_cost`]: the geometric split suits regular box meshes, METIS and AMD
 /// irregular ones (docs/performance.md). Deterministic: METIS runs with its
 /// fixed default seed.
-pub(crate) fn dissection_candidates(
+pub fn dissection_candidates(
     pattern: &LowerPattern,
-    coordinates: &[pd_mesh::Point],
+    coordinates: &[crate::Point],
 ) -> Vec<Vec<usize>> {
     let n = pattern.n;
     if n < DISSECTION_MIN || coordinates.len() != n {
@@ -178,7 +174,7 @@ fn adjacency(pattern: &LowerPattern) -> (Vec<usize>, Vec<usize>) {
 struct Graph<'a> {
     start: Vec<usize>,
     neighbours: Vec<usize>,
-    coordinates: &'a [pd_mesh::Point],
+    coordinates: &'a [crate::Point],
 }
 
 impl Graph<'_> {
@@ -193,8 +189,8 @@ impl Graph<'_> {
         }
         let (lo, hi) = ids.iter().fold(
             (
-                pd_mesh::Point::repeat(f64::INFINITY),
-                pd_mesh::Point::repeat(f64::NEG_INFINITY),
+                crate::Point::repeat(f64::INFINITY),
+                crate::Point::repeat(f64::NEG_INFINITY),
             ),
             |(lo, hi), &v| (lo.inf(&self.coordinates[v]), hi.sup(&self.coordinates[v])),
         );
@@ -288,7 +284,7 @@ fn exact_factor_nnz(pattern: &LowerPattern, inverse: &[usize]) -> usize {
 
 /// The symbolic factorisation of one pattern, shared by every numeric
 /// factorisation of a matrix with that pattern.
-pub(crate) struct SymbolicFactor {
+pub struct SymbolicFactor {
     /// Shared with the global system that owns the operators (one copy).
     pattern: Arc<LowerPattern>,
     symbolic: SymbolicCholesky<usize>,
@@ -302,9 +298,9 @@ pub(crate) struct SymbolicFactor {
     /// columns).
     solve_scratch: MemBuffer,
     /// The 3-column solve for supernodal factors (faer's for simplicial).
-    fast_solve: Option<supernodal_solve::SupernodalSolve>,
+    fast_solve: Option<supernodal::SupernodalSolve>,
     /// The right-hand side as points, for `fast_solve`.
-    points: Vec<pd_mesh::Point>,
+    points: Vec<crate::Point>,
     /// The right-hand side as three columns, for faer's solve of points
     /// ([`SymbolicFactor::solve_points`]; empty when `fast_solve` serves).
     columns: faer::Mat<f64>,
@@ -323,7 +319,7 @@ impl std::fmt::Debug for SymbolicFactor {
 /// Numeric Cholesky values for one set of matrix values, in faer's layout
 /// or, after [`SymbolicFactor::pack`], packed.
 #[derive(Debug)]
-pub(crate) struct NumericFactor {
+pub struct NumericFactor {
     values: Vec<f64>,
     /// Empty in faer's layout; when packed, where each supernode's values
     /// start and, last, their total (`supernodal_solve.rs`).
@@ -346,19 +342,19 @@ impl SymbolicFactor {
     pub fn analyse(
         pattern: impl Into<Arc<LowerPattern>>,
         candidates: &[Vec<usize>],
-    ) -> Result<Self, SolverError> {
+    ) -> Result<Self, FactorError> {
         let pattern = pattern.into();
         fn analyse(
             pattern: &LowerPattern,
             ordering: SymmetricOrdering<'_, usize>,
-        ) -> Result<SymbolicCholesky<usize>, SolverError> {
+        ) -> Result<SymbolicCholesky<usize>, FactorError> {
             factorize_symbolic_cholesky(
                 pattern.symbolic(),
                 Side::Lower,
                 ordering,
                 CholeskySymbolicParams::default(),
             )
-            .map_err(|e| SolverError::Factorisation {
+            .map_err(|e| FactorError {
                 reason: format!("symbolic analysis failed: {}", resource_failure(e)),
             })
         }
@@ -387,13 +383,13 @@ impl SymbolicFactor {
             None => exact_factor_nnz(&pattern, &(0..pattern.n).collect::<Vec<_>>()),
         };
         let solve_scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(3, Par::Seq));
-        let fast_solve = supernodal_solve::SupernodalSolve::new(&symbolic);
+        let fast_solve = supernodal::SupernodalSolve::new(&symbolic);
         let columns = match fast_solve {
             Some(_) => faer::Mat::zeros(0, 0),
             None => faer::Mat::zeros(pattern.n, 3),
         };
         Self {
-            points: vec![pd_mesh::Point::zeros(); pattern.n],
+            points: vec![crate::Point::zeros(); pattern.n],
             columns,
             pattern,
             symbolic,
@@ -410,7 +406,6 @@ impl SymbolicFactor {
     }
 
     /// Number of supernodes of the factor (0 for a simplicial factor).
-    #[cfg(test)]
     pub fn supernodes(&self) -> usize {
         supernode_count(&self.symbolic)
     }
@@ -432,7 +427,7 @@ impl SymbolicFactor {
     /// not be packed.
     pub fn packed_len(&self) -> usize {
         match self.fast_solve {
-            Some(_) => supernodal_solve::packed_len(&self.symbolic).unwrap_or(self.factor_len()),
+            Some(_) => supernodal::packed_len(&self.symbolic).unwrap_or(self.factor_len()),
             None => self.factor_len(),
         }
     }
@@ -447,7 +442,7 @@ impl SymbolicFactor {
 
     /// Factorises the matrix with this pattern and the given lower-triangle
     /// values (in pattern order).
-    pub fn factorise(&mut self, values: &[f64]) -> Result<NumericFactor, SolverError> {
+    pub fn factorise(&mut self, values: &[f64]) -> Result<NumericFactor, FactorError> {
         let mut factor = NumericFactor {
             values: vec![0.0; self.symbolic.len_val()],
             packed_ptr: Vec::new(),
@@ -478,7 +473,7 @@ impl SymbolicFactor {
         if self.fast_solve.is_none() || factor.is_packed() {
             return;
         }
-        if let Some(packed_ptr) = supernodal_solve::pack(&self.symbolic, &mut factor.values) {
+        if let Some(packed_ptr) = supernodal::pack(&self.symbolic, &mut factor.values) {
             factor.values.truncate(packed_ptr[packed_ptr.len() - 1]);
             factor.values.shrink_to_fit();
             factor.packed_ptr = packed_ptr;
@@ -490,7 +485,7 @@ impl SymbolicFactor {
     fn faer_values<'a>(&self, factor: &'a NumericFactor) -> std::borrow::Cow<'a, [f64]> {
         match factor.is_packed() {
             false => std::borrow::Cow::Borrowed(&factor.values),
-            true => std::borrow::Cow::Owned(supernodal_solve::unpack(
+            true => std::borrow::Cow::Owned(supernodal::unpack(
                 &self.symbolic,
                 &factor.values,
                 &factor.packed_ptr,
@@ -507,7 +502,7 @@ impl SymbolicFactor {
         &mut self,
         values: &[f64],
         factor: &mut NumericFactor,
-    ) -> Result<(), SolverError> {
+    ) -> Result<(), FactorError> {
         let packed = factor.is_packed();
         if packed {
             factor.values.resize(self.symbolic.len_val(), 0.0);
@@ -530,7 +525,7 @@ impl SymbolicFactor {
                 MemStack::new(scratch),
                 Default::default(),
             )
-            .map_err(|e| SolverError::Factorisation {
+            .map_err(|e| FactorError {
                 reason: numeric_failure(e),
             })?;
         if packed {
@@ -557,7 +552,7 @@ impl SymbolicFactor {
     /// Solves `A x = b` in place for `rhs` given as one point per row (the
     /// global step's x, y and z at once): the supernodal solve without the
     /// copies to and from columns, or faer's solve of three columns.
-    pub fn solve_points(&mut self, factor: &NumericFactor, rhs: &mut [pd_mesh::Point]) {
+    pub fn solve_points(&mut self, factor: &NumericFactor, rhs: &mut [crate::Point]) {
         if let Some(fast) = &mut self.fast_solve {
             fast.solve(&self.symbolic, factor, rhs);
             return;
@@ -570,7 +565,7 @@ impl SymbolicFactor {
         }
         self.solve_in_place(factor, columns.as_mut());
         for (r, p) in rhs.iter_mut().enumerate() {
-            *p = pd_mesh::Point::new(columns[(r, 0)], columns[(r, 1)], columns[(r, 2)]);
+            *p = crate::Point::new(columns[(r, 0)], columns[(r, 1)], columns[(r, 2)]);
         }
         self.columns = columns;
     }
@@ -579,7 +574,7 @@ impl SymbolicFactor {
     pub fn solve_in_place(&mut self, factor: &NumericFactor, mut rhs: MatMut<'_, f64>) {
         if let (Some(fast), 3) = (&mut self.fast_solve, rhs.ncols()) {
             for (r, p) in self.points.iter_mut().enumerate() {
-                *p = pd_mesh::Point::new(rhs[(r, 0)], rhs[(r, 1)], rhs[(r, 2)]);
+                *p = crate::Point::new(rhs[(r, 0)], rhs[(r, 1)], rhs[(r, 2)]);
             }
             fast.solve(&self.symbolic, factor, &mut self.points);
             for (r, p) in self.points.iter().enumerate() {
@@ -601,7 +596,7 @@ impl SymbolicFactor {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use pd_mesh::Point;
+    use crate::Point;
 
     /// The lower pattern and values of `I + graph Laplacian` of an
     /// `m x m x m` grid with 6-neighbour edges, and the grid coordinates.
