@@ -41,7 +41,7 @@ pub fn markdown(contact: &Value) -> String {
          `contact.bodies = true` (`benches/src/contact.rs`). The two scenes run in alternating \
          rounds of 10 steps in one process, so that both see the same machine; the last column \
          is the ratio of each scene's fastest round (the round least disturbed by the machine). \
-         Target (issue 14): at most 1.5x. `docs/contact.md` has load-independent instruction \
+         Target (issue 14): at most 1.5x. `docs/design/contact.md` has load-independent instruction \
          counts.\n\n\
          | scene | vertices per cube | contacts | without (ms) | with (ms) | ratio of medians | ratio of fastest rounds |\n\
          |---|---|---|---|---|---|---|\n",

@@ -313,7 +313,7 @@ fn cache_control_line(limits: &Value) -> String {
         "Cache control: a plain read loop over the local step's working set ({:.0} MiB: the \
          elements, their projections and the positions), read again and again, ran {:.2} times \
          faster on 2 threads than on 1 ({:.0} against {:.0} GB/s), {verdict} \
-         (docs/performance.md, \"Two cores cache more than one\").\n\n",
+         (docs/design/performance.md, \"Two cores cache more than one\").\n\n",
         f(&control["mib"]),
         speedup,
         f(&control["bytes_per_second_2_threads"]) / 1e9,

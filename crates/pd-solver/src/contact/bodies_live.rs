@@ -1,4 +1,4 @@
-//! The step's live candidate entries of body contact (docs/contact.md,
+//! The step's live candidate entries of body contact (docs/design/contact.md,
 //! "Sixth round"): each listed entry's start plane and start verdict,
 //! taken once per step, and the entries that can give a pair, compacted
 //! vertex by vertex for the fast detection of `bodies_listed.rs`; a file

@@ -1,4 +1,4 @@
-//! Tests of this round's pair updates and kept counts (docs/contact.md,
+//! Tests of this round's pair updates and kept counts (docs/design/contact.md,
 //! "Seventh round"), beside `bodies_tests.rs` (whose helpers they use) to
 //! keep that file within the size rule.
 

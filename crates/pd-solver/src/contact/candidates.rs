@@ -1,4 +1,4 @@
-//! Candidate triangles of body contact (docs/contact.md, "Per-step
+//! Candidate triangles of body contact (docs/design/contact.md, "Per-step
 //! candidate lists"): the broad phase built once and kept over iterations
 //! and steps instead of rebuilt in every iteration, with results bit for
 //! bit those of the per-iteration grid.

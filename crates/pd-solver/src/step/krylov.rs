@@ -1,6 +1,6 @@
 //! A measurement tool, not a method: how far the best Krylov method could
 //! take a step's iterations with the prefactored PD matrix `A` as its
-//! preconditioner (docs/solver.md, "Implicit midpoint's 3x: the Krylov
+//! preconditioner (docs/design/solver.md, "Implicit midpoint's 3x: the Krylov
 //! bound"; issue 16).
 //!
 //! Anderson, L-BFGS and Chebyshev combine preconditioned gradients
