@@ -102,7 +102,7 @@ fn cheapest(rows: &[Value], method: &str, target: f64, local_fraction: f64) -> O
 const METHODS: [&str; 5] = ["local-global", "anderson", "chebyshev", "lbfgs", "newton"];
 
 /// The methods measured again with the linear predictor (`[solver]
-/// predictor = "linear"`, docs/design/solver.md "A better start"), as
+/// predictor = "linear"`, docs/design/solver.md "A better start: predictors"), as
 /// `pd-probe methods --predicted` names them; their rows are named
 /// `anderson+linear`. Plain PD's shows what the start alone gains.
 const PREDICTED: [&str; 4] = [

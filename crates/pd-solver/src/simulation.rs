@@ -253,7 +253,7 @@ impl Simulation {
         }
         // The step's buffers come after the first factorisation, whose
         // scratch is gone by then, so that the two never add up in the peak
-        // memory (docs/design/performance.md, "Peak memory").
+        // memory (docs/design/performance.md, "Memory").
         let (free, rows, chunks) = scratch_len;
         sim.scratch = Scratch::new(n, free, rows, chunks);
         sim.reset_energy_reference();

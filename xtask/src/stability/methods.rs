@@ -19,9 +19,9 @@
 //! `docs/reports/stability-methods-NAME.md` instead, leaving the whole axis' report
 //! alone.
 //!
-//! `--predictor NAME` (`extrapolated`, `linear`; docs/design/solver.md "A better
-//! start") runs local-global, anderson, chebyshev and lbfgs with that
-//! predictor against the baseline of plain PD started at the inertial
+//! `--predictor NAME` (`extrapolated`, `linear`; docs/design/solver.md "A
+//! better start: predictors") runs local-global, anderson, chebyshev and lbfgs
+//! with that predictor against the baseline of plain PD started at the inertial
 //! target, and writes `docs/reports/stability-methods-predictor-NAME[-INTEGRATOR].md`.
 
 use std::fmt::Write as _;

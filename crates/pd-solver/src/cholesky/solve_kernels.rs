@@ -41,8 +41,8 @@ pub(crate) enum Simd {}
 ///
 /// With AVX-512 the compiler's loops run eight rows per instruction with
 /// 32 registers (no spilled broadcasts): the solve 4-11 % faster than
-/// with AVX2 on the beams, with the same bits (docs/design/performance.md, "The
-/// solve compiled for AVX-512").
+/// with AVX2 on the beams, with the same bits (docs/design/performance.md,
+/// "pd's own supernodal solve").
 #[inline(always)]
 pub(crate) fn vectorized(f: impl FnOnce(Option<Simd>)) {
     #[cfg(target_arch = "x86_64")]
@@ -141,7 +141,7 @@ impl<'a> Block<'a> {
 /// 14 beam's METIS order, 3.5 % of its values) update the rows below them
 /// row by row, straight into the solution (`Structure::forward_supernode`, [`narrow_updates`]),
 /// with the sums of `Below::update`'s one-column passes, so the same bits:
-/// 3-5 % off the beam's solve (docs/design/performance.md, "Narrow supernodes").
+/// 3-5 % off the beam's solve (docs/design/performance.md, "pd's own supernodal solve").
 /// Wider ones (a fused loop up to 8 columns measured the same as 4) and
 /// the backward step (a fused gather into the dot products' lanes was no
 /// faster) keep the coordinate arrays.

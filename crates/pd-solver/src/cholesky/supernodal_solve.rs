@@ -57,7 +57,7 @@ const BLOCKED_DIAGONAL: [usize; 2] = [16, 16];
 /// the cache between passes and its solve was about 10 % faster with
 /// prefetches, while the armadillo's 7.3 MB factor, which does, was
 /// slower (the prefetch instructions cost, and the data was already
-/// there; docs/design/performance.md, "eighth round").
+/// there; docs/design/performance.md, "pd's own supernodal solve").
 const PREFETCH_BYTES: usize = 16 << 20;
 
 /// The supernodal structure of a factor: a view of faer's symbolic

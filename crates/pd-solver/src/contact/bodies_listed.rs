@@ -12,7 +12,7 @@ use super::super::grid::{cell_index, cell_size, query_end};
 use super::{BodyContact, Pair, inside, project_onto};
 
 /// What a candidate entry's start plane tells of its crossings in every
-/// iteration of a step (docs/design/contact.md, "Fifth round"). When the vertex
+/// iteration of a step (docs/design/contact.md, "Detection and the broad phase"). When the vertex
 /// starts within the thickness of the triangle's plane (`d0 <= thickness`),
 /// a crossing's fraction `s` is `+0` or `-0` whatever the iterate (the
 /// numerator `d0 - thickness` is not positive, the other branch is `0`),
@@ -42,7 +42,7 @@ impl BodyContact {
     /// rebuilt to cover the iterate go to the fast path
     /// ([`BodyContact::detect_listed_fast`], the same pairs bit for bit,
     /// without the sweep of every triangle's box and the cell arithmetic;
-    /// docs/design/contact.md, "Seventh round"), unless it declines (having
+    /// docs/design/contact.md, "Detection and the broad phase"), unless it declines (having
     /// changed no pair); `motion` is the largest `|dx|_inf` (m).
     pub(super) fn detect_with_boxes(
         &mut self,

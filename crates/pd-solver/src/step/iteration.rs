@@ -127,8 +127,9 @@ impl PositionSolver for LocalGlobal {
         let converged = step.plain_iterations();
         // A predicted start can lie past the step objective's line minimum
         // in slow modes, and plain iterations from it stay past it: with
-        // implicit midpoint the energy then grows (docs/design/solver.md, "A better
-        // start"), as after an accelerated method's overshoot. Steps from
+        // implicit midpoint the energy then grows (docs/design/solver.md, "A
+        // better start: predictors"), as after an accelerated method's
+        // overshoot. Steps from
         // `y` are plain PD's and are never checked.
         if !converged {
             step.check_predicted_end();
@@ -346,7 +347,7 @@ impl StepProblem<'_> {
     /// started at a predicted point and did not converge: such a start can
     /// lie past the step objective's line minimum in slow modes, and
     /// iterations from it stay past it, so that the energy grows
-    /// (docs/design/solver.md, "A better start"). Nothing for other steps and
+    /// (docs/design/solver.md, "A better start: predictors"). Nothing for other steps and
     /// integrators. Plain PD and Chebyshev call it; Anderson and L-BFGS run
     /// their own.
     pub(crate) fn check_predicted_end(&mut self) {
