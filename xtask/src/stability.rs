@@ -62,7 +62,7 @@ const RISE_REPORTED: f64 = 0.01;
 /// release build (the matrix is tens of thousands of runs); in a release
 /// build, runs the matrix and writes `docs/reports/stability.md`.
 pub fn main(root: &Path, args: &[String]) -> ExitCode {
-    // The method axis (issue 16): its own reduced matrix and report.
+    // The method axis: its own reduced matrix and report.
     if args
         .windows(2)
         .any(|w| w[0] == "--only" && w[1] == "methods")

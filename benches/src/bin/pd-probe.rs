@@ -460,7 +460,7 @@ fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     let model = options.value("--model").unwrap_or(UNDAMPED);
     let reps: usize = options.parse("--reps", 10)?;
     let factor_reps: usize = options.parse("--factor-reps", 3)?;
-    // Diagnostics of the local step's 2-thread speed-up (issue 18): before
+    // Diagnostics of the local step's 2-thread speed-up: before
     // each timed repetition (untimed), stream `--evict-mib` MiB on this
     // thread (the global solve's factor evicts the L3 so in a step) and/or
     // sleep `--idle-us` microseconds (rayon's idle workers fall asleep
@@ -525,7 +525,7 @@ fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     Ok(with_triangles(value, &sim, sheet.is_some()))
 }
 
-/// With `--parts P` (diagnostic, issue 18): the first constraint block
+/// With `--parts P` (diagnostic): the first constraint block
 /// (the tet strain of a beam or mesh, the triangle strain of a `--cloth`
 /// sheet) cut into `P` equal contiguous parts,
 /// each projected on this thread alone `reps` times; the fastest pass per

@@ -1,5 +1,5 @@
-//! `cargo xtask stability --only methods`: the stability map's method axis
-//! (issue 16). Runs every iteration method (local-global as the baseline,
+//! `cargo xtask stability --only methods`: the stability map's method axis.
+//! Runs every iteration method (local-global as the baseline,
 //! anderson, chebyshev, lbfgs, newton) over a reduced stability matrix and
 //! writes `docs/reports/stability-methods.md`: for each method, how its runs ended,
 //! and every case where it diverged (or hit a bug) while plain PD with the
@@ -219,7 +219,7 @@ pub(super) fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
     if predictor != Predictor::Inertial {
         let _ = writeln!(
             out,
-            "\nWith the predictor (docs/design/solver.md, \"A better start\"): local-global, anderson, \
+            "\nWith the predictor (docs/design/solver.md, \"A better start: predictors\"): local-global, anderson, \
              chebyshev and lbfgs start each step from the `{}` predictor; the baseline (`local-global`) \
              starts at the inertial target, as by default.",
             predictor.name()

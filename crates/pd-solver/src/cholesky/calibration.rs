@@ -286,10 +286,11 @@ fn solve_cost_calibration() {
 }
 
 /// How much METIS's fill depends on its random seed and on the number of
-/// separators it tries per level, on the 95,499-vertex beam (the issue 18
-/// fill target compares nnz(L) with CHOLMOD's, which also runs METIS):
+/// separators it tries per level, on the 95,499-vertex beam (the fill target
+/// compares nnz(L) with CHOLMOD's, which also runs METIS):
 /// prints nnz(L), stored values, supernodes and the modelled solve cost
-/// per option set. docs/design/performance.md ("METIS's seed") quotes the output.
+/// per option set. docs/design/performance.md ("Choosing the ordering",
+/// "METIS's seed") quotes the output.
 ///
 /// ```sh
 /// cargo test -p pd-solver --lib metis_option_fill -- --ignored --nocapture

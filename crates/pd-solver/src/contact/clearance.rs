@@ -179,7 +179,7 @@ fn least_gap(settings: &ContactSettings, x: &Point, thickness: f64) -> f64 {
 ///
 /// Two points (six values, contiguous) at a time, one accumulator per
 /// value, so that the loop runs on pairs of lanes (docs/design/contact.md,
-/// "Seventh round"); a plain comparison rather than `f64::max` (whose NaN
+/// "Detection and the broad phase"); a plain comparison rather than `f64::max` (whose NaN
 /// rule costs a branch per value): a NaN is caught by the sums. The
 /// largest value is the same whatever the grouping (a maximum is exact);
 /// a sum is finite only if every value it adds is, so any grouping is
