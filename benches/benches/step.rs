@@ -8,7 +8,7 @@
 //! run (`cargo bench -p pd-benches -- --test`) uses 2k only. The lagged
 //! Rayleigh model is left out at 100k: its 3n x 3n system (about 290k
 //! unknowns) is refactorised every step and needs several GB
-//! (docs/performance.md).
+//! (docs/design/performance.md).
 
 use std::time::{Duration, Instant};
 

@@ -20,7 +20,7 @@
 //!   iterations, contact's forces as a constant load, none of its work);
 //!   prints the mean step time. For callgrind, as `with`.
 //! - `MODE` = `matched R`: the deformation-matched comparison of
-//!   docs/contact.md: settled, frozen and contact-free (20 warm-up steps)
+//!   docs/design/contact.md: settled, frozen and contact-free (20 warm-up steps)
 //!   scenes, `R` rounds of 10 steps of each in turn, the ratios of the
 //!   minimum and median rounds, and how far the frozen run drifted from
 //!   the settled one in the last round (largest vertex distance, m). The

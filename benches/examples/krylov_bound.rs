@@ -4,7 +4,7 @@
 //! [--reference-tolerance T] [--timing R] [--lagged]`, or with `--oracle
 //! K,nK+K,... [--steps N] [--run-reference-tolerance T]`: the Krylov bound
 //! of a step's iterations with the prefactored PD matrix as preconditioner
-//! (docs/solver.md, "Implicit midpoint's 3x: the Krylov bound"; issue 16).
+//! (docs/design/solver.md, "The Krylov bound").
 //!
 //! Per step (without `--oracle`): the benchmark beam (one thread) runs
 //! with `METHOD` at `BUDGET` iterations and the linear predictor (default

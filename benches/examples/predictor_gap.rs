@@ -1,8 +1,7 @@
 //! `cargo run -p pd-benches --example predictor_gap -- [--integrator
 //! be|im|bdf2] [--damping D] [--steps N] [--cells NX,NY,NZ] [--fits
 //! K/M,K/M,...] [--reference-iterations I] [--history-iterations H]`: how good each start of a step
-//! is, for the fitted predictor (docs/solver.md, "Implicit midpoint's 3x:
-//! a fitted predictor").
+//! is, for the fitted predictor (docs/design/solver.md, "The fitted predictor").
 //!
 //! The benchmark beam (one thread) runs `N` steps with Anderson at `I`
 //! iterations (40: the reference; or `H`, to fit the corrections a

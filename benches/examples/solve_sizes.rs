@@ -5,8 +5,7 @@
 //! and median solve and the fastest in ns per stored value per pass (a solve
 //! reads the factor twice). Factors that stay in the caches against ones
 //! that do not tell the kernel's own speed from the memory's
-//! (docs/performance.md, "Narrow supernodes, and the solve against this
-//! machine").
+//! (docs/design/performance.md, "The solve against the machine").
 
 use pd_benches::Beam;
 use std::time::Instant;

@@ -83,7 +83,7 @@ pub fn selected_sizes() -> Vec<([usize; 3], &'static str)> {
 }
 
 /// The damping model of the registry's preset `name`, with the
-/// coefficients of the benchmarks (`docs/performance.md`): ether drag at a
+/// coefficients of the benchmarks (`docs/design/performance.md`): ether drag at a
 /// rate of 1/s (explicit), PBD with factor 0.05, lagged Rayleigh and
 /// Laplacian damping with a stiffness coefficient of 0.003 s.
 ///

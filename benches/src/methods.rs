@@ -1,5 +1,5 @@
 //! `pd-probe methods`: error against cost per step for each iteration
-//! method of the `[solver]` table (docs/solver.md "Iteration methods").
+//! method of the `[solver]` table (docs/design/solver.md "Iteration methods").
 //!
 //! The reference is Newton's method run to a relative residual of
 //! `reference_tolerance` (1e-10) with the same integrator, damping and step.

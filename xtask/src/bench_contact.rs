@@ -1,7 +1,6 @@
 //! The "Contact" section of `cargo xtask bench-report`: step time with
 //! contact against the same scene without any, at equal iterations
-//! (`pd-probe contact`, `benches/src/contact.rs`); target at most 1.5x
-//! (issue 14).
+//! (`pd-probe contact`, `benches/src/contact.rs`); target at most 1.5x.
 
 use std::fmt::Write as _;
 
@@ -41,7 +40,7 @@ pub fn markdown(contact: &Value) -> String {
          `contact.bodies = true` (`benches/src/contact.rs`). The two scenes run in alternating \
          rounds of 10 steps in one process, so that both see the same machine; the last column \
          is the ratio of each scene's fastest round (the round least disturbed by the machine). \
-         Target (issue 14): at most 1.5x. `docs/contact.md` has load-independent instruction \
+         Target: at most 1.5x. `docs/design/contact.md` has load-independent instruction \
          counts.\n\n\
          | scene | vertices per cube | contacts | without (ms) | with (ms) | ratio of medians | ratio of fastest rounds |\n\
          |---|---|---|---|---|---|---|\n",

@@ -43,7 +43,7 @@ const SPEEDUP_NOISY: f64 = 2.05;
 /// Spread `(max - min) / min` of repeated step times above this is noise.
 const SPREAD_NOISY: f64 = 0.05;
 
-/// The beam of issue 18 (1 x 0.2 x 0.2 m in the issue; 80 x 14 x 14 cells,
+/// The limits beam (1 x 0.2 x 0.2 m; 80 x 14 x 14 cells,
 /// 94,080 tets) or a smaller one for `--quick`.
 fn cells(quick: bool) -> [usize; 3] {
     if quick { [35, 7, 7] } else { [80, 14, 14] }
@@ -301,7 +301,7 @@ fn cache_control_line(limits: &Value) -> String {
             "above {SPEEDUP_NOISY} with nothing shared and nothing else running in it, so on this \
              machine two cores cache more of such a set than one: 2-thread speed-ups above \
              {SPEEDUP_NOISY} of the local step can come from the caches rather than from load \
-             (the flag stands, as issue 18 asks; the other checks tell load apart)"
+             (the flag stands; the other checks tell load apart)"
         )
     } else {
         format!(
@@ -313,7 +313,7 @@ fn cache_control_line(limits: &Value) -> String {
         "Cache control: a plain read loop over the local step's working set ({:.0} MiB: the \
          elements, their projections and the positions), read again and again, ran {:.2} times \
          faster on 2 threads than on 1 ({:.0} against {:.0} GB/s), {verdict} \
-         (docs/performance.md, \"Two cores cache more than one\").\n\n",
+         (docs/design/performance.md, \"Two cores cache more than one\").\n\n",
         f(&control["mib"]),
         speedup,
         f(&control["bytes_per_second_2_threads"]) / 1e9,

@@ -102,7 +102,7 @@ fn cheapest(rows: &[Value], method: &str, target: f64, local_fraction: f64) -> O
 const METHODS: [&str; 5] = ["local-global", "anderson", "chebyshev", "lbfgs", "newton"];
 
 /// The methods measured again with the linear predictor (`[solver]
-/// predictor = "linear"`, docs/solver.md "A better start"), as
+/// predictor = "linear"`, docs/design/solver.md "A better start: predictors"), as
 /// `pd-probe methods --predicted` names them; their rows are named
 /// `anderson+linear`. Plain PD's shows what the start alone gains.
 const PREDICTED: [&str; 4] = [
@@ -123,7 +123,7 @@ pub fn markdown(runs: &Value) -> String {
     };
     let _ = writeln!(
         md,
-        "Each method of `[solver]` (docs/solver.md) on the clamped beam, {} steps of {} s, 1 \
+        "Each method of `[solver]` (docs/design/solver.md) on the clamped beam, {} steps of {} s, 1 \
          thread, without damping and with Laplacian damping (the `laplacian` preset). Error: the \
          largest vertex distance to Newton's solution (relative residual {:e} every step) over the \
          diagonal. Work: cost per step in plain local-global iterations (iterations + objective \
@@ -133,7 +133,7 @@ pub fn markdown(runs: &Value) -> String {
          same error or better (budgets {BUDGETS}; Newton 1, 2, 3, 5); Newton's \
          by time only, since its work leaves out the 3n x 3n factorisation of each iteration. \
          The last four columns start each step at the linear predictor `y + 2 c_n - c_(n-1)` \
-         (`[solver] predictor = \"linear\"`, docs/solver.md) instead of the inertial target \
+         (`[solver] predictor = \"linear\"`, docs/design/solver.md) instead of the inertial target \
          `y`, against the same PD-20 (inertial) baseline; plain PD's column shows what the \
          start alone gains.\n",
         first["steps"],

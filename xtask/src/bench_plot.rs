@@ -3,7 +3,7 @@
 //! draws text only with a registered font, so a font file is committed with
 //! its licence (`crates/pd-viz/assets/`, shared with pd-viz; DejaVu Sans Mono, Bitstream Vera
 //! licence) and compiled in: the figures then look the same on every
-//! machine (docs/performance.md says why).
+//! machine (docs/design/performance.md says why).
 
 use std::path::Path;
 use std::sync::Once;

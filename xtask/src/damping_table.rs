@@ -1,5 +1,5 @@
 //! `cargo xtask damping-table`: runs every damping model with every
-//! integrator on the bundled scenes and writes `docs/damping-table.md`.
+//! integrator on the bundled scenes and writes `docs/reports/damping-table.md`.
 //!
 //! Measured per (integrator, model):
 //! - on `scenes/spinning_body.toml` (a free block flying and spinning):
@@ -152,7 +152,7 @@ pub fn run(root: &Path, quick: bool) -> Result<std::path::PathBuf, String> {
             .expect("infallible");
         }
     }
-    let path = root.join("docs/damping-table.md");
+    let path = root.join("docs/reports/damping-table.md");
     std::fs::write(&path, out).map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(path)
 }

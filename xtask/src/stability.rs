@@ -1,6 +1,6 @@
 //! `cargo xtask stability [--quick]`: runs every integrator with every
 //! damping model over a matrix of extreme parameters and starting states,
-//! and writes `docs/stability.md`.
+//! and writes `docs/reports/stability.md`.
 //!
 //! The rule checked for every run: it either completes sane (a finite state
 //! and finite energies, its total energy never above the divergence bound),
@@ -35,7 +35,7 @@
 //! Besides the ending, each completed run records its largest energy rise:
 //! the maximum over its steps of `(E(t) - E(0)) / scale`, with `E` the total
 //! (kinetic + elastic + gravitational) energy and `scale` the solver's own
-//! divergence scale (`Simulation::energy_scale`, docs/solver.md).
+//! divergence scale (`Simulation::energy_scale`, docs/design/solver.md).
 
 use std::fmt::Write as _;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -60,16 +60,16 @@ const RISE_REPORTED: f64 = 0.01;
 
 /// `cargo xtask stability [--quick]`: in a dev build, re-runs itself as a
 /// release build (the matrix is tens of thousands of runs); in a release
-/// build, runs the matrix and writes `docs/stability.md`.
+/// build, runs the matrix and writes `docs/reports/stability.md`.
 pub fn main(root: &Path, args: &[String]) -> ExitCode {
-    // The method axis (issue 16): its own reduced matrix and report.
+    // The method axis: its own reduced matrix and report.
     if args
         .windows(2)
         .any(|w| w[0] == "--only" && w[1] == "methods")
     {
         return crate::report(methods::run(root, args));
     }
-    // The contact axis alone, in this build (docs/stability-contact.md).
+    // The contact axis alone, in this build (docs/reports/stability-contact.md).
     if args
         .windows(2)
         .any(|w| w[0] == "--only" && w[1] == "contact")
@@ -666,7 +666,7 @@ fn run(root: &Path, quick: bool, mode: &shard::Mode) -> Result<PathBuf, String> 
          never above the divergence bound) or stop with the solver's divergence error\n\
          (`SolverError::Diverged`: a step fails when its total energy, kinetic + gravitational\n\
          + elastic, exceeds the initial energy by more than 1000 times the system's energy\n\
-         scale, `docs/solver.md`). A run that completes exploded (above that bound: the check\n\
+         scale, `docs/design/solver.md`). A run that completes exploded (above that bound: the check\n\
          missed it), a panic, a NaN or infinity after a step that returned `Ok`, or any other\n\
          error is a bug, and the command fails. Runs that complete with elements still inside\n\
          out are counted apart (\"ended inverted\"): not called stable, not a bug of the check.\n\n\
@@ -861,7 +861,7 @@ fn run(root: &Path, quick: bool, mode: &shard::Mode) -> Result<PathBuf, String> 
         });
     }
 
-    let path = root.join("docs/stability.md");
+    let path = root.join("docs/reports/stability.md");
     std::fs::write(&path, out).map_err(|e| format!("{}: {e}", path.display()))?;
     if bugs.is_empty() {
         Ok(path)

@@ -1,5 +1,5 @@
 //! `cargo xtask stability --only contact`: the contact axis of the stability
-//! map, on its own, written to `docs/stability-contact.md`.
+//! map, on its own, written to `docs/reports/stability-contact.md`.
 //!
 //! Same rule as the map (`stability.rs`): a run completes sane (finite
 //! state and energies, total energy never above the divergence bound) or
@@ -179,7 +179,7 @@ fn run_case(case: &Case) -> Ending {
 }
 
 /// Runs the contact matrix on every core and writes
-/// `docs/stability-contact.md`.
+/// `docs/reports/stability-contact.md`.
 pub fn run(root: &Path) -> Result<PathBuf, String> {
     let cases = cases();
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -207,7 +207,7 @@ pub fn run(root: &Path) -> Result<PathBuf, String> {
     results.sort_by_key(|(i, _)| *i);
     let seconds = started.elapsed().as_secs_f64();
     let text = report(&cases, &results, seconds, threads);
-    let path = root.join("docs/stability-contact.md");
+    let path = root.join("docs/reports/stability-contact.md");
     std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
     let bugs = results
         .iter()
@@ -275,7 +275,7 @@ fn report(cases: &[Case], results: &[(usize, Ending)], seconds: f64, threads: us
          {seconds:.0} s on {threads} threads, {profile} profile; the time is not a \
          benchmark). Do not edit by hand: the matrix and the rules \
          are in `xtask/src/stability_contact.rs`.\n\n\
-         The rule of `docs/stability.md`: every run completes sane (finite state and energies, \
+         The rule of `docs/reports/stability.md`: every run completes sane (finite state and energies, \
          total energy never above the divergence bound) or stops with the solver's divergence \
          error; one more for contact: no vertex ends a completed step more than 1 mm behind the \
          floor. Anything else is a bug and fails the command.\n\n\

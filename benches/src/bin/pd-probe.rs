@@ -250,7 +250,7 @@ fn bandwidth(options: &Options<'_>) -> Result<Value, String> {
 /// state is shared, so above 2 the speed-up is the caches (two cores
 /// holding more of the set than one), not parallel work. `cargo xtask
 /// bench-report` runs it at the local step's working set beside its noise
-/// check (docs/performance.md, "Two cores cache more than one").
+/// check (docs/design/performance.md, "Two cores cache more than one").
 fn cache_scaling(options: &Options<'_>) -> Result<Value, String> {
     let mib: usize = options.parse("--mib", 16)?;
     if mib == 0 {
@@ -353,7 +353,7 @@ fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         solves.push(ms(t.elapsed().as_secs_f64()));
     }
     // The right-hand side `B p` and the solve, per iteration: minus the
-    // solve alone, the right-hand side's share (docs/performance.md).
+    // solve alone, the right-hand side's share (docs/design/performance.md).
     let mut rhs_and_solves = Vec::with_capacity(SOLVE_REPS);
     for _ in 0..SOLVE_REPS {
         let t = Instant::now();
@@ -460,7 +460,7 @@ fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     let model = options.value("--model").unwrap_or(UNDAMPED);
     let reps: usize = options.parse("--reps", 10)?;
     let factor_reps: usize = options.parse("--factor-reps", 3)?;
-    // Diagnostics of the local step's 2-thread speed-up (issue 18): before
+    // Diagnostics of the local step's 2-thread speed-up: before
     // each timed repetition (untimed), stream `--evict-mib` MiB on this
     // thread (the global solve's factor evicts the L3 so in a step) and/or
     // sleep `--idle-us` microseconds (rayon's idle workers fall asleep
@@ -525,7 +525,7 @@ fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     Ok(with_triangles(value, &sim, sheet.is_some()))
 }
 
-/// With `--parts P` (diagnostic, issue 18): the first constraint block
+/// With `--parts P` (diagnostic): the first constraint block
 /// (the tet strain of a beam or mesh, the triangle strain of a `--cloth`
 /// sheet) cut into `P` equal contiguous parts,
 /// each projected on this thread alone `reps` times; the fastest pass per

@@ -84,7 +84,7 @@ const DISSECTION_LEAF: usize = 64;
 /// dissection below and, with the `metis` feature, METIS's multilevel nested
 /// dissection. [`SymbolicFactor::analyse`] weighs them against AMD by
 /// [`solve_cost`]: the geometric split suits regular box meshes, METIS and AMD
-/// irregular ones (docs/performance.md). Deterministic: METIS runs with its
+/// irregular ones (docs/design/performance.md). Deterministic: METIS runs with its
 /// fixed default seed.
 pub fn dissection_candidates(
     pattern: &LowerPattern,
@@ -117,7 +117,7 @@ pub fn dissection_candidates(
 /// work of visiting it (a small dense triangular solve, an update product and
 /// the scatter of its rows) measured as the time of this many stored values.
 /// Fitted on this machine to the solve times of three orderings of three
-/// meshes (docs/performance.md, "Choosing the ordering"): 1.76 ns per stored
+/// meshes (docs/design/performance.md, "Choosing the ordering"): 1.76 ns per stored
 /// value and 0.123 us per supernode, about 70 values.
 const SUPERNODE_COST: usize = 70;
 

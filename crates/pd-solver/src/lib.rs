@@ -6,7 +6,7 @@
 //! every constraint, and a global step solves the n x n system
 //! (DESIGN.md 3.2) with a sparse Cholesky factor (faer; AMD or nested-dissection ordering) that is
 //! computed once and cached per set of coefficients, for all three
-//! coordinate columns at once. The mathematics is in `docs/solver.md`.
+//! coordinate columns at once. The mathematics is in `docs/design/solver.md`.
 //!
 //! Results are bit-identical for every thread count: each projection and
 //! each right-hand-side row is computed independently, and every reduction

@@ -42,7 +42,7 @@ impl LocalStep {
     /// steal (rayon otherwise stops splitting after a few levels and runs
     /// runs of some 50 chunks in one task, so a thread that starts late or
     /// runs slower leaves the other idle at the end for up to a run:
-    /// docs/performance.md, "The local step on two threads in the step").
+    /// docs/design/performance.md, "Two threads in the local step").
     /// Each chunk writes its own rows, so the bits are the same either way.
     pub fn project(&self, q: &[Point], projections: &mut [Point]) {
         let max_len = if rayon::current_num_threads() > 1 {

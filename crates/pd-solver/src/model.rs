@@ -31,7 +31,7 @@ pub struct Body {
 /// positions one after the other, and the right-hand side's row of vertex
 /// `v` gathers projections that sit close in memory: on the TetGen
 /// armadillo, whose tets come in no such order, this takes the global step
-/// from 60 to 44 ms per time step (docs/performance.md, "Element order").
+/// from 60 to 44 ms per time step (docs/design/performance.md, "The right-hand side `B p`").
 /// Generated meshes already come in this order. Only the storage order
 /// changes, not any constraint; the sort is stable, so it is deterministic.
 fn locality_order<C: Constraint>(mut constraints: Vec<C>) -> Vec<C> {

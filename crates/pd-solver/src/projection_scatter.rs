@@ -36,8 +36,8 @@ use ranges::Ranges;
 
 /// More threads scatter into their own ranges of outputs only while the
 /// ranges read each group at most this many times on average; above it
-/// they gather `B`'s rows (docs/performance.md, "`B p` with fewer
-/// instructions, and on both cores": the measured duplication per mesh).
+/// they gather `B`'s rows (docs/design/performance.md, "The right-hand side `B
+/// p`": the measured duplication per mesh).
 const MAX_DUPLICATION: f64 = 1.25;
 
 /// `B`'s entries by projection (source) in ascending order, in groups: a

@@ -25,7 +25,7 @@ pub struct Settings {
     pub threads: usize,
     /// The run is declared divergent when the total energy (kinetic,
     /// gravitational and elastic) exceeds its initial total by more than
-    /// this many times the system's energy scale (see `docs/solver.md`).
+    /// this many times the system's energy scale (see `docs/design/solver.md`).
     pub divergence_energy_factor: f64,
 }
 

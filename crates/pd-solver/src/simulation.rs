@@ -34,7 +34,7 @@ pub struct StepStats {
     /// Whether the tolerance was met (always `false` with tolerance 0).
     pub converged: bool,
     /// The step's final relative residual: the last local-global change
-    /// `|G(x) - x|_M / |G(x) - x_n|_M` (docs/solver.md; 0 for a step that
+    /// `|G(x) - x|_M / |G(x) - x_n|_M` (docs/design/solver.md; 0 for a step that
     /// does not move; NaN before the first iteration).
     pub relative_change: f64,
     /// Step-objective evaluations the iteration method made (each one
@@ -100,7 +100,7 @@ impl Energies {
 /// integrator prepares its targets, then `iterations` times the local step
 /// projects every constraint (in parallel) and the global step solves
 /// `A dx = b` for the step's displacement `dx = x - x_n` with a cached
-/// Cholesky factor of `A` (docs/solver.md); the integrator then updates the
+/// Cholesky factor of `A` (docs/design/solver.md); the integrator then updates the
 /// velocities and the damping model filters them.
 ///
 /// ```
@@ -143,7 +143,7 @@ pub struct Simulation {
     /// The step objective after each iteration of the last step, when
     /// recording was asked for ([`Simulation::record_objective`]).
     pub(crate) objective_trace: Option<Vec<f64>>,
-    /// Contact with colliders, when a scene asks for it (docs/contact.md).
+    /// Contact with colliders, when a scene asks for it (docs/design/contact.md).
     pub(crate) contact: Option<crate::contact::ContactState>,
     /// Where each step starts, and the last step's correction (step/predictor.rs).
     pub(crate) predictor: crate::step::Predictor,
@@ -253,7 +253,7 @@ impl Simulation {
         }
         // The step's buffers come after the first factorisation, whose
         // scratch is gone by then, so that the two never add up in the peak
-        // memory (docs/performance.md, "Peak memory").
+        // memory (docs/design/performance.md, "Memory").
         let (free, rows, chunks) = scratch_len;
         sim.scratch = Scratch::new(n, free, rows, chunks);
         sim.reset_energy_reference();
@@ -427,7 +427,7 @@ impl Simulation {
     }
 
     /// The initial energy and the scale for the divergence check
-    /// (docs/solver.md): the total energy now, and the sum of the kinetic and
+    /// (docs/design/solver.md): the total energy now, and the sum of the kinetic and
     /// elastic energy, the work gravity does over the body's size, and the
     /// kinetic energy of moving the whole mass by its size in one second.
     fn reset_energy_reference(&mut self) {
@@ -503,7 +503,7 @@ impl Simulation {
         self.time
     }
 
-    /// The energy scale of the divergence check (J, docs/solver.md): at the
+    /// The energy scale of the divergence check (J, docs/design/solver.md): at the
     /// start (or the last `set_state`), the kinetic plus elastic energy, the
     /// work gravity does over the body's size, and the kinetic energy of
     /// moving the whole mass by its size in one second. A step diverges when

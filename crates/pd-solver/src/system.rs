@@ -217,7 +217,7 @@ impl GlobalStep {
     }
 
     /// The part of the right-hand side that stays the same through a step's
-    /// iterations, one point per free vertex, into `out` (docs/solver.md):
+    /// iterations, one point per free vertex, into `out` (docs/design/solver.md):
     ///
     /// `M (y - x_n) / h^2 - c1 c2 L x_n + c1 c2 gamma D (x_hat - x_n)`.
     ///

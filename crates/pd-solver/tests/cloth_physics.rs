@@ -1,4 +1,4 @@
-//! Cloth in physical units (issue 15): a strip of `triangle-strain` +
+//! Cloth in physical units: a strip of `triangle-strain` +
 //! `bending` sheet (flat: `PlateBending`) behaves like an Euler-Bernoulli beam of rigidity
 //! `EI = D w` and a bar of axial stiffness `E t w`, whatever the triangle
 //! size.

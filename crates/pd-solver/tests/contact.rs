@@ -1,4 +1,4 @@
-//! Contact with static colliders (docs/contact.md): Coulomb sliding and
+//! Contact with static colliders (docs/design/contact.md): Coulomb sliding and
 //! sticking, coming to rest, restitution, momentum, tunnelling, thread
 //! determinism.
 
@@ -298,7 +298,7 @@ fn frictionless_contact_keeps_tangential_momentum() {
 #[test]
 fn a_fast_body_does_not_tunnel_through_a_thin_wall() {
     // A 1 cm wall, the cube moving 0.1 m to 2 m per step (10-200 m/s at
-    // dt = 10 ms): the speeds docs/contact.md states.
+    // dt = 10 ms): the speeds docs/design/contact.md states.
     let thickness = 0.001;
     for speed in [10.0, 50.0, 200.0] {
         let wall = Collider {

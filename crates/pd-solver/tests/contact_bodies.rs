@@ -1,4 +1,4 @@
-//! Contact between bodies (docs/contact.md, "Contact between bodies"):
+//! Contact between bodies (docs/design/contact.md, "Contact between bodies"):
 //! stacking to rest, momentum exchanged and not created, no tunnelling at
 //! the stated speeds, thread determinism.
 
@@ -101,14 +101,14 @@ fn a_body_dropped_on_another_comes_to_rest_on_it() {
         );
         // Penetration of a pair (below the thickness) left by the
         // iterations after the landing (from 0.5 s): bound 10% of the
-        // thickness (measured: see docs/contact.md).
+        // thickness (measured: see docs/design/contact.md).
         assert!(late < 0.1 * THICKNESS, "{name}: penetration {late} m");
         let kinetic: f64 = (s.velocities.iter().zip(&masses))
             .map(|(v, m)| 0.5 * m * v.norm_squared())
             .sum();
         println!("{name}: kinetic / drop energy {}", kinetic / potential);
         // At rest after 2 s: kinetic energy below 1e-3 of the top body's
-        // drop energy (measured: docs/contact.md).
+        // drop energy (measured: docs/design/contact.md).
         assert!(
             kinetic < 1e-3 * potential,
             "{name}: kinetic {kinetic} J of {potential} J"
@@ -164,7 +164,7 @@ fn a_head_on_collision_keeps_momentum_and_the_bodies_apart() {
         println!("{speed} m/s: deepest penetration left by the iterations {deepest} m");
         // What the iterations leave before the end-of-step projection, below
         // the thickness: bound 1 mm (the thickness; measured in
-        // docs/contact.md). The faces' free edges bulge past each other's
+        // docs/design/contact.md). The faces' free edges bulge past each other's
         // plane on impact (soft bodies), so the test is per pair, not on the
         // bodies' extents.
         assert!(deepest < THICKNESS, "{speed} m/s: penetration {deepest} m");

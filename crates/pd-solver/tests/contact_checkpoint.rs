@@ -1,4 +1,4 @@
-//! Checkpoint and resume with contact between surfaces (docs/contact.md,
+//! Checkpoint and resume with contact between surfaces (docs/design/contact.md,
 //! "Checkpoints"): a run of `N` steps and a run of `N / 2` steps,
 //! checkpoint, a fresh simulation restored from it and `N / 2` more steps
 //! end bit for bit alike (positions, velocities, integrator history and

@@ -1,5 +1,5 @@
 //! `Simulation::freeze_contact_forces`, the measurement aid of
-//! docs/contact.md ("Contact's own cost"): frozen forces hold a resting
+//! docs/design/contact.md ("Contact's own cost"): frozen forces hold a resting
 //! body up as a constant load, contact reports nothing while frozen, and
 //! runs again once unfrozen.
 

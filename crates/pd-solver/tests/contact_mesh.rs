@@ -1,4 +1,4 @@
-//! Triangle-mesh colliders (docs/contact.md), with the `mesh-collider`
+//! Triangle-mesh colliders (docs/design/contact.md), with the `mesh-collider`
 //! feature: a mesh floor acts as the plane it lies in, and a soft body comes
 //! to rest in a bowl.
 #![cfg(feature = "mesh-collider")]

@@ -1,4 +1,4 @@
-//! Self-contact (`contact.self = true`, docs/contact.md, "Self-contact"):
+//! Self-contact (`contact.self = true`, docs/design/contact.md, "Self-contact"):
 //! a cloth sheet draped over a sphere whose folds press onto each other, a
 //! U-shaped soft body whose arms close on each other, momentum kept by the
 //! self-contact forces, bodies at rest untouched, thread determinism.
@@ -362,7 +362,7 @@ fn a_sheet_draped_over_a_sphere_folds_onto_itself_without_passing_through() {
             // below the thickness, once the folds press together: bound the
             // thickness, as for contact between bodies (the projection then
             // puts every pair at the thickness; measured 1.7 mm, a fold
-            // closing at the sheet's hem, docs/contact.md).
+            // closing at the sheet's hem, docs/design/contact.md).
             assert!(deepest < THICKNESS, "penetration {deepest} m");
         } else {
             // Without self-contact the same folds pass through each other.

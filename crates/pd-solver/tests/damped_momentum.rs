@@ -3,7 +3,7 @@
 //! constraints, for backward Euler, implicit midpoint and BDF-2 and any
 //! iteration count.
 //!
-//! Summing the rows of the global step (docs/solver.md)
+//! Summing the rows of the global step (docs/design/solver.md)
 //!
 //! `A x = M y/h^2 + c1 c2 (B p - L z) + c1 c2 gamma D x_hat`,
 //! `A = M/h^2 + c1 c2^2 L + c1 c2 gamma D`

@@ -1,4 +1,4 @@
-//! The divergence check watches the elastic energy too (issue 13): a run
+//! The divergence check watches the elastic energy too: a run
 //! whose mesh tangles while its velocities stay moderate must stop with an
 //! error naming the step and the most strained element, not complete.
 //!

@@ -1,7 +1,7 @@
 //! Round-off does not grow with a body's distance from the origin.
 //!
 //! The global step solves for the step's displacement `dx = x - x_n`
-//! (docs/solver.md), with every right-hand-side term built from
+//! (docs/design/solver.md), with every right-hand-side term built from
 //! displacements or from differences `x_j - x_i` across the rows of the
 //! translation-invariant Laplacian. So, for a free body with no pins,
 //! summing the rows (as in `damped_momentum.rs`) leaves a residual of about

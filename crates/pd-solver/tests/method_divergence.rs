@@ -1,5 +1,5 @@
 //! The three runs of the stability map's method axis
-//! (`docs/stability-methods.md`) where plain local-global PD completed and an
+//! (`docs/reports/stability-methods.md`) where plain local-global PD completed and an
 //! accelerated method was stopped by the divergence check: the stability
 //! map's clamped beam (1 x 0.25 x 0.25 m, 2 x 1 x 1 cells, density 1
 //! kg/m^3), implicit midpoint, `dt = 0.1` s, 10 iterations a step, from

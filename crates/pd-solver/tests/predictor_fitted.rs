@@ -47,7 +47,7 @@ fn the_history_keeps_order_plus_equations_corrections() {
 /// farther from the converged run than 4 times the linear run's distance
 /// (the converged run: 200 Anderson iterations a step; measured: backward
 /// Euler 6.1e-5 against 9.4e-5 m, implicit midpoint 7.0e-5 against 5.5e-5
-/// m; at this budget either start may be the better one, docs/solver.md
+/// m; at this budget either start may be the better one, docs/design/solver.md
 /// "a fitted predictor", so the bound allows three times the larger
 /// measured ratio, 1.27).
 #[test]

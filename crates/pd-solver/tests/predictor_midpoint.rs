@@ -1,10 +1,10 @@
 //! The three runs of the predictor's stability subset
-//! (`docs/stability-methods-predictor-linear-implicit-midpoint.md`) where
+//! (`docs/reports/stability-methods-predictor-linear-implicit-midpoint.md`) where
 //! plain local-global PD started at `y` completed and plain local-global PD
 //! started at the `linear` predictor was stopped by the divergence check:
 //! the stability map's clamped beam (1 x 0.25 x 0.25 m, 2 x 1 x 1 cells),
 //! implicit midpoint, `dt = 0.1` s, 10 iterations a step, from rest, 100
-//! steps (docs/solver.md, "A better start").
+//! steps (docs/design/solver.md, "A better start: predictors").
 
 use pd_io::scene::{Scene, Syntax};
 use pd_solver::SolverError;

@@ -1,4 +1,4 @@
-//! What a user of the rotation-preserving Laplacian variant sees (issue 13):
+//! What a user of the rotation-preserving Laplacian variant sees:
 //! it damps the strain rate and leaves the rigid motion of free bodies alone,
 //! exactly for each integrator; bodies held by attachments are not free; the
 //! mass term `a1 M` still damps spin.
@@ -55,7 +55,7 @@ fn centre_of_mass(sim: &Simulation) -> Point {
         / total
 }
 
-/// Regression pin on a partial fix, not the property the issue asks for.
+/// Regression pin on a partial fix, not the property the variant is for.
 /// Before the fix, a body held by an attachment counted as free: its spin
 /// was reset every step and the block did not swing at all (its centre of
 /// mass 0.317 m from the undamped one's after 0.6 s, the whole swing, as with
@@ -113,7 +113,7 @@ fn spinning_block(
     sim
 }
 
-/// BDF-2 (issue 13): the variant moves the `L_d` anchor by the damping
+/// BDF-2: the variant moves the `L_d` anchor by the damping
 /// velocity BDF-2 itself gives a rigid rotation (`x - (4 x_n - x_{n-1}) / 3`
 /// on the rotating trajectory, the integrator's damping stencil). The old
 /// shift, the rotation over `1 / gamma`, is exact for one-step methods only:
@@ -218,7 +218,7 @@ fn vibrating_block(damping: Box<dyn Damping>, spin: f64) -> Simulation {
     sim
 }
 
-/// What a user sees (issue 13): a spinning, vibrating body keeps its spin
+/// What a user sees: a spinning, vibrating body keeps its spin
 /// while its vibration decays as plain Laplacian damping makes a body that
 /// does not spin decay. The spin (2 rad/s) is slow against the block's
 /// lowest vibration (about 2 kHz), so the rotating frame's Coriolis and

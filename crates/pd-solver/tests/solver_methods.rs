@@ -115,9 +115,9 @@ fn every_method_converges_to_newtons_solution() {
 /// plain PD's count, L-BFGS 0.37 to 0.54, Chebyshev with its default
 /// `start` and `rho = "auto"` 0.51 to 0.53 (0.42 to 0.51 with the estimate
 /// made once from the first step's first 10 plain iterations, which these
-/// three steps, mostly the first, favour; docs/solver.md, "Chebyshev's
+/// three steps, mostly the first, favour; docs/design/solver.md, "Chebyshev's
 /// `rho` from every step"); Chebyshev on Wang's symmetric
-/// interval with `start = 10`, before docs/solver.md's "Chebyshev on the
+/// interval with `start = 10`, before docs/design/solver.md's "Chebyshev on the
 /// map's own spectrum", needed 0.70 to 0.81 at 1e-9).
 #[test]
 fn accelerated_methods_need_fewer_iterations() {

@@ -1,5 +1,5 @@
 //! A CI-sized corner of the stability matrix (`cargo xtask stability` runs
-//! the whole of it and writes `docs/stability.md`): every integrator with
+//! the whole of it and writes `docs/reports/stability.md`): every integrator with
 //! every damping model, at extreme stiffness, time step, density, damping
 //! and iteration count, from inverted, compressed and fast starting states,
 //! run the way `pd run` runs a scene: parsed from a scene file, built,

@@ -10,7 +10,7 @@
 //! arithmetic, and the result, is the same bit for bit.
 
 // The split balances stored values read plus the ordering's fitted fixed
-// cost of a supernode (`SUPERNODE_COST`, docs/performance.md), the same
+// cost of a supernode (`SUPERNODE_COST`, docs/design/performance.md), the same
 // model that chose the order.
 use super::SUPERNODE_COST;
 

@@ -4,7 +4,7 @@
 //! faer's general solve pays a fixed price per supernode (dispatch into
 //! its dense triangular-solve and product kernels, a temporary matrix,
 //! three column-strided passes): measured at about 0.12 us per supernode
-//! against 1.76 ns per stored value (docs/performance.md), which dominates on
+//! against 1.76 ns per stored value (docs/design/performance.md), which dominates on
 //! the many narrow supernodes of nested-dissection orders. Here a supernode
 //! costs a few loop set-ups, and the right-hand side is stored as points,
 //! so each row's gather and scatter touches one cache line instead of three.
@@ -56,7 +56,7 @@ const BLOCKED_DIAGONAL: [usize; 2] = [16, 16];
 /// the cache between passes and its solve was about 10 % faster with
 /// prefetches, while the armadillo's 7.3 MB factor, which does, was
 /// slower (the prefetch instructions cost, and the data was already
-/// there; docs/performance.md, "eighth round").
+/// there; docs/design/performance.md, "pd's own supernodal solve").
 const PREFETCH_BYTES: usize = 16 << 20;
 
 /// The supernodal structure of a factor: a view of faer's symbolic

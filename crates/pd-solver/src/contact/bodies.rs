@@ -1,4 +1,4 @@
-//! Contact between bodies (`contact.bodies = true`, docs/contact.md):
+//! Contact between bodies (`contact.bodies = true`, docs/design/contact.md):
 //! vertices of each body against the surface triangles (tet boundary faces,
 //! cloth triangles) of every other body, in the same projected Uzawa
 //! framework as the colliders.

@@ -1,7 +1,7 @@
 //! The contact counts of [`BodyContact::detect`] (the number of contacts
 //! each vertex takes part in, which shares the Uzawa steps) and the list
 //! of paired vertices, kept from one iteration to the next within a step
-//! (docs/contact.md, "Seventh round"); a file of its own to keep
+//! (docs/design/contact.md, "Detection and the broad phase"); a file of its own to keep
 //! `bodies.rs` within the size rule.
 //!
 //! Why it is the same as a pass over every vertex. Within a step, contacts

@@ -1,6 +1,6 @@
 //! The Uzawa step of a body-contact pair ([`BodyContact::apply`]'s
 //! force update) and its step size's compliance, kept while the contact
-//! counts it depends on do not change (docs/contact.md, "Contact's own
+//! counts it depends on do not change (docs/design/contact.md, "Contact's own
 //! cost"); a file of its own to keep `bodies.rs` within the size rule.
 
 use pd_mesh::Point;

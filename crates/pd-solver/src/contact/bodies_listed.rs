@@ -1,7 +1,7 @@
 //! Detection against the per-step candidate lists (`candidates.rs`):
 //! building them for [`BodyContact`], the listed counterpart of
 //! [`BodyContact::first_hit`] and its fast path without the grid's
-//! arithmetic (docs/contact.md, "Contact's own cost"); a file of its own
+//! arithmetic (docs/design/contact.md, "Contact's own cost"); a file of its own
 //! to keep `bodies.rs` within the size rule.
 
 use pd_mesh::Point;
@@ -12,7 +12,7 @@ use super::super::grid::{cell_index, cell_size, query_end};
 use super::{BodyContact, Pair, inside, project_onto};
 
 /// What a candidate entry's start plane tells of its crossings in every
-/// iteration of a step (docs/contact.md, "Fifth round"). When the vertex
+/// iteration of a step (docs/design/contact.md, "Detection and the broad phase"). When the vertex
 /// starts within the thickness of the triangle's plane (`d0 <= thickness`),
 /// a crossing's fraction `s` is `+0` or `-0` whatever the iterate (the
 /// numerator `d0 - thickness` is not positive, the other branch is `0`),
@@ -42,7 +42,7 @@ impl BodyContact {
     /// rebuilt to cover the iterate go to the fast path
     /// ([`BodyContact::detect_listed_fast`], the same pairs bit for bit,
     /// without the sweep of every triangle's box and the cell arithmetic;
-    /// docs/contact.md, "Seventh round"), unless it declines (having
+    /// docs/design/contact.md, "Detection and the broad phase"), unless it declines (having
     /// changed no pair); `motion` is the largest `|dx|_inf` (m).
     pub(super) fn detect_with_boxes(
         &mut self,
@@ -240,7 +240,7 @@ const FAST_MAGNITUDE: f64 = (1u64 << 50) as f64;
 
 impl BodyContact {
     /// The listed detection of an iteration, without the per-iteration
-    /// grid arithmetic (docs/contact.md, "Contact's own cost"): returns
+    /// grid arithmetic (docs/design/contact.md, "Contact's own cost"): returns
     /// `false`, having changed no pair, when it cannot give the result of
     /// [`BodyContact::first_listed_hit`] bit for bit (lists not valid or
     /// not covering the iterate, non-finite or enormous coordinates); the

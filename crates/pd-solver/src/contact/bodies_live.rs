@@ -1,5 +1,5 @@
-//! The step's live candidate entries of body contact (docs/contact.md,
-//! "Sixth round"): each listed entry's start plane and start verdict,
+//! The step's live candidate entries of body contact (docs/design/contact.md,
+//! "Detection and the broad phase"): each listed entry's start plane and start verdict,
 //! taken once per step, and the entries that can give a pair, compacted
 //! vertex by vertex for the fast detection of `bodies_listed.rs`; a file
 //! of its own to keep that one within the size rule.

@@ -358,7 +358,7 @@ fn start_plane_verdicts_are_the_grid_detection_bit_for_bit() {
 
 /// The counts taken from the list of collider contacts, and the pair
 /// updates over the list of paired vertices (`BodyContact::detect` and
-/// `apply`, sixth round), are those of a pass over every vertex, bit for
+/// `apply`), are those of a pass over every vertex, bit for
 /// bit: sheets sinking onto each other with random forces, a third of the
 /// vertices holding a collider contact, several pairs adding into one
 /// right-hand-side entry (the order of the additions shows in the bits).

@@ -1,5 +1,5 @@
-//! Tests of this round's pair updates and kept counts (docs/contact.md,
-//! "Seventh round"), beside `bodies_tests.rs` (whose helpers they use) to
+//! Tests of the in-place pair updates and the kept counts
+//! (docs/design/contact.md, "Detection and the broad phase"), beside `bodies_tests.rs` (whose helpers they use) to
 //! keep that file within the size rule.
 
 use super::super::super::clearance::largest_motion;

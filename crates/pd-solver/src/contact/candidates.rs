@@ -1,6 +1,6 @@
-//! Candidate triangles of body contact (docs/contact.md, "Per-step
-//! candidate lists"): the broad phase built once and kept over iterations
-//! and steps instead of rebuilt in every iteration, with results bit for
+//! Candidate triangles of body contact (docs/design/contact.md, "Detection and
+//! the broad phase"): the broad phase built once and kept over iterations and
+//! steps instead of rebuilt in every iteration, with results bit for
 //! bit those of the per-iteration grid.
 //!
 //! Built at a step's start positions `x_n` with an inflation `delta`

@@ -1,7 +1,8 @@
 //! A per-step bound that lets the per-iteration collider test skip the
-//! vertices far from every plane collider (docs/contact.md, "Fifth
-//! round"), with the verdict of [`super::geometry::ColliderShape::misses`]
-//! bit for bit, and the collider pass of an iteration with body contact
+//! vertices far from every plane collider (docs/design/contact.md, "Detection
+//! and the broad phase"), with the verdict of
+//! [`super::geometry::ColliderShape::misses`] bit for bit, and the collider
+//! pass of an iteration with body contact
 //! ([`ContactState::detect_bodies`]); a file of its own to keep `mod.rs`
 //! within the size rule.
 //!
@@ -47,8 +48,8 @@ pub(super) struct Clearance {
     thickness: f64,
     /// The vertices whose clearance is at most `limit`, in increasing
     /// order: an iteration whose threshold is at most `limit` skips every
-    /// other vertex, so it visits these only (docs/contact.md, "Eighth
-    /// round").
+    /// other vertex, so it visits these only (docs/design/contact.md,
+    /// "Detection and the broad phase").
     near: Vec<usize>,
     limit: f64,
 }
@@ -177,8 +178,8 @@ fn least_gap(settings: &ContactSettings, x: &Point, thickness: f64) -> f64 {
 /// finite or a sum of the magnitudes overflows.
 ///
 /// Two points (six values, contiguous) at a time, one accumulator per
-/// value, so that the loop runs on pairs of lanes (docs/contact.md,
-/// "Seventh round"); a plain comparison rather than `f64::max` (whose NaN
+/// value, so that the loop runs on pairs of lanes (docs/design/contact.md,
+/// "Detection and the broad phase"); a plain comparison rather than `f64::max` (whose NaN
 /// rule costs a branch per value): a NaN is caught by the sums. The
 /// largest value is the same whatever the grouping (a maximum is exact);
 /// a sum is finite only if every value it adds is, so any grouping is

@@ -1,5 +1,5 @@
 //! A cheap, exact pre-test for the end-plane test of body contact
-//! (`BodyContact::end_fraction`, docs/contact.md, "Sixth round"): most
+//! (`BodyContact::end_fraction`, docs/design/contact.md, "Detection and the broad phase"): most
 //! candidate entries that reach it in an iteration end farther than the
 //! thickness from the triangle's plane, and the full test spends a square
 //! root and three divisions (the unit normal) to say so. [`surely_beyond`]

@@ -1,7 +1,7 @@
 //! The forces of collider contacts: one projected Uzawa step
 //! ([`update_force`]) and the frozen-force mode of
 //! [`crate::Simulation::freeze_contact_forces`], a measurement aid
-//! (docs/contact.md, "Contact's own cost"); a file of its own to keep
+//! (docs/design/contact.md, "Contact's own cost"); a file of its own to keep
 //! `mod.rs` within the size rule.
 
 use pd_mesh::Point;
@@ -50,7 +50,7 @@ pub(super) fn coulomb(trial: &Point, n: &Point, friction: f64) -> Point {
 }
 
 impl crate::Simulation {
-    /// A measurement aid (docs/contact.md, "Contact's own cost"): with
+    /// A measurement aid (docs/design/contact.md, "Contact's own cost"): with
     /// `frozen`, from the next step on every contact keeps its current
     /// force (N times `c1 c2`, the global step's right-hand-side units),
     /// added to every iteration as a constant load, and contact does

@@ -1,6 +1,6 @@
 //! Static collider shapes: signed distance to the surface thickened by the
 //! contact thickness, the outward normal, and the first crossing of a
-//! segment (continuous detection, docs/contact.md).
+//! segment (continuous detection, docs/design/contact.md).
 
 use pd_mesh::Point;
 

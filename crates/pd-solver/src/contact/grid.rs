@@ -34,7 +34,7 @@ pub(super) struct Grid {
     /// Per item, the cells `(first, last)` its box spans, taken once per
     /// build (`index` of its corners): the dense build reads them three
     /// times, and recomputing them (six divisions and floors per box) was
-    /// most of a build's cost (docs/contact.md, "Seventh round").
+    /// most of a build's cost (docs/design/contact.md, "Detection and the broad phase").
     spans: Vec<([i64; 3], [i64; 3])>,
 }
 

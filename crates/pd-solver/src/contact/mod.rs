@@ -1,5 +1,5 @@
 //! Contact with static colliders, with Coulomb friction and restitution,
-//! keeping the prefactored global matrix (docs/contact.md).
+//! keeping the prefactored global matrix (docs/design/contact.md).
 //!
 //! Each contact vertex carries a force `r` in the global step's right-hand
 //! side (units of `A dx`, i.e. `c1 c2` times newtons). After every global
@@ -44,7 +44,7 @@ use geometry::Hit;
 /// Over-relaxation of the Uzawa step `rho = RELAXATION m / h^2`. With
 /// `A >= M / h^2` the eigenvalues of `(m / h^2) W` (`W` the contact block of
 /// `A^-1`) lie in `(0, 1]`, so any value in `(0, 2)` converges; 1.5 was the
-/// best of 0.5, 1, 1.5 and 1.9 on the contact tests (docs/contact.md).
+/// best of 0.5, 1, 1.5 and 1.9 on the contact tests (docs/design/contact.md).
 const RELAXATION: f64 = 1.5;
 
 /// A static collider: a shape, a Coulomb friction coefficient and a
@@ -151,7 +151,7 @@ impl ContactSettings {
 }
 
 /// Contact between bodies (`contact.bodies = true`): vertices of each body
-/// against the surface triangles of every other body (docs/contact.md).
+/// against the surface triangles of every other body (docs/design/contact.md).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BodyContactSettings {
     /// Coulomb coefficient between bodies (>= 0; default 0).
@@ -589,7 +589,7 @@ impl crate::Simulation {
         Err(SolverError::Unsupported {
             what: format!(
                 "the {} position solver with colliders: contact forces are not part of the step \
-                 objective it judges iterates by; use local-global (docs/contact.md)",
+                 objective it judges iterates by; use local-global (docs/design/contact.md)",
                 self.position_solver.name()
             ),
         })

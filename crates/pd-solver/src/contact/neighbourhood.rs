@@ -1,5 +1,5 @@
 //! Self-contact's rest neighbourhood (`contact.self = true`,
-//! docs/contact.md, "Self-contact"): which triangles of a vertex's own
+//! docs/design/contact.md, "Self-contact"): which triangles of a vertex's own
 //! surface it may never pair with.
 //!
 //! Rule: a vertex `v` and a triangle `F` of the same body are neighbours

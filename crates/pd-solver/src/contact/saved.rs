@@ -1,5 +1,5 @@
 //! What contact carries from one step to the next, for checkpoints: the
-//! warm-started forces of the contacts active at the end of a step (docs/contact.md,
+//! warm-started forces of the contacts active at the end of a step (docs/design/contact.md,
 //! "Checkpoints").
 
 use pd_mesh::Point;

@@ -6,7 +6,7 @@ use super::{BodyContactSettings, ContactSettings, bodies};
 use crate::SolverError;
 
 /// Which vertex-triangle pairs of the bodies' surfaces are in contact
-/// (docs/contact.md): the two combine independently.
+/// (docs/design/contact.md): the two combine independently.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct SurfacePairs {
     /// A vertex of one body against the surface triangles of every other

@@ -19,7 +19,7 @@
 //! `rho' / (1 + sqrt(1 - rho'^2))`, the rate of conjugate gradients on the
 //! linearisation (0.35 for `rho = 0.77`), where Wang's form on `[-rho,
 //! rho]` gets `rho / (1 + sqrt(1 - rho^2))` (0.47) and plain PD `rho`
-//! (docs/solver.md, "Chebyshev on the map's own spectrum"). The first
+//! (docs/design/solver.md, "Chebyshev on the map's own spectrum"). The first
 //! `start` iterations of each step are plain.
 //!
 //! `rho = "auto"` is estimated from every step, for the next: the largest
@@ -33,7 +33,7 @@
 //! 0.77 over the first 15 steps, implicit midpoint from 0.56 to 0.69),
 //! which an estimate made once in the first step missed (0.65 and 0.58,
 //! against plain PD's asymptotic rates 0.78 and 0.70 over a run;
-//! docs/solver.md, "Chebyshev's `rho` from every step"). Like every Ritz
+//! docs/design/solver.md, "Chebyshev's `rho` from every step"). Like every Ritz
 //! value the estimate lies inside the spectrum, so it errs low, the safe
 //! side. Fallback when it oscillates: if an accelerated iteration's change
 //! grows (`|G(x_k) - x_k|_M` above the previous one), that iteration is
@@ -262,7 +262,7 @@ impl PositionSolver for Chebyshev {
         }
         // With the linear predictor and implicit midpoint, 3 of 576 runs
         // of the method axis diverged without this check where plain PD
-        // from `y` completes (docs/stability-methods-predictor-linear-*).
+        // from `y` completes (docs/reports/stability-methods-predictor-linear-*).
         if !converged {
             step.check_predicted_end();
         }

@@ -1,4 +1,4 @@
-//! The divergence check (docs/solver.md): a step whose result is not
+//! The divergence check (docs/design/solver.md): a step whose result is not
 //! finite, or whose total energy (kinetic + gravitational + elastic) exceeds
 //! the initial total by more than `Settings::divergence_energy_factor` times
 //! the system's energy scale, stops the run with [`SolverError::Diverged`]

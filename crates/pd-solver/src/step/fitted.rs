@@ -1,5 +1,5 @@
 //! The fitted predictor's recurrence (`[solver] predictor = "fitted"`,
-//! docs/solver.md "Implicit midpoint's 3x: a fitted predictor").
+//! docs/design/solver.md "The fitted predictor").
 //!
 //! A linear mode that an integrator turns by `theta` and scales by `r` each
 //! step makes its share of the corrections obey the two-term recurrence

@@ -42,7 +42,7 @@ pub trait PositionSolver: std::fmt::Debug + Send + Sync {
     /// A method that fails outright (the step then stops with the error).
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError>;
 
-    /// Whether the method works with colliders (docs/contact.md). The
+    /// Whether the method works with colliders (docs/design/contact.md). The
     /// contact forces advance with each local-global iteration and are not
     /// part of the step objective, so a method that judges iterates by the
     /// objective must say no (the default).
@@ -109,7 +109,7 @@ pub trait PositionSolver: std::fmt::Debug + Send + Sync {
 
 /// Plain Projective Dynamics: local step, then global solve, `iterations`
 /// times, stopping early once [`StepProblem::converged`] says so. Each local
-/// step and each global step lowers the step objective (docs/solver.md).
+/// step and each global step lowers the step objective (docs/design/solver.md).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct LocalGlobal;
 
@@ -127,8 +127,9 @@ impl PositionSolver for LocalGlobal {
         let converged = step.plain_iterations();
         // A predicted start can lie past the step objective's line minimum
         // in slow modes, and plain iterations from it stay past it: with
-        // implicit midpoint the energy then grows (docs/solver.md, "A better
-        // start"), as after an accelerated method's overshoot. Steps from
+        // implicit midpoint the energy then grows (docs/design/solver.md, "A
+        // better start: predictors"), as after an accelerated method's
+        // overshoot. Steps from
         // `y` are plain PD's and are never checked.
         if !converged {
             step.check_predicted_end();
@@ -346,7 +347,7 @@ impl StepProblem<'_> {
     /// started at a predicted point and did not converge: such a start can
     /// lie past the step objective's line minimum in slow modes, and
     /// iterations from it stay past it, so that the energy grows
-    /// (docs/solver.md, "A better start"). Nothing for other steps and
+    /// (docs/design/solver.md, "A better start: predictors"). Nothing for other steps and
     /// integrators. Plain PD and Chebyshev call it; Anderson and L-BFGS run
     /// their own.
     pub(crate) fn check_predicted_end(&mut self) {

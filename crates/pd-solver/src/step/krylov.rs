@@ -1,7 +1,6 @@
 //! A measurement tool, not a method: how far the best Krylov method could
 //! take a step's iterations with the prefactored PD matrix `A` as its
-//! preconditioner (docs/solver.md, "Implicit midpoint's 3x: the Krylov
-//! bound"; issue 16).
+//! preconditioner (docs/design/solver.md, "The Krylov bound").
 //!
 //! Anderson, L-BFGS and Chebyshev combine preconditioned gradients
 //! `A^{-1} grad g(x)`, one local-global iteration each. On a quadratic

@@ -6,7 +6,7 @@
 //! its line search too).
 //!
 //! One local-global iteration from `x_k` gives `w_k = G(x_k) - x_k =
-//! -A^{-1} grad g(x_k)` (docs/solver.md), so the gradient is
+//! -A^{-1} grad g(x_k)` (docs/design/solver.md), so the gradient is
 //! `grad_k = -A w_k` (one sparse product) and the initial-Hessian solve of
 //! the two-loop recursion needs no extra factor solve: with
 //! `s_i = x_{i+1} - x_i`, `y_i = grad_{i+1} - grad_i`, the recursion's

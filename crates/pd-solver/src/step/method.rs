@@ -1,5 +1,5 @@
 //! Which [`PositionSolver`] a step uses, as a scene's `[solver]` table
-//! names it (docs/solver.md, "Solvers"): the method and its parameters,
+//! names it (docs/design/solver.md, "Iteration methods"): the method and its parameters,
 //! checked by [`SolverSpec::validate`] and turned into a solver by
 //! [`SolverSpec::create`].
 

@@ -1,4 +1,4 @@
-//! One time step, in named phases (docs/solver.md):
+//! One time step, in named phases (docs/design/solver.md):
 //!
 //! 1. [`Simulation::prepare_matrix`]: the global matrix of the step (a
 //!    cached factor, or the lagged refactorisation);

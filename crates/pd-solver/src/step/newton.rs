@@ -1,7 +1,7 @@
 //! Newton's method on the step objective, the converged reference.
 //!
 //! The gradient comes from one local-global iteration: with `G(x)` its
-//! result, `grad g(x) = A (x - G(x))` (docs/solver.md; `A` the prefactored
+//! result, `grad g(x) = A (x - G(x))` (docs/design/solver.md; `A` the prefactored
 //! matrix), so `-grad g = A w` with `w = G(x) - x`. The Hessian is
 //!
 //! `H = (1/h^2 + c1 c2 gamma a1) M + c1 c2 gamma a2 L_d

@@ -1,5 +1,4 @@
-//! Where a step's iteration starts (docs/solver.md, "A better start: the
-//! extrapolated predictor").
+//! Where a step's iteration starts (docs/design/solver.md, "A better start: predictors").
 //!
 //! The converged step is `x_{n+1} = y + c_{n+1}`: the integrator's inertial
 //! target `y` plus a correction `c` made of the elastic, damping and
@@ -24,7 +23,7 @@
 //! only if the step objective is lower there than at `y` (two objective
 //! evaluations a predicted step, the kept one's projections then serving
 //! every method's first local step but Newton's). It does not make the predictor as stable
-//! as the inertial start at large steps: docs/solver.md, "A better start".
+//! as the inertial start at large steps: docs/design/solver.md, "A better start: predictors".
 
 use pd_mesh::Point;
 

@@ -1,8 +1,8 @@
 //! The accelerated methods' end of a step with implicit midpoint, and plain
 //! PD's when the step started at a predicted point (step/predictor.rs): the
 //! end iterate must not lie past the minimum of the step objective along the
-//! step's ray from `x_n` (docs/solver.md, "Accelerated methods and implicit
-//! midpoint" and "A better start").
+//! step's ray from `x_n` (docs/design/solver.md, "The end-of-step check with
+//! implicit midpoint" and "A better start: predictors").
 //!
 //! Why: implicit midpoint evaluates the forces at `x_n + dx/2` and sets
 //! `v_{n+1} = 2 dx/h - v_n`, so an unconverged end point `x` changes the

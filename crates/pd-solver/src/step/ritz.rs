@@ -16,7 +16,7 @@
 //! values of `T` on the span of the `u`s are the eigenvalues of the
 //! symmetric pencil `(u_i . A T u_j, u_i . A u_j)`. Like every Ritz value
 //! the largest lies inside the spectrum, so the estimate errs low, the safe
-//! side for Chebyshev (docs/solver.md, "Chebyshev's `rho` from every
+//! side for Chebyshev (docs/design/solver.md, "Chebyshev's `rho` from every
 //! step").
 //!
 //! All vectors live over the free vertices (the global step's unknowns).
@@ -27,7 +27,7 @@ use pd_mesh::Point;
 
 /// The most differences `u_k` kept from one step: `u_1 .. u_8`, the first
 /// nine iterations after the first. The benchmark beam's per-step Ritz
-/// value with 8 is within 0.01 of the value with 28 (docs/solver.md).
+/// value with 8 is within 0.01 of the value with 28 (docs/design/solver.md).
 pub(crate) const PAIRS: usize = 8;
 
 /// The largest skew part (entry by entry) of the whitened pencil that an
@@ -104,7 +104,7 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// compiled for the widest instruction set the CPU has. A step makes up
 /// to 108 of these products over `3 x` free vertices: about 80 us of the
 /// estimator's 0.16-0.19 ms a step on the 2,304-vertex beam at 9
-/// iterations (4-5 % of the step; docs/solver.md, "Chebyshev's `rho` from
+/// iterations (4-5 % of the step; docs/design/solver.md, "Chebyshev's `rho` from
 /// every step").
 fn dots(vectors: &[Vec<f64>], target: &[f64], out: &mut [f64]) {
     pd_linalg::simd::vectorized(

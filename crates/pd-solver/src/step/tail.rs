@@ -4,9 +4,9 @@
 //! step's projection points `q = x_n + c2 dx`, so that the local step starts
 //! with its parallel projection pass at once; on more threads a second
 //! thread writes them and then stays awake until the tail ends, so that it
-//! is ready to take its share of that pass (docs/performance.md, "The local
-//! step on two threads in the step"). Every variant gives the same bits:
-//! the sums run in the same sequential order, and each `q` is the same
+//! is ready to take its share of that pass (docs/design/performance.md, "Two
+//! threads in the local step"). Every variant gives the same bits: the sums run
+//! in the same sequential order, and each `q` is the same
 //! expression of the same values.
 
 use std::sync::atomic::{AtomicBool, Ordering};

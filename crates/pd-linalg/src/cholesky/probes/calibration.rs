@@ -13,7 +13,7 @@
 //! (`solve_points`) hot and cold (64 MiB streamed through the caches
 //! first, as the local step does in a time step). It ends with the fit of
 //! `time = a stored + b supernodes` to pd's solves, hot and cold, that
-//! docs/performance.md quotes.
+//! docs/design/performance.md quotes.
 
 use crate::cholesky::*;
 use crate::fixtures::{armadillo, laplacian_values, tet_pattern};
@@ -220,10 +220,11 @@ fn solve_cost_calibration() {
 }
 
 /// How much METIS's fill depends on its random seed and on the number of
-/// separators it tries per level, on the 95,499-vertex beam (the issue 18
-/// fill target compares nnz(L) with CHOLMOD's, which also runs METIS):
+/// separators it tries per level, on the 95,499-vertex beam (the fill target
+/// compares nnz(L) with CHOLMOD's, which also runs METIS):
 /// prints nnz(L), stored values, supernodes and the modelled solve cost
-/// per option set. docs/performance.md ("METIS's seed") quotes the output.
+/// per option set. docs/design/performance.md ("Choosing the ordering",
+/// "METIS's seed") quotes the output.
 ///
 /// ```sh
 /// cargo test -p pd-linalg --lib metis_option_fill -- --ignored --nocapture

@@ -10,7 +10,7 @@
 //! class (how many, the values of their diagonal blocks' lower triangles and
 //! below them) and the minimum and median wall time (one thread) of the solve's four parts: the
 //! permutation in, the forward and backward substitutions, the permutation
-//! out (docs/performance.md, "Where the global step's time goes"), and a
+//! out (docs/design/performance.md, "The solve against the machine"), and a
 //! hash of one solve's bits (a kernel change that keeps the summation
 //! order keeps it), then the minimum forward and backward times with the
 //! diagonal blocks tiled from several widths (`solve_diagonal.rs`;

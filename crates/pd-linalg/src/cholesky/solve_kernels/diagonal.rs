@@ -1,5 +1,6 @@
 //! Blocked triangular solves with a wide supernode's diagonal block
-//! (issue 18, ninth round), for the forward and the backward step.
+//! (docs/design/performance.md, "pd's own supernodal solve"), for the
+//! forward and the backward step.
 //!
 //! The diagonal block is cut into tiles of [`TILE`] columns, starting at
 //! its first column (the last tile may be narrower), so the blocking
