@@ -11,7 +11,7 @@
 //!   `docs/cpp-comparison.md`;
 //! - `stability [--quick] [--shard I/N [--out DIR] | --merge DIR]`: runs
 //!   every integrator and damping model over a matrix of extreme parameters
-//!   (or one shard of it; docs/tools.md) and writes `docs/stability.md`.
+//!   (or one shard of it; docs/reference/cli.md) and writes `docs/stability.md`.
 //!
 //! Every task checks its options first ([`check_options`]); `--help`
 //! prints them all.

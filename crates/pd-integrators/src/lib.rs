@@ -10,7 +10,7 @@
 //! `z = (1 - c2) x_n`.) An [`Integrator`] supplies `c1`, `c2`, `gamma`, the
 //! targets `y` and `x_hat` as displacements from `x_n`, and the velocity
 //! update; it owns whatever history it needs. The coefficient table and the
-//! derivation are in `docs/integrators.md` (DESIGN.md section 3.1).
+//! derivation are in `docs/design/integrators.md` (DESIGN.md section 3.1).
 //!
 //! Targets are displacements, not positions, so that the solver can work
 //! with the step's displacement `x - x_n` throughout: round-off then scales
@@ -149,7 +149,7 @@ pub trait Integrator: std::fmt::Debug + Send + Sync {
     /// One-step methods keep no history, so the default only runs the
     /// filter. A multistep method whose next step reads previous positions
     /// and velocities must see the filtered motion there too, or the
-    /// filter's effect is partly undone (BDF-2: `docs/integrators.md`).
+    /// filter's effect is partly undone (BDF-2: `docs/design/integrators.md`).
     fn filter_velocities(
         &mut self,
         h: f64,

@@ -53,7 +53,7 @@ pub struct StepStats {
     /// Principal axes (summed over the bodies) about which the
     /// rotation-preserving Laplacian damping left the spin alone instead of
     /// restoring it, because restoring it would have turned the body far
-    /// faster than it turns (docs/damping.md). Always 0 with other models.
+    /// faster than it turns (docs/design/damping.md). Always 0 with other models.
     pub spin_axes_left: usize,
     /// Contacts active at the end of the step (0 without colliders).
     pub contacts: usize,

@@ -18,7 +18,7 @@
 //! Without damping (`a1 = 0`, `s = 1`) the velocity stays `v` exactly. With
 //! only an explicit filter, BE and IM give `v_n = s^n v_0`. BDF-2 makes its
 //! history consistent with the filter (`Integrator::filter_velocities`,
-//! docs/integrators.md): a filter that changes a velocity by `dv` shifts the
+//! docs/design/integrators.md): a filter that changes a velocity by `dv` shifts the
 //! previous state to `(x_old - h dv, v_old + dv)`, as if the body had always
 //! moved with the extra velocity `dv`. A translating body's history is then
 //! uniform motion at the filtered velocity `s v`, which BDF-2 continues

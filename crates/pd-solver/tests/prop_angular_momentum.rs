@@ -35,7 +35,7 @@
 //!   Except where the solver's guard leaves an axis alone
 //!   (`StepStats::spin_axes_left`): restoring a spin component about an axis
 //!   where a nearly straight chain has almost no inertia would take
-//!   unbounded energy (docs/damping.md). Such runs are exempt from the
+//!   unbounded energy (docs/design/damping.md). Such runs are exempt from the
 //!   check, and the test asserts that the guard never acts on a tet box.
 //! - **Plain Laplacian damping** loses spin: `v^T L_d v > 0` for a rigid
 //!   rotation (DESIGN.md 3.4), so the damping torque opposes the rotation.

@@ -109,7 +109,7 @@ mod tests {
         Complex::new(-c / 2.0, (omega * omega - c * c / 4.0).sqrt())
     }
 
-    // Each map is exact for the scalar equation (docs/validation.md 1-3), so
+    // Each map is exact for the scalar equation (docs/design/validation.md 1-3), so
     // the computed roots match the closed forms up to the eigensolver's
     // round-off, about u |A| with |A| <= 2 + 2/h = 202 here (velocity rows
     // hold 1/h), i.e. 5e-14 absolute in mu. The damping ratio is

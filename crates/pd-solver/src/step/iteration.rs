@@ -51,7 +51,7 @@ pub trait PositionSolver: std::fmt::Debug + Send + Sync {
     }
 
     /// Whether the method runs hyperelastic materials (energy elements,
-    /// `docs/materials.md`): it must add their gradient to the local-global
+    /// `docs/design/materials.md`): it must add their gradient to the local-global
     /// one. Plain PD methods (the default) do not, and a step of a model
     /// with materials refuses them with [`SolverError::Unsupported`].
     fn handles_materials(&self) -> bool {

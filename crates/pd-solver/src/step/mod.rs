@@ -289,7 +289,7 @@ impl Simulation {
         let context = step_context(&self.topology, (masses, fixed), h, c, stencil);
         // The integrator sees what the damping model changed (a velocity
         // filter, the variant's spin restoration), so that a multistep
-        // history follows it (docs/integrators.md).
+        // history follows it (docs/design/integrators.md).
         let damping = &mut self.damping;
         let iterate = &s.iterate;
         let contact = self.contact.as_ref();
