@@ -113,7 +113,8 @@ pub struct StepContext<'a> {
     /// velocity `gamma (x - x_hat)`.
     pub gamma: f64,
     /// `c1 c2 h^2` in s^2: a force `f` (N) on a vertex of mass `m` enters the
-    /// inertial target as `force_scale f / m` (DESIGN.md 3.1).
+    /// inertial target as `force_scale f / m` (docs/design/formulation.md,
+    /// "The step objective").
     pub force_scale: f64,
     /// The integrator's `c2` (dimensionless): the step's energy is evaluated
     /// at `x_n + c2 (x - x_n)`.

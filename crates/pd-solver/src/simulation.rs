@@ -374,8 +374,8 @@ impl Simulation {
         }
     }
 
-    /// Turns on (or off) recording the step objective `g(x)` of DESIGN.md
-    /// 3.1-3.2 (the function each step minimises, in J) at the start iterate
+    /// Turns on (or off) recording the step objective `g(x)`
+    /// (docs/design/formulation.md, "The step objective"; the function each step minimises, in J) at the start iterate
     /// and after every local-global iteration, for
     /// [`Simulation::objective_trace`]. Off by default: it costs one energy
     /// evaluation per iteration and allocates, so it is for tests and

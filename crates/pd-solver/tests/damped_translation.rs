@@ -4,7 +4,8 @@
 //! elastic terms of the global step cancel for any uniform displacement; the
 //! damping Laplacian and the lagged Hessian vanish on a uniform velocity
 //! (`L_d 1 = 0`, `K 1 = 0`); PBD damping leaves a rigid motion alone. What is
-//! left are the mass terms (DESIGN.md 3.2), per vertex:
+//! left are the mass terms (docs/design/formulation.md, "Rigid
+//! translation"), per vertex:
 //!
 //! `(1/h^2 + c1 c2 gamma a1) x = y/h^2 + c1 c2 gamma a1 x_hat`,
 //!

@@ -1,6 +1,7 @@
 //! What an integrator does to one damped mode: the modal equation
 //! `q'' + c q' + omega^2 q = 0` (`c = a1 + a2 phi^T D phi`, 1/s) stepped by
-//! the integrator's own global step (DESIGN.md 3.1-3.2, here a scalar:
+//! the integrator's own global step (docs/design/formulation.md, "The
+//! global step", here a scalar:
 //! `(x - y)/h^2 + c1 c2 omega^2 (x_n + c2 (x - x_n)) + c1 c2 gamma c (x -
 //! x_hat) = 0`) and velocity update. The step is linear in the state
 //! (`(q_n, v_n)`, and `(q_{n-1}, v_{n-1})` for a multistep method), so its

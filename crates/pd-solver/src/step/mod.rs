@@ -111,7 +111,8 @@ fn step_context<'a>(
         components: &topology.components,
         fixed,
     };
-    // An external force f enters y as c1 c2 h^2 M^-1 f (DESIGN.md 3.1).
+    // An external force f enters y as c1 c2 h^2 M^-1 f
+    // (docs/design/formulation.md, "The step objective").
     StepContext::new(
         base,
         &topology.rigid_bodies,
