@@ -19,8 +19,8 @@ use crate::constraint::{energies_one_by_one, project_one_by_one};
 use crate::polar_batch::lane_sets::{Lanes, WithLanes, vectorize};
 
 /// Batches ahead of the one projected whose elements are prefetched, and
-/// whose output rows are prefetched for writing (docs/performance.md,
-/// "Prefetching the next batches (issue 18, sixth round)": the elements
+/// whose output rows are prefetched for writing (docs/design/performance.md,
+/// "Prefetching the next batches": the elements
 /// arrive from memory at 527,280 tets, and the hardware prefetcher alone
 /// left the loop waiting; a no-op on the 4-lane path).
 const ELEMENTS_AHEAD: usize = 2;

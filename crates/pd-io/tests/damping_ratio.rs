@@ -123,7 +123,7 @@ fn two_mode_fit_reproduces_both_ratios_on_the_spring_chain() {
         let zeta = midpoint_ratio(&q, dt);
         // On the chain L_d = K shares the modes, so the fit is exact and the
         // only errors are the 1e-12 solve and round-off, far below the 1%
-        // the issue asks.
+        // asserted here.
         println!("mode {}: zeta {zeta} (asked {target})", mode + 1);
         assert!(
             (zeta - target).abs() <= 0.01 * target,

@@ -1,6 +1,6 @@
-//! Scene files on disk: the bundled scenes, the scene of the format's
-//! contract exactly as the issue wrote it, TOML and JSON spelling the same
-//! scene, and relative paths resolved against the scene file's folder.
+//! Scene files on disk: the bundled scenes, the reference scene of the
+//! format (`tests/data/scenes/contract.{toml,json}`), TOML and JSON spelling
+//! the same scene, and relative paths resolved against the scene file's folder.
 
 use std::path::{Path, PathBuf};
 
