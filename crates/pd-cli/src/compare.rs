@@ -3,7 +3,7 @@
 //! Damping models are named by the presets of `pd_damping::registry`: each
 //! model's main preset (named as the model) and variants such as
 //! `laplacian-rot`, with the coefficients of the measured table in
-//! `docs/damping-table.md`. Integrators keep the scene's damping model.
+//! `docs/reports/damping-table.md`. Integrators keep the scene's damping model.
 //! `--ratio z1,z2,...` runs the scene's model (or Laplacian damping) with
 //! each damping ratio of its lowest elastic mode. A damping or ratio
 //! variant sets the model of every body, in place of a body's own

@@ -255,7 +255,7 @@ mod lanes {
         // left too few of AVX2's sixteen registers, and the spills cost more
         // than the three cofactor entries computed twice; with AVX-512's 32
         // registers carrying them measured the same as not (see
-        // docs/performance.md), so both widths share this code.
+        // docs/design/performance.md), so both widths share this code.
         for iteration in 0..MAX_ITERATIONS {
             if s.bits(running) == 0 {
                 break;

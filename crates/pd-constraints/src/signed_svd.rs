@@ -21,7 +21,7 @@
 //! Why this and not a general SVD: nalgebra's `Matrix3::svd` goes through a
 //! Householder tridiagonalisation and a symmetric QR iteration that are built
 //! for any size; the local step spent 56-71 % of its time there
-//! (`docs/performance.md`). A 3 x 3 Jacobi sweep is a few dozen flops with
+//! (`docs/design/performance.md`). A 3 x 3 Jacobi sweep is a few dozen flops with
 //! no allocation and few branches, and near rest (`F` close to a rotation,
 //! the common case) the columns are almost orthogonal already, so one or two
 //! sweeps finish it. Working on `F` rather than on `F^T F` keeps the relative

@@ -34,7 +34,7 @@ pub struct CsrMatrix {
     /// Column indices, 32-bit: the products' gathers are bound by memory
     /// traffic, and an index of half the width makes a stored entry 12
     /// bytes instead of 16 (the right-hand side's `B^T p` got 6 % faster
-    /// on the armadillo, docs/performance.md "Element order").
+    /// on the armadillo, docs/design/performance.md "Element order").
     columns: Vec<u32>,
     values: Vec<f64>,
 }

@@ -30,7 +30,7 @@
 //! `h = -r01/2` (the angle `atan2(h, e)` of the SVD above, without
 //! trigonometry). [`closest_orthonormal`] computes it so, with a fixed
 //! sequence of IEEE operations that the SIMD lanes of the triangle-strain
-//! projection repeat (`docs/performance.md`, "Triangle strain in SIMD
+//! projection repeat (`docs/design/performance.md`, "Triangle strain in SIMD
 //! lanes").
 //!
 //! # Clamped singular values
@@ -48,7 +48,7 @@
 //! `d = g = 0`: equal singular values, `c0 = c1`, and undefined singular
 //! vectors that the result does not need). With `c = s` it is `R`
 //! itself. [`clamped_stretch`] computes it so, with a fixed sequence of
-//! IEEE operations that the SIMD lanes repeat (`docs/performance.md`,
+//! IEEE operations that the SIMD lanes repeat (`docs/design/performance.md`,
 //! "Stretch-limited triangles in SIMD lanes").
 //!
 //! # Hessian of an isotropic energy
@@ -229,7 +229,7 @@ pub(crate) fn closest_rotation_2x2(r00: f64, r01: f64, r11: f64) -> (f64, f64) {
 /// `q0 cos + q1 sin` and `q1 cos - q0 sin` (per coordinate, left to right).
 /// It differs from `Q` times the rotation by `atan2(h, e)` (the thin SVD's
 /// angle) by round-off only: at most a few units of 2^-52 per entry
-/// (`docs/performance.md`, "Triangle strain in SIMD lanes"). Degenerate
+/// (`docs/design/performance.md`, "Triangle strain in SIMD lanes"). Degenerate
 /// columns are handled as in [`thin_svd`].
 pub(crate) fn closest_orthonormal(f: &Matrix3x2<f64>) -> Matrix3x2<f64> {
     let ThinQr {
@@ -301,7 +301,7 @@ pub(crate) fn clamped_stretch_2x2(
 /// [`clamped_stretch_2x2`] of `R`, then `Q` times that 2 x 2 matrix, the
 /// columns `q0 p00 + q1 p10` and `q0 p01 + q1 p11` (per coordinate, left
 /// to right). It differs from [`clamped_stretch_by_angles`] by round-off
-/// only (`docs/performance.md`, "Stretch-limited triangles in SIMD
+/// only (`docs/design/performance.md`, "Stretch-limited triangles in SIMD
 /// lanes"), and is that function's result to the bit where the closed
 /// form does not apply (`F = 0`, columns of norm below about 1e-150 or
 /// above 1e150, NaN). Degenerate columns are handled as in [`thin_svd`].
@@ -620,7 +620,7 @@ mod tests {
     use super::*;
     use crate::signed_svd::test_support::uniform_sequence;
 
-    /// The bound of `docs/performance.md` ("Triangle strain in SIMD
+    /// The bound of `docs/design/performance.md` ("Triangle strain in SIMD
     /// lanes") on `|P_new - P_old|` per entry, in units of 2^-52.
     const ROUND_OFF_BOUND: f64 = 8.0 * f64::EPSILON;
 
@@ -792,7 +792,7 @@ mod tests {
         }
     }
 
-    /// The bound of `docs/performance.md` ("Stretch-limited triangles in
+    /// The bound of `docs/design/performance.md` ("Stretch-limited triangles in
     /// SIMD lanes") on `|P_new - P_old|` per entry, in units of
     /// `2^-52 max(s0, min) sqrt(1 + |q0 . q1|)`.
     const CLAMPED_ROUND_OFF_BOUND: f64 = 19.0 * f64::EPSILON;

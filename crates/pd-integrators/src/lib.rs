@@ -15,7 +15,7 @@
 //! Targets are displacements, not positions, so that the solver can work
 //! with the step's displacement `x - x_n` throughout: round-off then scales
 //! with how far a body moves in a step, not with how far it is from the
-//! origin (`docs/solver.md`).
+//! origin (`docs/design/solver.md`).
 //!
 //! ```
 //! use pd_integrators::{BackwardEuler, Integrator, StepTargets};

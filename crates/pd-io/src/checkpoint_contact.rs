@@ -1,6 +1,6 @@
 //! The `contact` key of a checkpoint file: the contacts active at the end
 //! of the saved step, with their warm-started forces, so that a resumed run
-//! with contact is bit-identical (docs/contact.md, "Checkpoints"). JSON
+//! with contact is bit-identical (docs/design/contact.md, "Checkpoints"). JSON
 //! numbers round-trip every bit (serde_json writes the shortest exact form).
 
 use pd_solver::contact::{ContactCheckpoint, SavedContact};

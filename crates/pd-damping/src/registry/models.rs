@@ -240,8 +240,8 @@ const LAPLACIAN: Model = Model {
 /// Every model, in the order messages and tables list them.
 pub(super) const MODELS: &[Model] = &[NONE, ETHER_DRAG, PBD, RAYLEIGH_LAGGED, LAPLACIAN];
 
-/// The coefficients of the measured comparisons (`docs/damping-table.md`,
-/// `docs/performance.md`), in table order.
+/// The coefficients of the measured comparisons (`docs/reports/damping-table.md`,
+/// `docs/design/performance.md`), in table order.
 pub(super) const PRESETS: &[Preset] = &[
     Preset {
         name: none::NAME,

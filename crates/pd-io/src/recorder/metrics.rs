@@ -92,7 +92,7 @@ metrics_columns! {
     /// Wall time of its global steps, ms.
     global_ms: f64 => "{:.4}",
     /// The step's final relative residual `|G(x) - x|_M / |G(x) - x_n|_M`
-    /// (docs/solver.md; 0 in row 0).
+    /// (docs/design/solver.md; 0 in row 0).
     residual: f64 => "{}",
     /// Contacts active at the end of the step (0 without colliders).
     contacts: usize => "{}",

@@ -239,7 +239,7 @@ fn mesh(source: &Path, i: usize, file: Option<&Path>) -> Result<ColliderShape> {
         return Err(super::field_error(
             source,
             field("shape"),
-            "mesh colliders need the `mesh-collider` feature (on in the `pd` binary; docs/contact.md)",
+            "mesh colliders need the `mesh-collider` feature (on in the `pd` binary; docs/design/contact.md)",
         ));
     }
     let surface =

@@ -1,5 +1,5 @@
 //! The `[solver]` table: which iteration method a step uses
-//! ([`pd_solver::SolverSpec`], docs/solver.md "Iteration methods"). Its raw
+//! ([`pd_solver::SolverSpec`], docs/design/solver.md "Iteration methods"). Its raw
 //! serde image and its validation, by field path (`solver.rho`).
 
 use pd_solver::{Predictor, SolverError, SolverMethod, SolverSpec, SpectralRadius};
