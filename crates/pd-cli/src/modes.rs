@@ -101,7 +101,7 @@ pub(crate) fn modes(options: &SceneOptions, count: usize) -> Result<(), Failure>
         },
         "damping_ratios_note": if per_body {
             "null: per-body damping ([[body]] damping); each body's ratio is set for its own \
-             lowest mode (docs/damping.md), which this estimate does not split by body"
+             lowest mode (docs/design/damping.md), which this estimate does not split by body"
         } else if implicit_only {
             "discrete damping ratio of each mode under the scene's integrator at dt: the model's \
              damping plus the integrator's numerical damping"

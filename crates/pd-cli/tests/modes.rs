@@ -1,5 +1,5 @@
 //! `pd modes` and `pd compare --ratio` on the tiny beam: the files exist and
-//! hold what `docs/tools.md` promises; a ratio in the scene shows up as its
+//! hold what `docs/reference/cli.md` promises; a ratio in the scene shows up as its
 //! coefficient in `summary.json`.
 
 mod common;
@@ -26,7 +26,7 @@ fn modes_writes_frequencies_ratios_and_animations() {
     let ratios = modes["damping_ratios"].as_array().unwrap();
     assert_eq!(ratios.len(), 4);
     // Implicit midpoint adds no damping; its Cayley map changes a mode's
-    // ratio only at order (h omega / 2)^2 (docs/damping.md), so the first
+    // ratio only at order (h omega / 2)^2 (docs/design/damping.md), so the first
     // mode keeps the asked 0.05 to that relative amount (plus round-off).
     let warp = (0.01 * std::f64::consts::PI * frequencies[0]).powi(2);
     let first = ratios[0].as_f64().unwrap();

@@ -1,5 +1,5 @@
 //! Triangle area preservation: `w/2 |F - P(F)|^2` with `P(F)` the closest
-//! 3 x 2 matrix whose singular values multiply to 1 (`docs/constraints.md`,
+//! 3 x 2 matrix whose singular values multiply to 1 (`docs/design/constraints.md`,
 //! "Area and volume").
 
 use nalgebra::{Matrix2, Vector2};

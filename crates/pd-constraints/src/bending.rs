@@ -1,7 +1,7 @@
 //! Bending of a triangle surface: one hinge per interior edge, with the
 //! cotangent-weighted four-vertex stencil of Bergou et al. 2006 ("A
 //! quadratic bending model for inextensible surfaces") and Wardetzky et al.
-//! (`docs/constraints.md`, "Bending").
+//! (`docs/design/constraints.md`, "Bending").
 //!
 //! For the hinge of edge `x0 x1` with opposite vertices `x2` (triangle A)
 //! and `x3` (triangle B), and `a_k^T` the interior angle at `x_k` of

@@ -7,7 +7,7 @@ use pd_mesh::Point;
 /// columns alike) and a projection `P` onto the constraint set. Its energy is
 /// `E(x) = w/2 |G x - P(G x)|^2` and, because `P` is the closest-point
 /// projection, its gradient is `w G^T (G x - P(G x))`
-/// (`docs/constraints.md`).
+/// (`docs/design/constraints.md`).
 ///
 /// Implementations describe a single constraint; [`crate::ConstraintSet`]
 /// stores many of one kind contiguously and runs the loops.
@@ -75,7 +75,7 @@ pub trait Constraint: Clone + std::fmt::Debug + Send + Sync + 'static {
     /// Hessian of `w/2 |gx - P(gx)|^2` with respect to `gx`: a
     /// `3 ROWS x 3 ROWS` row-major matrix, index `3 r + a` for row `r`, axis
     /// `a`, written into `out`. With `project_psd` its negative eigenvalues
-    /// are clamped to zero (`docs/constraints.md`). The weight `w` is
+    /// are clamped to zero (`docs/design/constraints.md`). The weight `w` is
     /// included.
     fn gx_hessian(&self, gx: &[Point], project_psd: bool, out: &mut [f64]);
 }

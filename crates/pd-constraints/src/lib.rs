@@ -8,7 +8,7 @@
 //! kinds are [`TetStrain`] (corotational strain, optionally strain-limited),
 //! [`Spring`], [`Attachment`], and for cloth and shells [`TriangleStrain`],
 //! [`PlateBending`] and [`Bending`], [`Area`] and [`Volume`]. The mathematics is in
-//! `docs/constraints.md`.
+//! `docs/design/constraints.md`.
 //!
 //! ```
 //! use pd_constraints::{assembly, ConstraintBlock, ConstraintSet, Spring};

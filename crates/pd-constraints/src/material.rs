@@ -1,7 +1,7 @@
 //! Hyperelastic material laws: the strain-energy density `Psi(F)` (J/m^3)
 //! of a deformation gradient `F`, its first Piola-Kirchhoff stress
 //! `P = dPsi/dF` (Pa) and the stress differential `dP[dF]`, for the
-//! isotropic materials a scene names (`docs/materials.md`):
+//! isotropic materials a scene names (`docs/design/materials.md`):
 //!
 //! - `neo-hookean`: the stable Neo-Hookean energy of Smith, de Goes and Kim
 //!   (2018), `Psi = m/2 (I_C - 3) + l/2 (J - a)^2 - m/2 log(I_C + 1) - Psi_0`

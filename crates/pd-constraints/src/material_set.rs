@@ -142,7 +142,7 @@ impl MaterialSet {
     }
 
     /// The preconditioner weight of an element: the P-wave modulus times
-    /// the rest volume, `(2 mu + lambda) V` (N m; docs/materials.md for the
+    /// the rest volume, `(2 mu + lambda) V` (N m; docs/design/materials.md for the
     /// measured choice).
     fn weight(&self, tet: &MaterialTet) -> f64 {
         (2.0 * self.lame.mu + self.lame.lambda) * tet.volume

@@ -1,7 +1,7 @@
 //! Quadratic bending of a flat rest sheet, one constraint per triangle:
 //! `D A / 2 |H_T|_F^2` with `H_T` the triangle's discrete Hessian of the
 //! out-of-plane displacement, built from the hinge vectors of its interior
-//! edges (`docs/constraints.md`, "Bending").
+//! edges (`docs/design/constraints.md`, "Bending").
 //!
 //! For edge `j` of triangle `T` (from `t_j` to `t_{j+1}`) with in-plane unit
 //! normal `nu_j` and hinge row `K_j` (`crate::bending`, `K_j x = |e| theta n`

@@ -184,7 +184,7 @@ mod tests {
     fn agrees_with_the_signed_svd() {
         // Both are exact for matrices within BUDGET |F| of F (backward
         // stable), and the closest rotation is Lipschitz in F with constant
-        // 2/(s_1 + s_2) (the twist modes, docs/constraints.md), so they differ
+        // 2/(s_1 + s_2) (the twist modes, docs/design/constraints.md), so they differ
         // by at most that constant times twice the backward error.
         let r = rotation([1.0, 2.0, -0.5], 0.8);
         let s = rotation([-0.2, 0.4, 1.0], -2.5);

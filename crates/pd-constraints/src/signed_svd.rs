@@ -410,7 +410,7 @@ mod tests {
     #[test]
     fn agrees_with_nalgebra_where_the_rotation_is_well_conditioned() {
         // The closest rotation is Lipschitz with constant 2/(s_1 + s_2) in
-        // F (the twist modes of docs/constraints.md); both computations are
+        // F (the twist modes of docs/design/constraints.md); both computations are
         // backward stable, so they differ by at most that times twice the
         // backward error.
         let mut next = test_support::uniform_sequence(0x9e37_79b9_7f4a_7c15);

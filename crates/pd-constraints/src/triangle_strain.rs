@@ -1,7 +1,7 @@
 //! Corotational membrane strain of a triangle: `w/2 |F - R|^2` with `F` the
 //! 3 x 2 deformation gradient in the triangle's rest plane and `R` the
 //! closest matrix with orthonormal columns, optionally relaxed to limits on
-//! its singular values (`docs/constraints.md`, "Triangle strain").
+//! its singular values (`docs/design/constraints.md`, "Triangle strain").
 
 use nalgebra::{Matrix2, Matrix3x2};
 use pd_mesh::Point;

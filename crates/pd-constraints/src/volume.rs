@@ -1,5 +1,5 @@
 //! Tetrahedral volume preservation: `w/2 |F - P(F)|^2` with `P(F)` the
-//! closest matrix of determinant 1 (`docs/constraints.md`, "Area and
+//! closest matrix of determinant 1 (`docs/design/constraints.md`, "Area and
 //! volume").
 
 use nalgebra::{Matrix3, Vector3};

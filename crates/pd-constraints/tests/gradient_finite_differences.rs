@@ -94,7 +94,8 @@ proptest! {
 
 #[test]
 fn translation_invariant_kinds_have_zero_row_sums() {
-    // L 1 = 0 for strain and springs: they exert no net force (DESIGN.md 3.4).
+    // L 1 = 0 for strain and springs: they exert no net force
+    // (docs/design/formulation.md, "Energy and Laplacians").
     let rest = rest_tet();
     let blocks: Vec<Box<dyn ConstraintBlock>> = vec![
         Box::new(ConstraintSet::new(vec![

@@ -17,7 +17,7 @@ pub const NAME: &str = "laplacian";
 /// `L_d` damps rigid rotation too (`v^T L_d v > 0` for `v = omega x r`). With
 /// `preserve_rotation` it leaves each free body's rigid rotation alone: the
 /// damping anchor turns with the body, and the spin is given back at the end
-/// of the step (`rotation_preserving.rs`, `docs/damping.md`).
+/// of the step (`rotation_preserving.rs`, `docs/design/damping.md`).
 ///
 /// ```
 /// use pd_damping::{Damping, DampingMatrix, LaplacianDamping};

@@ -18,7 +18,7 @@
 //!    PBD) or the variant's spin restoration.
 //!
 //! How each enters each integrator's global step is derived in
-//! `docs/damping.md`. A model of your own is a type implementing [`Damping`]
+//! `docs/design/damping.md`. A model of your own is a type implementing [`Damping`]
 //! outside this crate (see `examples/custom_damping.rs` of `pd-solver`).
 //!
 //! ```
@@ -113,7 +113,8 @@ pub struct StepContext<'a> {
     /// velocity `gamma (x - x_hat)`.
     pub gamma: f64,
     /// `c1 c2 h^2` in s^2: a force `f` (N) on a vertex of mass `m` enters the
-    /// inertial target as `force_scale f / m` (DESIGN.md 3.1).
+    /// inertial target as `force_scale f / m` (docs/design/formulation.md,
+    /// "The step objective").
     pub force_scale: f64,
     /// The integrator's `c2` (dimensionless): the step's energy is evaluated
     /// at `x_n + c2 (x - x_n)`.
@@ -154,7 +155,7 @@ impl<'a> StepContext<'a> {
     /// gives `1 / (c2 (1 + k h^2)) - 1/c2 + 1`: backward Euler
     /// `1 / (1 + a1 h)`, implicit midpoint `(1 - a1 h/2) / (1 + a1 h/2)`,
     /// and BDF-2 `3 / (3 + 2 a1 h)` for a body whose previous momentum equals
-    /// the current one (`docs/damping.md`).
+    /// the current one (`docs/design/damping.md`).
     pub fn mass_damping_factor(&self, a1: f64) -> f64 {
         let k_h2 = self.force_scale * self.gamma * a1;
         1.0 / (self.c2 * (1.0 + k_h2)) - 1.0 / self.c2 + 1.0
@@ -203,7 +204,7 @@ impl<'a> DampingTargets<'a> {
 pub struct DampingReport {
     /// Principal axes (summed over the bodies) about which the
     /// rotation-preserving Laplacian damping left the spin alone instead of
-    /// restoring it (`docs/damping.md`). 0 for other models.
+    /// restoring it (`docs/design/damping.md`). 0 for other models.
     pub spin_axes_left: usize,
 }
 
@@ -245,7 +246,7 @@ pub trait Damping: std::fmt::Debug + Send + Sync {
     }
 
     /// Whether the model keeps the free bodies' rigid rotation undamped (the
-    /// rotation-preserving Laplacian variant, `docs/damping.md`).
+    /// rotation-preserving Laplacian variant, `docs/design/damping.md`).
     fn preserves_rotation(&self) -> bool {
         false
     }

@@ -11,7 +11,7 @@
 //! With `Q = K`, `phi^T K phi = omega^2` and `a2 = 2 zeta / omega`
 //! (Rayleigh). With `Q = L_d` the quotient `phi^T L_d phi` is not `omega^2`:
 //! for bending it is much larger (`L_d` treats every element as if it were
-//! stretched), so `a2 = 2 zeta omega / (phi^T L_d phi)` (`docs/damping.md`).
+//! stretched), so `a2 = 2 zeta omega / (phi^T L_d phi)` (`docs/design/damping.md`).
 //!
 //! One mode: `a2 = (2 zeta omega - a1) / (phi^T Q phi)` with `a1` the given
 //! `mass` (default 0). Two modes: the 2 x 2 system

@@ -335,7 +335,7 @@ impl RigidFit {
     /// straight chain, about itself), a spin component that the axis's
     /// turning during the step moved onto it takes an angular velocity of
     /// order `|J| theta / lambda_k`, and unbounded energy, to restore
-    /// (docs/damping.md). The energy condition keeps the exact restoration
+    /// (docs/design/damping.md). The energy condition keeps the exact restoration
     /// where the speed is only nominally high and the energy negligible.
     ///
     /// ```

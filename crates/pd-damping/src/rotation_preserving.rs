@@ -1,5 +1,5 @@
 //! The rotation-preserving Laplacian damping, this project's extension of the
-//! paper (`docs/damping.md`, "The rotation-preserving variant"):
+//! paper (`docs/design/damping.md`, "The rotation-preserving variant"):
 //! `D = a2 L_d` damps a body's rigid rotation (`v^T L_d v > 0` for
 //! `v = omega x r`), which a spinning body or a swinging pendulum should
 //! keep. The variant does two things per connected component
@@ -125,7 +125,7 @@ impl SpinKeeper {
     /// kinetic energy, nothing is restored: that spin was not lost by the
     /// body's rotation but moved onto an axis where the body has almost no
     /// inertia, and restoring it would take unbounded energy
-    /// (`docs/damping.md`). Returns how many axes were left alone.
+    /// (`docs/design/damping.md`). Returns how many axes were left alone.
     pub(crate) fn end_step(
         &self,
         step: &StepContext<'_>,

@@ -8,7 +8,7 @@ use crate::{Integrator, Point, StepCoefficients, StepTargets};
 /// First order; its numerical damping ratio for a mode of angular frequency
 /// `omega` (rad/s) is about `h omega / 2`, i.e. the mode's amplitude decays
 /// at the rate `h omega^2 / 2` (1/s): per step it is multiplied by
-/// `1/sqrt(1 + (h omega)^2)` (`docs/integrators.md`). It never increases
+/// `1/sqrt(1 + (h omega)^2)` (`docs/design/integrators.md`). It never increases
 /// the energy of a convex system solved to convergence.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct BackwardEuler;

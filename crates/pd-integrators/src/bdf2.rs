@@ -18,7 +18,7 @@ use crate::{
 /// that changes a velocity by `dv` shifts that vertex's previous state to
 /// `(x_{n-1} - h dv, v_{n-1} + dv)`: the history becomes the motion with the
 /// extra velocity `dv` all along, so a filter acts at its configured rate
-/// (`docs/integrators.md`).
+/// (`docs/design/integrators.md`).
 #[derive(Debug, Clone, Default)]
 pub struct Bdf2 {
     previous_positions: Vec<Point>,

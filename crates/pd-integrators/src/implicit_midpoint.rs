@@ -12,7 +12,7 @@ use crate::{Integrator, Point, StepCoefficients, StepTargets};
 /// exactly for quadratic energies, angular momentum conserved when the solve
 /// converges. With a damping force evaluated at the midpoint it is the
 /// forced variational midpoint scheme of Kharevych et al. 2006
-/// (`docs/integrators.md`).
+/// (`docs/design/integrators.md`).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct ImplicitMidpoint;
 

@@ -5,12 +5,12 @@
 //!
 //! where `y` is the inertial target (external forces folded in), `E` the PD
 //! energy and `Phi` the implicit damping potential
-//! `1/2 c1 c2 gamma (x - x_hat)^T D (x - x_hat)`. (DESIGN.md writes the
-//! energy's argument `c2 x + z`; every one-leg method here has
+//! `1/2 c1 c2 gamma (x - x_hat)^T D (x - x_hat)`. (docs/design/formulation.md
+//! writes the energy's argument `c2 x + z`; every one-leg method here has
 //! `z = (1 - c2) x_n`.) An [`Integrator`] supplies `c1`, `c2`, `gamma`, the
 //! targets `y` and `x_hat` as displacements from `x_n`, and the velocity
 //! update; it owns whatever history it needs. The coefficient table and the
-//! derivation are in `docs/integrators.md` (DESIGN.md section 3.1).
+//! derivation are in `docs/design/integrators.md`.
 //!
 //! Targets are displacements, not positions, so that the solver can work
 //! with the step's displacement `x - x_n` throughout: round-off then scales
@@ -47,7 +47,8 @@ use nalgebra::Vector3;
 /// A position, velocity or acceleration of one vertex (SI units).
 pub type Point = Vector3<f64>;
 
-/// The scalars of one step's objective (DESIGN.md 3.1 and 3.2).
+/// The scalars of one step's objective (docs/design/formulation.md, "The
+/// step objective").
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepCoefficients {
     /// Factor `c1` of the elastic energy.
@@ -149,7 +150,7 @@ pub trait Integrator: std::fmt::Debug + Send + Sync {
     /// One-step methods keep no history, so the default only runs the
     /// filter. A multistep method whose next step reads previous positions
     /// and velocities must see the filtered motion there too, or the
-    /// filter's effect is partly undone (BDF-2: `docs/integrators.md`).
+    /// filter's effect is partly undone (BDF-2: `docs/design/integrators.md`).
     fn filter_velocities(
         &mut self,
         h: f64,

@@ -1,6 +1,7 @@
-//! The cloth constraint kinds of issue 15 in scene files: the contract's
-//! keys as written, and the input errors, which name the field path and the
-//! offending triangle.
+//! The cloth and shell constraint kinds in scene files: their keys as
+//! written (docs/reference/scene-format.md, "Cloth and shell constraints"),
+//! and the input errors, which name the field path and the offending
+//! triangle.
 
 use std::path::Path;
 

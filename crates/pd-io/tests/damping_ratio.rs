@@ -25,7 +25,7 @@ fn scene(text: &str) -> Scene {
     Scene::parse(text, Syntax::Toml, Path::new("ratio.toml")).unwrap()
 }
 
-/// The spring chain of `docs/validation.md` 1 (10 free vertices of 0.01 kg,
+/// The spring chain of `docs/design/validation.md` 1 (10 free vertices of 0.01 kg,
 /// springs of 100 N/m, both ends fixed), implicit midpoint at `dt`.
 fn chain(dt: f64, damping: &str) -> String {
     format!(
@@ -118,12 +118,12 @@ fn two_mode_fit_reproduces_both_ratios_on_the_spring_chain() {
     assert!(d.mass > 0.0 && d.damping_laplacian > 0.0, "{d:?}");
     for (mode, target) in [(0, 0.02), (2, 0.05)] {
         // 0.01 m along the axis keeps every spring far from inverting: the
-        // chain stays exactly linear (docs/validation.md 1).
+        // chain stays exactly linear (docs/design/validation.md 1).
         let q = release(&mut sim, &analysis.modes[mode].shape, 0.01, 600);
         let zeta = midpoint_ratio(&q, dt);
         // On the chain L_d = K shares the modes, so the fit is exact and the
         // only errors are the 1e-12 solve and round-off, far below the 1%
-        // the issue asks.
+        // asserted here.
         println!("mode {}: zeta {zeta} (asked {target})", mode + 1);
         assert!(
             (zeta - target).abs() <= 0.01 * target,
@@ -205,7 +205,7 @@ fn clamped_beam_gets_its_ratio_with_implicit_midpoint() {
     // (c_1j/omega_j)^2 <= (2 zeta omega_1 / omega_2)^2 ~ 3e-4 per coupled
     // mode; with the ~10 modes that couple noticeably, 5e-3. The amplitude
     // 1e-3 L shifts the frequency by ~1e-6 (geometric nonlinearity,
-    // docs/validation.md 4a) and the 1e-10 solve tolerance adds less. The
+    // docs/design/validation.md 4a) and the 1e-10 solve tolerance adds less. The
     // test allows 2%, four times that estimate.
     assert!((measured - zeta).abs() <= 0.02 * zeta, "{measured}");
 }

@@ -1,6 +1,6 @@
 //! Robustness of the scene parser: `Scene::load` and `Scene::parse` answer
 //! arbitrary bytes and mutated valid scenes (TOML and JSON) with `Ok` or an
-//! error, never a panic (docs/validation.md, "Robustness").
+//! error, never a panic (docs/design/validation.md, "Robustness").
 //!
 //! Bounded for CI (a second or so per target in the dev profile);
 //! `PROPTEST_CASES=N` raises the count for a long run.

@@ -1,6 +1,6 @@
 //! Robustness of the state-file reader: `read_state` answers arbitrary
 //! bytes and mutated valid state files with `Ok` or an error naming the
-//! file, never a panic (docs/validation.md, "Robustness").
+//! file, never a panic (docs/design/validation.md, "Robustness").
 //!
 //! Bounded for CI; `PROPTEST_CASES=N` raises the count for a long run.
 

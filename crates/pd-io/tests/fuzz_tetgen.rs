@@ -1,6 +1,6 @@
 //! Robustness of the TetGen reader: `read_tetgen` and `read_tetgen_base`
 //! answer arbitrary bytes and mutated valid `.node`/`.ele` pairs with `Ok`
-//! or an error naming a file, never a panic (docs/validation.md,
+//! or an error naming a file, never a panic (docs/design/validation.md,
 //! "Robustness").
 //!
 //! Bounded for CI; `PROPTEST_CASES=N` raises the count for a long run.

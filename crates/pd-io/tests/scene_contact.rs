@@ -1,5 +1,5 @@
 //! The contact keys of a scene (`[[collider]]`, `[contact]`, `[[body]]
-//! translate`; docs/scene-format.md, "Contact"): valid ones build a
+//! translate`; docs/reference/scene-format.md, "Contact"): valid ones build a
 //! simulation with contact, bad ones are errors naming the field.
 
 use std::path::Path;

@@ -2,7 +2,7 @@
 //! message, at the key it concerns (`damping.KEY`), or at `damping` for a
 //! value outside its domain. The keys and the checks come from
 //! `pd_damping::registry`; these messages are the scene format's contract
-//! (`docs/scene-format.md`), pinned here so a registry change cannot alter
+//! (`docs/reference/scene-format.md`), pinned here so a registry change cannot alter
 //! them unnoticed.
 
 use std::path::Path;

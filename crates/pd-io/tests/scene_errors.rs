@@ -400,7 +400,7 @@ fn unknown_generator() {
 #[test]
 fn unknown_constraint_kind() {
     expect_field_error(
-        // "bending" was the unknown kind here until issue 15 made it a kind.
+        // A kind the format does not have; the message lists the real ones.
         parse(&edit("kind = \"spring\"", "kind = \"plasticity\"")),
         "body[0].constraints[1].kind",
         &["plasticity", "spring"],

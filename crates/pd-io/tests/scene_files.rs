@@ -1,6 +1,6 @@
-//! Scene files on disk: the bundled scenes, the scene of the format's
-//! contract exactly as the issue wrote it, TOML and JSON spelling the same
-//! scene, and relative paths resolved against the scene file's folder.
+//! Scene files on disk: the bundled scenes, the reference scene of the
+//! format (`tests/data/scenes/contract.{toml,json}`), TOML and JSON spelling
+//! the same scene, and relative paths resolved against the scene file's folder.
 
 use std::path::{Path, PathBuf};
 
@@ -208,10 +208,10 @@ initial_state = "/data/states/start.json"
     );
 }
 
-/// The scenes in the "Examples" section of `docs/scene-format.md`, with
+/// The scenes in the "Examples" section of `docs/reference/scene-format.md`, with
 /// their syntax.
 fn documented_examples() -> Vec<(Syntax, String)> {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/scene-format.md");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/reference/scene-format.md");
     let text = std::fs::read_to_string(&path).unwrap();
     let start = text.find("\n## Examples\n").expect("an Examples section");
     let end = start + 1 + text[start + 1..].find("\n## ").expect("a section after it");

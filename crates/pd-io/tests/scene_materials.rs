@@ -1,5 +1,5 @@
 //! Hyperelastic materials in scenes (`kind = "neo-hookean" | "stvk" |
-//! "corotated"`, `young`, `poisson`; docs/scene-format.md): read as written,
+//! "corotated"`, `young`, `poisson`; docs/reference/scene-format.md): read as written,
 //! built into the model, each mistake reported at its field path, and a
 //! PD-only method refused at `solver.method`.
 

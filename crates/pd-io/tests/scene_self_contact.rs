@@ -1,4 +1,4 @@
-//! `[contact] self = true` (docs/scene-format.md, "Self-contact"): read,
+//! `[contact] self = true` (docs/reference/scene-format.md, "Self-contact"): read,
 //! combined independently with `bodies`, and built into a simulation.
 
 use std::path::Path;

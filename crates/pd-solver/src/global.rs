@@ -1,5 +1,6 @@
 //! The global step: the constant operators restricted to the free vertices,
-//! the global matrix `A = alpha M + beta L_sys + delta L_d` (DESIGN.md 3.2),
+//! the global matrix `A = alpha M + beta L_sys + delta L_d`
+//! (docs/design/formulation.md, "The global step"),
 //! and its cached factorisations.
 
 use std::sync::Arc;

@@ -1,4 +1,5 @@
-//! The per-step global system of lagged damping models (DESIGN.md 3.3):
+//! The per-step global system of lagged damping models
+//! (docs/design/formulation.md, "Damping matrices"):
 //! `D_n = a1 M + a2 K(x_n)` couples the x, y and z coordinates, so the
 //! system is 3n x 3n and its values change every step. The sparsity pattern
 //! (every 3 x 3 vertex block of the scalar pattern) is analysed once; each

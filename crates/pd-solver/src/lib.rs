@@ -4,9 +4,10 @@
 //! [`Simulation`] steps it with an integrator from `pd-integrators` and a
 //! damping model from `pd-damping`: a parallel local step (rayon) projects
 //! every constraint, and a global step solves the n x n system
-//! (DESIGN.md 3.2) with a sparse Cholesky factor (faer; AMD or nested-dissection ordering) that is
-//! computed once and cached per set of coefficients, for all three
-//! coordinate columns at once. The mathematics is in `docs/design/solver.md`.
+//! (docs/design/formulation.md, "The global step") with a sparse Cholesky
+//! factor (faer; AMD or nested-dissection ordering) that is computed once
+//! and cached per set of coefficients, for all three coordinate columns at
+//! once. The mathematics is in `docs/design/solver.md`.
 //!
 //! Results are bit-identical for every thread count: each projection and
 //! each right-hand-side row is computed independently, and every reduction

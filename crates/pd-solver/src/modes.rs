@@ -21,7 +21,7 @@
 //! that makes it definite even with rigid modes present), then three-column
 //! solves. Models with mechanisms fall back to shift-invert subspace
 //! iteration with Rayleigh-Ritz (`modes/subspace.rs`) on the same factor.
-//! See `docs/damping.md`.
+//! See `docs/design/damping.md`.
 
 mod lanczos;
 mod refine;

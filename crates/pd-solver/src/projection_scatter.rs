@@ -1,4 +1,5 @@
-//! The global step's projection term `B p` (DESIGN.md 3.2), computed by
+//! The global step's projection term `B p` (docs/design/formulation.md,
+//! "The global step"), computed by
 //! scattering each projection into the vertices it acts on, in the order
 //! of the stacked projections, instead of gathering each vertex's
 //! projections row by row.

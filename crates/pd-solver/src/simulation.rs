@@ -53,7 +53,7 @@ pub struct StepStats {
     /// Principal axes (summed over the bodies) about which the
     /// rotation-preserving Laplacian damping left the spin alone instead of
     /// restoring it, because restoring it would have turned the body far
-    /// faster than it turns (docs/damping.md). Always 0 with other models.
+    /// faster than it turns (docs/design/damping.md). Always 0 with other models.
     pub spin_axes_left: usize,
     /// Contacts active at the end of the step (0 without colliders).
     pub contacts: usize,
@@ -374,8 +374,8 @@ impl Simulation {
         }
     }
 
-    /// Turns on (or off) recording the step objective `g(x)` of DESIGN.md
-    /// 3.1-3.2 (the function each step minimises, in J) at the start iterate
+    /// Turns on (or off) recording the step objective `g(x)`
+    /// (docs/design/formulation.md, "The step objective"; the function each step minimises, in J) at the start iterate
     /// and after every local-global iteration, for
     /// [`Simulation::objective_trace`]. Off by default: it costs one energy
     /// evaluation per iteration and allocates, so it is for tests and

@@ -1,7 +1,8 @@
 //! The global step behind one interface: the constant operators over the
 //! free vertices ([`GlobalSystem`]) and the matrix of the coming step, either
 //! a cached factor of the constant `A = alpha M + beta L_sys + delta L_d`
-//! or the lagged 3n x 3n system that adds `K(x_n)` (DESIGN.md 3.2-3.3).
+//! or the lagged 3n x 3n system that adds `K(x_n)`
+//! (docs/design/formulation.md, "The global step" and "Damping matrices").
 //! Which of the two a simulation has is decided once, from the damping
 //! model's [`DampingMatrix`]; callers never see the difference. The system
 //! owns its right-hand side: callers hand it one point per free vertex and
@@ -41,7 +42,8 @@ pub(crate) struct SystemCoefficients {
 
 impl SystemCoefficients {
     /// The matrix of a step with integrator coefficients `c`, damping
-    /// matrix `d` and time step `h` (s), DESIGN.md 3.2.
+    /// matrix `d` and time step `h` (s), docs/design/formulation.md, "The
+    /// global step".
     pub fn of(c: StepCoefficients, d: DampingMatrix, h: f64) -> Self {
         let damping_factor = c.c1 * c.c2 * c.gamma;
         Self {

@@ -1,5 +1,5 @@
 //! Per-body damping coefficients in the one constant global matrix
-//! (`pd_damping::PerBodyDamping`, docs/damping.md "Per-body damping").
+//! (`pd_damping::PerBodyDamping`, docs/design/damping.md "Per-body damping").
 //!
 //! Body `b` asks for `D_b = a1_b M_b + a2_b L_d,b`. The damping model
 //! reports the largest of each coefficient, `a1` and `a2`

@@ -134,7 +134,7 @@ fn cantilevered_strip_sags_like_an_euler_bernoulli_beam() {
     // 4 cells across (10 to 40 along): first order in h (the hinges missing
     // across the free end and the lumped load). The contract: the error
     // halves with each refinement (ratio < 0.6) and the finest is below 6 %
-    // (docs/cloth.md has the table).
+    // (docs/design/cloth.md has the table).
     let errors: Vec<f64> = [1, 2, 4].iter().map(|&k| cantilever_error(k)).collect();
     eprintln!("cantilever relative errors {errors:?}");
     for pair in errors.windows(2) {

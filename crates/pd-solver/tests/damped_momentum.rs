@@ -27,7 +27,7 @@
 //! update: ether drag multiplies every velocity by `s = 1 - k` or
 //! `exp(-c h)`, so `P' = s R(P, P_old)` with `R` the recurrence above; PBD
 //! damping keeps each component's momentum. BDF-2's `P_old` is the momentum
-//! of its history, which follows the filter (docs/integrators.md): a filter
+//! of its history, which follows the filter (docs/design/integrators.md): a filter
 //! that turns the unfiltered `R` into `P' = s R` adds `P' - R` to it. So
 //! with `a1 = 0` the history after each step is the new momentum `P'` itself
 //! (by induction from the backward Euler start-up), `R = P`, and BDF-2 too

@@ -4,7 +4,8 @@
 //! elastic terms of the global step cancel for any uniform displacement; the
 //! damping Laplacian and the lagged Hessian vanish on a uniform velocity
 //! (`L_d 1 = 0`, `K 1 = 0`); PBD damping leaves a rigid motion alone. What is
-//! left are the mass terms (DESIGN.md 3.2), per vertex:
+//! left are the mass terms (docs/design/formulation.md, "Rigid
+//! translation"), per vertex:
 //!
 //! `(1/h^2 + c1 c2 gamma a1) x = y/h^2 + c1 c2 gamma a1 x_hat`,
 //!
@@ -18,7 +19,7 @@
 //! Without damping (`a1 = 0`, `s = 1`) the velocity stays `v` exactly. With
 //! only an explicit filter, BE and IM give `v_n = s^n v_0`. BDF-2 makes its
 //! history consistent with the filter (`Integrator::filter_velocities`,
-//! docs/integrators.md): a filter that changes a velocity by `dv` shifts the
+//! docs/design/integrators.md): a filter that changes a velocity by `dv` shifts the
 //! previous state to `(x_old - h dv, v_old + dv)`, as if the body had always
 //! moved with the extra velocity `dv`. A translating body's history is then
 //! uniform motion at the filtered velocity `s v`, which BDF-2 continues

@@ -1,6 +1,6 @@
 //! The explicit-force channel of the `Damping` trait: a force `f` returned by
 //! `add_explicit_force` enters the inertial target as `c1 c2 h^2 M^-1 f`
-//! (docs/integrators.md), so that each integrator applies it by its own
+//! (docs/design/integrators.md), so that each integrator applies it by its own
 //! force law. With no other net force (free body, no gravity, springs only)
 //! the momentum then follows exactly
 //! - backward Euler and implicit midpoint: `p_{n+1} = p_n + h F`,

@@ -7,7 +7,7 @@
 //! whole velocity field by `s = 1 - k`, and without forces every integrator
 //! continues a uniform motion exactly: BE and IM then give `v_n = s^n v_0`,
 //! and so does BDF-2 because its history follows the filter
-//! (`Integrator::filter_velocities`, docs/integrators.md: after the shift the
+//! (`Integrator::filter_velocities`, docs/design/integrators.md: after the shift the
 //! history is uniform motion at the filtered velocity). Before BDF-2's
 //! history followed the filter, its second step gave `s (4 s - 1)/3` instead
 //! of `s^2` (0.78 against 0.81 for `k = 0.1`).

@@ -1,6 +1,7 @@
 //! With no gravity, no fixed vertices and only translation-invariant
 //! constraints, the total linear momentum is unchanged by a step, for any
-//! iteration count (DESIGN.md 3.4: summing the global equations, `1^T L = 0`
+//! iteration count (docs/design/formulation.md, "Linear momentum": summing
+//! the global equations, `1^T L = 0`
 //! and `G_i 1 = 0` leave `sum M x = sum M y`, whatever the projections).
 
 mod common;

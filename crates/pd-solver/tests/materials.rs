@@ -1,4 +1,4 @@
-//! Hyperelastic materials in the step (docs/materials.md): L-BFGS and Newton
+//! Hyperelastic materials in the step (docs/design/materials.md): L-BFGS and Newton
 //! reach the same step solution with every integrator, with and without
 //! Laplacian damping; PD-only methods are refused with the state untouched;
 //! a clamped beam's small static sag converges to Euler-Bernoulli's with

@@ -116,7 +116,7 @@ fn clamped_beam_bending_converges_to_euler_bernoulli_from_above() {
         .iter()
         .map(|beta: &f64| beta * beta * base)
         .collect();
-    // FEM omega_1 of the same meshes by inverse iteration (docs/validation.md
+    // FEM omega_1 of the same meshes by inverse iteration (docs/design/validation.md
     // 4b), residual bound 3e-10 rad/s: this analysis must agree to that plus
     // its own convergence tolerance (1e-9 relative in subspace iteration).
     let independent = [5.798936, 4.033651, 3.424420];
@@ -148,7 +148,7 @@ fn clamped_beam_bending_converges_to_euler_bernoulli_from_above() {
             bending[0]
         );
         // From above: the discrete frequencies decrease with refinement
-        // (Rayleigh-Ritz on nested Kuhn meshes, docs/validation.md 4b) towards
+        // (Rayleigh-Ritz on nested Kuhn meshes, docs/design/validation.md 4b) towards
         // the 3D continuum, which lies below Euler-Bernoulli by shear and
         // rotary inertia (Timoshenko): the pinned-beam estimate
         // `(1 + (beta r)^2 (1 + E/(kappa G)))^-1/2`, `r^2 = b^2/12`,

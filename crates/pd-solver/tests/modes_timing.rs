@@ -1,8 +1,8 @@
 //! The cost of the modal analysis against one factorisation, on the
-//! 19 440-dof clamped beam (`80 x 8 x 8` cells) of docs/damping.md, phase by
+//! 19 440-dof clamped beam (`80 x 8 x 8` cells) of docs/design/damping.md, phase by
 //! phase, for block Lanczos (the default) and subspace iteration. Ignored:
 //! a timing, not a check (run it with `--ignored --nocapture` on a quiet
-//! machine; the numbers recorded in docs/damping.md say how loaded theirs
+//! machine; the numbers recorded in docs/design/damping.md say how loaded theirs
 //! was). Each method runs on one thread, so that the thread's CPU time
 //! (`/proc/thread-self/schedstat`) covers the whole analysis: less sensitive
 //! to other processes than the wall clock. `PD_MODES_BEAM=40,4,4` picks

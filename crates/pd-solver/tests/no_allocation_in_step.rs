@@ -1,4 +1,5 @@
-//! A step allocates nothing after the first (DESIGN.md 4.3): every buffer
+//! A step allocates nothing after the first (docs/design/performance.md,
+//! "no heap allocation in a step after the first"): every buffer
 //! is sized when the simulation is built, factorisations are cached (or, for
 //! lagged models, recomputed into preallocated buffers).
 //!

@@ -35,10 +35,11 @@
 //!   Except where the solver's guard leaves an axis alone
 //!   (`StepStats::spin_axes_left`): restoring a spin component about an axis
 //!   where a nearly straight chain has almost no inertia would take
-//!   unbounded energy (docs/damping.md). Such runs are exempt from the
+//!   unbounded energy (docs/design/damping.md). Such runs are exempt from the
 //!   check, and the test asserts that the guard never acts on a tet box.
 //! - **Plain Laplacian damping** loses spin: `v^T L_d v > 0` for a rigid
-//!   rotation (DESIGN.md 3.4), so the damping torque opposes the rotation.
+//!   rotation (docs/design/formulation.md, "Rigid rotation under Laplacian
+//!   damping"), so the damping torque opposes the rotation.
 //!   Theory gives the sign of `omega . dJ/dt`, not of `d|J|/dt` (`J` and
 //!   `omega` are parallel only for an isotropic inertia, and deformation
 //!   velocities add torque of either sign), so the test asserts that `|J|`

@@ -4,7 +4,8 @@
 //! springs), pins, gravity, masses, velocities, time steps and iteration
 //! counts.
 //!
-//! Why (DESIGN.md 3.4): with projections `p` the step minimises the
+//! Why (docs/design/formulation.md, "The objective never increases"):
+//! with projections `p` the step minimises the
 //! surrogate `G(x, p) = 1/(2h^2)|x - y|_M^2 + c1 sum w/2 |G_i (c2 x + z) -
 //! p_i|^2 + Phi(x)`, and `g(x) = min_p G(x, p)` over the constraint sets.
 //! The local step picks that minimising `p_k` at `x_k`, so
@@ -15,7 +16,8 @@
 //! is fixed within the step; the explicit filters act after it).
 //!
 //! The objective is recorded by the solver (`Simulation::record_objective`),
-//! from the formula of DESIGN.md 3.1-3.2 rather than from the right-hand
+//! from the formula of docs/design/formulation.md, "The step objective",
+//! rather than from the right-hand
 //! side the step assembles, so a mismatch between the two would show as an
 //! increase.
 //!

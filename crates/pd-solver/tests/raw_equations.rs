@@ -11,7 +11,7 @@
 //!
 //! Predicted residual: the equations above are `grad g / s` for the step
 //! objective `g` (`s = 1` for backward Euler, `1/2` for implicit midpoint,
-//! `4/9` for BDF-2, docs/integrators.md). After the last local step at `x^K`,
+//! `4/9` for BDF-2, docs/design/integrators.md). After the last local step at `x^K`,
 //! `grad g(x^K) = A (x^K - x^{K+1})`, and with a linear convergence rate
 //! below 1, `|x^K - x^{K+1}| <= |x^K - x^{K-1}|`, which the solver reports as
 //! `relative_change * |x^K - x_n|_M`. So

@@ -1,7 +1,7 @@
 //! The rotation-preserving Laplacian variant keeps a freely spinning body's
 //! angular momentum while still damping its deformation; plain Laplacian
-//! damping loses the spin (DESIGN.md 3.4: `v^T L v > 0` for a rigid
-//! rotation).
+//! damping loses the spin (`v^T L v > 0` for a rigid rotation:
+//! docs/design/formulation.md, "Rigid rotation under Laplacian damping").
 //!
 //! What theory does and does not promise for plain Laplacian damping: for a
 //! rigid rotation the damping torque satisfies `omega . tau = -v^T D v <= 0`,

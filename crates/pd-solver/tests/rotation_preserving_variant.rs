@@ -66,7 +66,7 @@ fn centre_of_mass(sim: &Simulation) -> Point {
 /// follow the predicted, explicit rotation rather than the implicit one; the
 /// exact remedy (damping `(I - P)^T L_d (I - P)` with `P` the projection on
 /// the rigid rotations, a rank-3 update of the prefactored system) is noted
-/// in docs/damping.md. The bound 0.6 x the plain model's gap fails on the
+/// in docs/design/damping.md. The bound 0.6 x the plain model's gap fails on the
 /// old code (ratio 1.0) and holds now (0.53).
 #[test]
 fn a_body_hanging_from_an_attachment_swings_more_freely_than_with_plain_laplacian() {

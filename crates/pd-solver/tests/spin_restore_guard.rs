@@ -1,4 +1,4 @@
-//! The guard of the rotation-preserving Laplacian variant (docs/damping.md):
+//! The guard of the rotation-preserving Laplacian variant (docs/design/damping.md):
 //! a nearly straight chain has almost no inertia about itself, and giving
 //! back a spin component that the chain's turning moved onto that axis takes
 //! an unbounded angular velocity.

@@ -1,5 +1,5 @@
 //! Validation of a clamped tet beam against Euler-Bernoulli and the axial
-//! bar (docs/validation.md, section 4).
+//! bar (docs/design/validation.md, section 4).
 //!
 //! Beam: `L = 1 m`, square section `b = 0.1 m` (`L/b = 10`), regular Kuhn
 //! meshes of `10 n x n x n` cubic cells, `E = 1 MPa` (the tet-strain

@@ -1,6 +1,6 @@
 //! How much more Laplacian damping damps a beam's first bending mode than
 //! lagged Rayleigh damping with the same coefficient `a2`
-//! (docs/validation.md, section 5).
+//! (docs/design/validation.md, section 5).
 //!
 //! For a mode `phi` of `K phi = omega^2 M phi` (M-normalised), damping
 //! `D` gives to first order the modal damping ratio

@@ -1,4 +1,4 @@
-//! Validation against analytic results (docs/validation.md): a chain of
+//! Validation against analytic results (docs/design/validation.md): a chain of
 //! `N` free vertices of mass `m` between two fixed ends, joined by springs of
 //! stiffness `k`, moving along its axis.
 //!

@@ -7,7 +7,7 @@
 //! `target/stability-shards`). `cargo xtask stability [--quick] --merge DIR`
 //! reads every `stability-shard-*.json` in `DIR`, checks that together they
 //! cover the matrix exactly once (same `--quick`, same matrix size), and
-//! writes `docs/reports/stability.md` as a single run would. docs/tools.md shows a
+//! writes `docs/reports/stability.md` as a single run would. docs/reference/cli.md shows a
 //! batch-system recipe.
 
 use std::path::{Path, PathBuf};

@@ -1,4 +1,4 @@
-//! The scene's `[[collider]]` and `[contact]` sections (docs/scene-format.md,
+//! The scene's `[[collider]]` and `[contact]` sections (docs/reference/scene-format.md,
 //! "Contact"): their serde image and their validation into
 //! [`ContactSettings`], errors by field path (`collider[2].normal`).
 

@@ -1,6 +1,6 @@
 //! Hyperelastic material entries of a body's `constraints`
 //! (`kind = "neo-hookean" | "stvk" | "corotated"`, `young` in Pa, `poisson`
-//! in `[0, 0.5)`; docs/materials.md), and the rule that they need an
+//! in `[0, 0.5)`; docs/design/materials.md), and the rule that they need an
 //! objective-judging method (`solver.method = "lbfgs"` or `"newton"`).
 
 use pd_constraints::MaterialKind;

@@ -1,5 +1,5 @@
 //! Scene files: TOML or JSON with the same structure (reference in
-//! `docs/scene-format.md`). Parsing rejects unknown keys; validation checks
+//! `docs/reference/scene-format.md`). Parsing rejects unknown keys; validation checks
 //! every value and reports it by its field path (`body[0].density`); building
 //! turns a valid scene into a ready [`Simulation`](pd_solver::Simulation).
 //!

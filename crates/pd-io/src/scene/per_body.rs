@@ -1,5 +1,5 @@
 //! Per-body damping: `[[body]] damping = { model = "laplacian", ratio = 0.1 }`
-//! overrides `[damping]` for that body (docs/damping.md, "Per-body
+//! overrides `[damping]` for that body (docs/design/damping.md, "Per-body
 //! damping").
 //!
 //! When a body carries its own table, every body's damping is resolved on

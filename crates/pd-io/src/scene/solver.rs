@@ -18,7 +18,7 @@ pub(super) struct Solver {
     pub(super) start: Option<usize>,
     /// Where each step's iteration starts (`pd_solver::Predictor`).
     pub(super) predictor: Option<String>,
-    /// `k` of `predictor = "fitted"` (docs/scene-format.md).
+    /// `k` of `predictor = "fitted"` (docs/reference/scene-format.md).
     pub(super) predictor_order: Option<u8>,
     /// `m` of `predictor = "fitted"`: the past steps fitted.
     pub(super) predictor_window: Option<u8>,

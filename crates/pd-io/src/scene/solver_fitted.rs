@@ -1,6 +1,6 @@
 //! `[solver] predictor_order` and `predictor_window`, the fitted
 //! predictor's `k` and `m` (`pd_solver::Predictor::Fitted`,
-//! docs/scene-format.md).
+//! docs/reference/scene-format.md).
 
 use pd_solver::Predictor;
 

@@ -146,7 +146,7 @@ pub enum ConstraintSpec {
         stiffness: f64,
     },
     /// A hyperelastic material on every tetrahedron (`neo-hookean`, `stvk`,
-    /// `corotated`; docs/materials.md).
+    /// `corotated`; docs/design/materials.md).
     Material {
         /// The law.
         kind: pd_constraints::MaterialKind,

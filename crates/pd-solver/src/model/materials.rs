@@ -1,5 +1,5 @@
 //! `Model::add_material`: hyperelastic tetrahedra (`neo-hookean`, `stvk`,
-//! `corotated`; `docs/materials.md`), stored as one
+//! `corotated`; `docs/design/materials.md`), stored as one
 //! [`pd_constraints::MaterialSet`] energy-element block per call.
 
 use pd_constraints::{ConstraintBlock, MaterialKind, MaterialSet, MaterialTet};

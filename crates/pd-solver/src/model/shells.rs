@@ -47,7 +47,7 @@ impl Model {
     /// rest (a flat sheet) this is one [`PlateBending`] per triangle, the
     /// quadratic plate energy with Poisson ratio 0; otherwise one curved
     /// [`Bending`] hinge per interior edge, which keeps the rest curvature
-    /// magnitude (`docs/constraints.md`). Returns how many.
+    /// magnitude (`docs/design/constraints.md`). Returns how many.
     ///
     /// # Errors
     /// As [`Model::add_triangle_strain`].

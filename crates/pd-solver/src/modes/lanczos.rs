@@ -1,5 +1,5 @@
 //! Shift-invert block Lanczos with full reorthogonalisation and thick
-//! restarts, for the lowest modes of a large model (`docs/damping.md`,
+//! restarts, for the lowest modes of a large model (`docs/design/damping.md`,
 //! "Modes").
 //!
 //! The operator `Op = (K + s M)^-1 M` is self-adjoint in the M inner

@@ -4,7 +4,7 @@
 //! The Lanczos projection `T` is that of the operator as computed: each
 //! solve with the factor of `K + s M` errs by about the unit round-off
 //! times the condition number of `K + s M` (`u lambda_max / lambda_1`,
-//! 8e-10 on the 19 440-dof beam, docs/damping.md), and the error reaches
+//! 8e-10 on the 19 440-dof beam, docs/design/damping.md), and the error reaches
 //! every direction of the Krylov basis, the high-frequency ones included,
 //! where `K` magnifies it: the pencil residual of the Ritz vectors stalls
 //! near that level (1.2e-9 lambda on that beam), whatever the number of

@@ -1,6 +1,7 @@
 //! What an integrator does to one damped mode: the modal equation
 //! `q'' + c q' + omega^2 q = 0` (`c = a1 + a2 phi^T D phi`, 1/s) stepped by
-//! the integrator's own global step (DESIGN.md 3.1-3.2, here a scalar:
+//! the integrator's own global step (docs/design/formulation.md, "The
+//! global step", here a scalar:
 //! `(x - y)/h^2 + c1 c2 omega^2 (x_n + c2 (x - x_n)) + c1 c2 gamma c (x -
 //! x_hat) = 0`) and velocity update. The step is linear in the state
 //! (`(q_n, v_n)`, and `(q_{n-1}, v_{n-1})` for a multistep method), so its
@@ -109,7 +110,7 @@ mod tests {
         Complex::new(-c / 2.0, (omega * omega - c * c / 4.0).sqrt())
     }
 
-    // Each map is exact for the scalar equation (docs/validation.md 1-3), so
+    // Each map is exact for the scalar equation (docs/design/validation.md 1-3), so
     // the computed roots match the closed forms up to the eigensolver's
     // round-off, about u |A| with |A| <= 2 + 2/h = 202 here (velocity rows
     // hold 1/h), i.e. 5e-14 absolute in mu. The damping ratio is

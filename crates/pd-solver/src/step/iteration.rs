@@ -25,7 +25,8 @@ use crate::system::GlobalStep;
 use crate::{Settings, SolverError, StepStats};
 
 /// How the positions of a step are found: a minimiser of the step objective
-/// `g(x)` (DESIGN.md 3.1-3.2) given as a [`StepProblem`].
+/// `g(x)` (docs/design/formulation.md, "The step objective") given as a
+/// [`StepProblem`].
 ///
 /// ```
 /// use pd_solver::{LocalGlobal, PositionSolver};
@@ -51,7 +52,7 @@ pub trait PositionSolver: std::fmt::Debug + Send + Sync {
     }
 
     /// Whether the method runs hyperelastic materials (energy elements,
-    /// `docs/materials.md`): it must add their gradient to the local-global
+    /// `docs/design/materials.md`): it must add their gradient to the local-global
     /// one. Plain PD methods (the default) do not, and a step of a model
     /// with materials refuses them with [`SolverError::Unsupported`].
     fn handles_materials(&self) -> bool {
@@ -336,7 +337,8 @@ impl StepProblem<'_> {
     }
 
     /// The step objective `g(x_n + dx)` at the current displacement, in J
-    /// (the function every method minimises, DESIGN.md 3.1-3.2).
+    /// (the function every method minimises, docs/design/formulation.md,
+    /// "The step objective").
     /// Costs one energy evaluation (a projection of every constraint).
     pub fn objective(&mut self) -> f64 {
         self.stats.objective_evaluations += 1;

@@ -1,5 +1,5 @@
 //! The energy-element seam: what the objective-judging methods (`lbfgs`,
-//! `newton`) add for hyperelastic materials (`docs/materials.md`).
+//! `newton`) add for hyperelastic materials (`docs/design/materials.md`).
 //!
 //! A material block ([`pd_constraints::MaterialSet`]) projects to the
 //! identity, so one local-global iteration `G` from `x` gives
@@ -82,7 +82,7 @@ impl Simulation {
             what: format!(
                 "the {} position solver with hyperelastic materials (neo-hookean, stvk, \
                  corotated): it only minimises Projective Dynamics' quadratic energies and would \
-                 ignore their forces; use lbfgs or newton (docs/materials.md)",
+                 ignore their forces; use lbfgs or newton (docs/design/materials.md)",
                 self.position_solver.name()
             ),
         })

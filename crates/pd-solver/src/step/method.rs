@@ -57,7 +57,7 @@ impl SolverMethod {
 
     /// Whether the method only minimises Projective Dynamics' energies
     /// (local-global, anderson, chebyshev): hyperelastic materials
-    /// (docs/materials.md) need `lbfgs` or `newton`.
+    /// (docs/design/materials.md) need `lbfgs` or `newton`.
     pub fn pd_only(self) -> bool {
         matches!(
             self,

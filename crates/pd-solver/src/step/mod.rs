@@ -111,7 +111,8 @@ fn step_context<'a>(
         components: &topology.components,
         fixed,
     };
-    // An external force f enters y as c1 c2 h^2 M^-1 f (DESIGN.md 3.1).
+    // An external force f enters y as c1 c2 h^2 M^-1 f
+    // (docs/design/formulation.md, "The step objective").
     StepContext::new(
         base,
         &topology.rigid_bodies,
@@ -289,7 +290,7 @@ impl Simulation {
         let context = step_context(&self.topology, (masses, fixed), h, c, stencil);
         // The integrator sees what the damping model changed (a velocity
         // filter, the variant's spin restoration), so that a multistep
-        // history follows it (docs/integrators.md).
+        // history follows it (docs/design/integrators.md).
         let damping = &mut self.damping;
         let iterate = &s.iterate;
         let contact = self.contact.as_ref();

@@ -18,7 +18,7 @@
 //! The iteration stops on the same residual as every method
 //! (`|G(x) - x|_M <= tolerance |G(x) - x_n|_M`) and ends on `G(x)`.
 //!
-//! Hyperelastic materials (docs/materials.md): their element Hessians are
+//! Hyperelastic materials (docs/design/materials.md): their element Hessians are
 //! in `K` (the 9 x 9 stress Hessian eigen-clamped), and `step/materials.rs`
 //! adds their gradient, making `w` the full `-A^{-1} grad g`.
 //!

@@ -1,4 +1,5 @@
-//! The step objective (DESIGN.md 3.1-3.2), the merit function of a step:
+//! The step objective (docs/design/formulation.md, "The step objective"),
+//! the merit function of a step:
 //!
 //! `g(x) = 1/(2h^2) |x - y|_M^2 + c1 E(x_n + c2 dx)
 //!   + 1/2 c1 c2 gamma (x - x_hat)^T D (x - x_hat)`, `dx = x - x_n`,

@@ -1,4 +1,4 @@
-//! Shared pieces of the beam validations (docs/validation.md, sections 4
+//! Shared pieces of the beam validations (docs/design/validation.md, sections 4
 //! and 5): a clamped tet beam, the stiffness matrix `K` of its PD energy at
 //! rest (from the constraints' exact Hessians), its lumped mass and its
 //! damping Laplacian `L_d` over the free degrees of freedom, an inverse

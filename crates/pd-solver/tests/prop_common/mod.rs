@@ -5,7 +5,7 @@
 //! Case counts are modest so that `cargo test` stays fast; the `proptest!`
 //! macro applies the `PROPTEST_CASES` environment variable on top of the
 //! count written here, so `PROPTEST_CASES=2000 cargo test -p pd-solver --test
-//! prop_energy` is a long run (docs/properties.md).
+//! prop_energy` is a long run (docs/design/properties.md).
 #![allow(dead_code)]
 
 use pd_damping::{Damping, EtherDrag, LaplacianDamping, NoDamping, PbdDamping, RayleighLagged};
