@@ -2,13 +2,13 @@
 //!
 //! - `ci`: what `.ci/run` runs (format check, clippy, docs, tests);
 //! - `damping-table [--quick]`: measures every damping model with every
-//!   integrator on the bundled scenes and writes `docs/damping-table.md`;
+//!   integrator on the bundled scenes and writes `docs/reports/damping-table.md`;
 //! - `bench-report [--quick] [--mesh BASE]...`: speed, accuracy, scaling,
 //!   memory, the machine's limits and real TetGen meshes,
-//!   written to `docs/bench-report.md` (+ JSON and PNG figures);
+//!   written to `docs/reports/bench-report.md` (+ JSON and PNG figures);
 //! - `cpp-compare --reference PATH [--quick] [--repeat N]`: pd against the C++ Eigen /
 //!   CHOLMOD reference on the same TetGen meshes, written to
-//!   `docs/cpp-comparison.md`;
+//!   `docs/reports/cpp-comparison.md`;
 //! - `stability [--quick] [--shard I/N [--out DIR] | --merge DIR]`: runs
 //!   every integrator and damping model over a matrix of extreme parameters
 //!   (or one shard of it; docs/reference/cli.md) and writes `docs/reports/stability.md`.
@@ -29,7 +29,7 @@ mod stability_contact;
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 
-const USAGE: &str = "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy and docs (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/damping-table.md\n  bench-report [--quick] [--mesh BASE]...\n                            speed/accuracy/scaling/limits report: docs/bench-report.md\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N] [--mesh BASE]...\n                            pd vs the C++ reference: docs/cpp-comparison.md\n  stability [--quick] [--shard I/N [--out DIR] | --merge DIR]\n                            run the matrix of extreme parameters (or one shard of it, or merge shards), write docs/stability.md (use --release)\n  stability --only contact  the contact axis alone (dev profile), write docs/stability-contact.md\n  stability --only methods [--integrator I] [--predictor P]\n                            the method axis (docs/stability-methods.md)";
+const USAGE: &str = "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy and docs (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/reports/damping-table.md\n  bench-report [--quick] [--mesh BASE]...\n                            speed/accuracy/scaling/limits report: docs/reports/bench-report.md\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N] [--mesh BASE]...\n                            pd vs the C++ reference: docs/reports/cpp-comparison.md\n  stability [--quick] [--shard I/N [--out DIR] | --merge DIR]\n                            run the matrix of extreme parameters (or one shard of it, or merge shards), write docs/reports/stability.md (use --release)\n  stability --only contact  the contact axis alone (dev profile), write docs/reports/stability-contact.md\n  stability --only methods [--integrator I] [--predictor P]\n                            the method axis (docs/reports/stability-methods.md)";
 
 /// The options each task takes: those without a value, and those whose
 /// value is the next argument.

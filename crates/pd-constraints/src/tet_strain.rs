@@ -243,7 +243,7 @@ mod tests {
 
     fn is_proper_rotation(r: &Matrix3<f64>) -> bool {
         // Orthonormality and det = +1 hold to a few ulps of the SVD's
-        // 1e-14 accuracy (ECOSYSTEM.md).
+        // 1e-14 accuracy.
         (r.transpose() * r - Matrix3::identity()).norm() < 1e-12
             && (r.determinant() - 1.0).abs() < 1e-12
     }

@@ -88,7 +88,7 @@ impl<'a> Block<'a> {
 /// 14 beam's METIS order, 3.5 % of its values) update the rows below them
 /// row by row, straight into the solution (`Structure::forward_supernode`, [`narrow_updates`]),
 /// with the sums of `Below::update`'s one-column passes, so the same bits:
-/// 3-5 % off the beam's solve (docs/performance.md, "Narrow supernodes").
+/// 3-5 % off the beam's solve (docs/design/performance.md, "Narrow supernodes").
 /// Wider ones (a fused loop up to 8 columns measured the same as 4) and
 /// the backward step (a fused gather into the dot products' lanes was no
 /// faster) keep the coordinate arrays.
