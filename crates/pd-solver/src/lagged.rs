@@ -212,7 +212,8 @@ impl LaggedSystem {
 
     /// `out = S w` over the free vertices (one point each), `S` the matrix of
     /// the last [`LaggedSystem::assemble`] (or refactorisation), symmetric,
-    /// from its lower triangle.
+    /// from its lower triangle (the Krylov probe's `H w`).
+    #[cfg(feature = "krylov-probe")]
     pub fn product(&self, w: &[Point], out: &mut [Point]) {
         out.iter_mut().for_each(|o| *o = Point::zeros());
         let pattern = self.symbolic.pattern();
@@ -237,6 +238,7 @@ impl LaggedSystem {
     ///
     /// # Errors
     /// A matrix that is not positive definite.
+    #[cfg(feature = "krylov-probe")]
     pub fn factorise_assembled(&mut self) -> Result<(), SolverError> {
         self.symbolic.refactorise(&self.values, &mut self.factor)?;
         Ok(())

@@ -33,6 +33,7 @@
 //! assert!((sim.linear_momentum() - Point::new(0.0, 0.5, 0.0)).norm() < 1e-12);
 //! ```
 
+mod builder;
 mod checkpoint;
 mod components;
 pub mod contact;
@@ -50,15 +51,22 @@ mod step;
 mod system;
 mod weights;
 
+pub use builder::SimulationBuilder;
 pub use checkpoint::Checkpoint;
 pub use model::{Body, BodyId, Model};
 pub use settings::Settings;
 pub use simulation::{Energies, SetupStats, Simulation, State, StepStats};
 pub use step::{
-    Anderson, CgRun, Chebyshev, IterationChange, KrylovProbe, KrylovRecord, Lbfgs, LocalGlobal,
-    Newton, PositionSolver, Predictor, PredictorState, RecurrenceFit, SolverMethod, SolverSpec,
-    SpectralRadius, StepProblem, fit_recurrence,
+    Anderson, Chebyshev, IterationChange, Lbfgs, LocalGlobal, Newton, PositionSolver, Predictor,
+    PredictorState, RecurrenceFit, SolverMethod, SolverSpec, SpectralRadius, StepProblem,
+    fit_recurrence,
 };
+/// A measuring [`PositionSolver`], not a method: plain PD against conjugate
+/// gradients preconditioned with the PD matrix on a step's linearisation
+/// (docs/design/solver.md, "The Krylov bound"). Behind the `krylov-probe`
+/// feature, which `benches/examples/krylov_bound.rs` turns on.
+#[cfg(feature = "krylov-probe")]
+pub use step::{CgRun, KrylovProbe, KrylovRecord};
 
 /// Everything that can go wrong building or stepping a simulation.
 #[derive(Debug, thiserror::Error)]

@@ -100,6 +100,59 @@ impl Chebyshev {
             SpectralRadius::Auto => self.estimated,
         }
     }
+
+    /// A full window of Ritz values in a long step (a tolerance or a large
+    /// budget): a window of later iterates replaces a lower rho at once
+    /// (the recurrence restarts, `omega = 1`), unless the step oscillated
+    /// already, and a new window begins. Returns the largest window
+    /// estimate of the step so far.
+    fn close_window(
+        &mut self,
+        windows: Option<f64>,
+        restarted: bool,
+        omega: &mut f64,
+    ) -> Option<f64> {
+        let window = self.ritz.estimate();
+        self.ritz.restart_window();
+        let Some(window) = window else {
+            return windows;
+        };
+        if let Some(rho) = self.estimated
+            && !restarted
+            && window > rho + RAISE
+        {
+            self.estimated = Some(window.min(MAX_RHO));
+            *omega = 1.0;
+        }
+        windows.into_iter().chain([window]).reduce(f64::max)
+    }
+
+    /// The Chebyshev update of the step's displacement with spectral
+    /// radius `rho`: `[0, rho]` mapped onto `[-rho', rho']` by
+    /// over-relaxation (`alpha`), then the semi-iteration's weight `omega`
+    /// (updated) on the previous iterate.
+    fn relax(&mut self, step: &mut StepProblem<'_>, rho: f64, omega: &mut f64) -> Next {
+        let alpha = 2.0 / (2.0 - rho);
+        let mapped = rho / (2.0 - rho);
+        let squared = mapped * mapped;
+        *omega = if *omega == 1.0 {
+            2.0 / (2.0 - squared)
+        } else {
+            4.0 / (4.0 - squared * *omega)
+        };
+        let omega = *omega;
+        let (previous, current) = (&self.previous, &self.current);
+        for ((x, p), c) in step
+            .displacement_mut()
+            .iter_mut()
+            .zip(previous)
+            .zip(current)
+        {
+            let relaxed = *c + (*x - c) * alpha;
+            *x = (relaxed - p) * omega + p;
+        }
+        Next::Combined { alpha, omega }
+    }
 }
 
 impl PositionSolver for Chebyshev {
@@ -194,21 +247,7 @@ impl PositionSolver for Chebyshev {
                 self.estimated = Some(rho.min(MAX_RHO));
             }
             if auto && self.ritz.full() {
-                // A long step (a tolerance or a large budget): a window of
-                // later iterates replaces a lower rho at once (the
-                // recurrence restarts), and a new window begins.
-                let window = self.ritz.estimate();
-                self.ritz.restart_window();
-                if let Some(window) = window {
-                    windows = windows.into_iter().chain([window]).reduce(f64::max);
-                    if let Some(rho) = self.estimated
-                        && !restarted
-                        && window > rho + RAISE
-                    {
-                        self.estimated = Some(window.min(MAX_RHO));
-                        omega = 1.0;
-                    }
-                }
+                windows = self.close_window(windows, restarted, &mut omega);
             }
             let mut how = Next::Plain;
             if k >= plain
@@ -222,26 +261,7 @@ impl PositionSolver for Chebyshev {
                         self.estimated = Some(rho * rho);
                     }
                 } else {
-                    // [0, rho] mapped onto [-rho', rho'] by over-relaxation.
-                    let alpha = 2.0 / (2.0 - rho);
-                    let mapped = rho / (2.0 - rho);
-                    let squared = mapped * mapped;
-                    omega = if omega == 1.0 {
-                        2.0 / (2.0 - squared)
-                    } else {
-                        4.0 / (4.0 - squared * omega)
-                    };
-                    let (previous, current) = (&self.previous, &self.current);
-                    for ((x, p), c) in step
-                        .displacement_mut()
-                        .iter_mut()
-                        .zip(previous)
-                        .zip(current)
-                    {
-                        let relaxed = *c + (*x - c) * alpha;
-                        *x = (relaxed - p) * omega + p;
-                    }
-                    how = Next::Combined { alpha, omega };
+                    how = self.relax(step, rho, &mut omega);
                 }
             }
             if auto {

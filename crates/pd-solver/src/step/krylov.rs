@@ -43,6 +43,7 @@ use pd_mesh::Point;
 use super::iteration::{PositionSolver, StepProblem};
 use super::newton::{hessian_coefficients, symmetric_product};
 use crate::SolverError;
+use crate::global::MatrixCoefficients;
 use crate::lagged::LaggedSystem;
 use crate::system::SystemCoefficients;
 
@@ -182,6 +183,13 @@ struct Free<'a> {
 }
 
 impl Free<'_> {
+    /// `x* - x0` per free vertex.
+    fn to_reference(&self) -> Vec<Point> {
+        (self.free.iter())
+            .map(|&v| self.reference[v] - self.start[v])
+            .collect()
+    }
+
     /// `|x0 + d - x*|_M`, `d` per free vertex.
     fn error(&self, d: &[Point]) -> f64 {
         let mut sum = 0.0;
@@ -385,6 +393,113 @@ fn costs(
     costs
 }
 
+/// The coefficients of the step's matrix `A` and its values on the global
+/// system's pattern.
+fn step_matrix(step: &StepProblem<'_>) -> (MatrixCoefficients, Vec<f64>) {
+    let matrix = SystemCoefficients::of(step.coefficients, step.damping, step.h).matrix;
+    let system = step.global.system();
+    let mut a_values = vec![0.0; system.pattern.row_idx.len()];
+    system.values_into(matrix, &mut a_values);
+    (matrix, a_values)
+}
+
+/// The probe measures steps without lagged or per-body damping, against a
+/// reference displacement of the model's length.
+fn check_probe(step: &StepProblem<'_>, record: &KrylovRecord) -> Result<(), SolverError> {
+    if step.damping.lagged_stiffness != 0.0 || step.global.damping_weights().is_some() {
+        return Err(SolverError::Unsupported {
+            what: "krylov probe: lagged or per-body damping".into(),
+        });
+    }
+    if record.reference.len() != step.positions.len() {
+        return Err(SolverError::Unsupported {
+            what: "krylov probe: no reference displacement of the right length".into(),
+        });
+    }
+    Ok(())
+}
+
+/// `plain` local-global iterations from the step's start (the real,
+/// nonlinear map) and the error after each; the start is restored after.
+fn plain_errors(step: &mut StepProblem<'_>, free: &Free<'_>, plain: usize) -> Vec<f64> {
+    let mut errors = Vec::with_capacity(plain);
+    for _ in 0..plain {
+        step.local_global_iteration();
+        let d: Vec<Point> = free
+            .free
+            .iter()
+            .map(|&v| step.buffers.displacement[v] - free.start[v])
+            .collect();
+        errors.push(free.error(&d));
+    }
+    step.buffers.displacement.copy_from_slice(free.start);
+    errors
+}
+
+/// The truncated Newton bound: with `hessian` assembled at the start, one
+/// outer iteration per entry of `newton` (a new gradient, `first` for the
+/// first, then that many CG iterations), each added to the step's
+/// displacement, no line search.
+fn truncated_newton(
+    step: &mut StepProblem<'_>,
+    hessian: &LaggedSystem,
+    free: &Free<'_>,
+    newton: &[usize],
+    a_values: &[f64],
+    first: Vec<Point>,
+) {
+    let mut r0 = first;
+    for (o, &inner) in newton.iter().enumerate() {
+        if o > 0 {
+            r0 = minus_gradient(step, a_values);
+        }
+        let (_, d) = cg(step, hessian, &r0, free, (inner, None), "true@x0");
+        for (f, &v) in free.free.iter().enumerate() {
+            step.buffers.displacement[v] += d[f];
+        }
+    }
+}
+
+/// The plain map on the quadratic model at `x*`, `d <- d + A^{-1} H (e0 -
+/// d)` from `d = 0`, and its error after each of `iterations`.
+fn model_plain_errors(
+    step: &mut StepProblem<'_>,
+    hessian: &LaggedSystem,
+    free: &Free<'_>,
+    error_to_reference: &[Point],
+    iterations: usize,
+) -> Vec<f64> {
+    let nf = error_to_reference.len();
+    let mut errors = Vec::with_capacity(iterations);
+    let mut d = vec![Point::zeros(); nf];
+    let (mut rest, mut hr, mut z) = (d.clone(), d.clone(), d.clone());
+    for _ in 0..iterations {
+        for f in 0..nf {
+            rest[f] = error_to_reference[f] - d[f];
+        }
+        hessian.product(&rest, &mut hr);
+        precondition(step, &hr, &mut z);
+        for f in 0..nf {
+            d[f] += z[f];
+        }
+        errors.push(free.error(&d));
+    }
+    errors
+}
+
+impl KrylovProbe {
+    /// The Hessian system, built at the first step and kept.
+    fn take_hessian(&mut self, step: &StepProblem<'_>) -> Result<Box<LaggedSystem>, SolverError> {
+        match self.hessian.take() {
+            Some(hessian) => Ok(hessian),
+            None => Ok(Box::new(LaggedSystem::new(
+                step.global.system(),
+                step.local.blocks(),
+            )?)),
+        }
+    }
+}
+
 impl PositionSolver for KrylovProbe {
     fn name(&self) -> &'static str {
         "krylov-probe"
@@ -395,96 +510,54 @@ impl PositionSolver for KrylovProbe {
         let mut record = record.lock().map_err(|_| SolverError::Unsupported {
             what: "krylov probe: a poisoned record".into(),
         })?;
-        if step.damping.lagged_stiffness != 0.0 || step.global.damping_weights().is_some() {
-            return Err(SolverError::Unsupported {
-                what: "krylov probe: lagged or per-body damping".into(),
-            });
-        }
-        let n = step.positions.len();
-        if record.reference.len() != n {
-            return Err(SolverError::Unsupported {
-                what: "krylov probe: no reference displacement of the right length".into(),
-            });
-        }
+        check_probe(step, &record)?;
         record.predicted = step.predicted;
-        if self.hessian.is_none() {
-            self.hessian = Some(Box::new(LaggedSystem::new(
-                step.global.system(),
-                step.local.blocks(),
-            )?));
-        }
-        let mut hessian = self.hessian.take().expect("built above");
+        let mut hessian = self.take_hessian(step)?;
         let start = step.displacement().to_vec();
         let reference = record.reference.clone();
         let free_vertices = step.global.system().free.clone();
-        let masses = step.masses;
         let free = Free {
             free: &free_vertices,
-            masses,
+            masses: step.masses,
             start: &start,
             reference: &reference,
         };
         let nf = free_vertices.len();
-        let zero = vec![Point::zeros(); nf];
-        record.start_error = free.error(&zero);
-        let repetitions = record.timing_repetitions;
-        if repetitions > 0 {
-            record.costs = costs(step, &mut hessian, &start, repetitions);
+        record.start_error = free.error(&vec![Point::zeros(); nf]);
+        if record.timing_repetitions > 0 {
+            record.costs = costs(step, &mut hessian, &start, record.timing_repetitions);
         }
 
-        // Plain local-global iterations, the nonlinear map.
-        record.plain_errors.clear();
-        let plain = if record.finish.is_some() || !record.newton.is_empty() {
-            0
-        } else {
-            record.plain_iterations
-        };
-        for _ in 0..plain {
-            step.local_global_iteration();
-            let d: Vec<Point> = free_vertices
-                .iter()
-                .map(|&v| step.buffers.displacement[v] - start[v])
-                .collect();
-            record.plain_errors.push(free.error(&d));
-        }
-        step.buffers.displacement.copy_from_slice(&start);
+        // Plain local-global iterations, the nonlinear map (not for the
+        // oracle and the truncated Newton bound).
+        let method = record.finish.is_some() || !record.newton.is_empty();
+        let plain = if method { 0 } else { record.plain_iterations };
+        record.plain_errors = plain_errors(step, &free, plain);
 
         let c = step.coefficients;
-        let matrix = SystemCoefficients::of(c, step.damping, step.h).matrix;
-        let system = step.global.system();
-        let mut a_values = vec![0.0; system.pattern.row_idx.len()];
-        system.values_into(matrix, &mut a_values);
+        let (matrix, a_values) = step_matrix(step);
         let minus_gradient = minus_gradient(step, &a_values);
 
         let (hessian_coefficients, elastic) = hessian_coefficients(matrix, c);
-        let positions = step.positions;
         let q_of = |dx: &[Point]| -> Vec<Point> {
-            positions
-                .iter()
-                .zip(dx)
+            (step.positions.iter().zip(dx))
                 .map(|(x, d)| x + d * c.c2)
                 .collect()
         };
-        let q_reference = q_of(&reference);
-        let q_start = q_of(&start);
-        let error_to_reference: Vec<Point> = free_vertices
-            .iter()
-            .map(|&v| reference[v] - start[v])
-            .collect();
+        let (q_reference, q_start) = (q_of(&reference), q_of(&start));
+        let error_to_reference = free.to_reference();
         let local = step.local;
         let blocks = local.blocks();
         if !record.newton.is_empty() {
             hessian.assemble(blocks, &q_start, hessian_coefficients, elastic, false);
-            let mut r0 = minus_gradient;
-            for (o, &inner) in record.newton.iter().enumerate() {
-                if o > 0 {
-                    r0 = self::minus_gradient(step, &a_values);
-                }
-                let (_, d) = cg(step, &hessian, &r0, &free, (inner, None), "true@x0");
-                for (f, &v) in free_vertices.iter().enumerate() {
-                    step.buffers.displacement[v] += d[f];
-                }
-            }
+            truncated_newton(
+                step,
+                &hessian,
+                &free,
+                &record.newton,
+                &a_values,
+                minus_gradient,
+            );
             self.hessian = Some(hessian);
             return Ok(());
         }
@@ -509,20 +582,13 @@ impl PositionSolver for KrylovProbe {
                 minus_gradient.clone()
             };
             if name == "true@x*" && record.finish.is_none() {
-                // The plain map on the quadratic model: d <- d + A^{-1} H (e0 - d).
-                let mut d = vec![Point::zeros(); nf];
-                let (mut rest, mut hr, mut z) = (zero.clone(), zero.clone(), zero.clone());
-                for _ in 0..record.plain_iterations {
-                    for f in 0..nf {
-                        rest[f] = error_to_reference[f] - d[f];
-                    }
-                    hessian.product(&rest, &mut hr);
-                    precondition(step, &hr, &mut z);
-                    for f in 0..nf {
-                        d[f] += z[f];
-                    }
-                    model_plain.push(free.error(&d));
-                }
+                model_plain = model_plain_errors(
+                    step,
+                    &hessian,
+                    &free,
+                    &error_to_reference,
+                    record.plain_iterations,
+                );
             }
             let (mut run, d) = cg(step, &hessian, &r0, &free, (iterations, None), name);
             if record.finish.is_some() {
@@ -536,16 +602,8 @@ impl PositionSolver for KrylovProbe {
                     lagged.refactorise(blocks, &q_reference, hessian_coefficients, elastic)?;
                     self.lagged = Some(Box::new(lagged));
                 }
-                let lagged = self.lagged.as_deref_mut();
-                let (run, _) = cg(
-                    step,
-                    &hessian,
-                    &r0,
-                    &free,
-                    (iterations, lagged),
-                    "true@x*, lagged psd H",
-                );
-                runs.push(run);
+                let lagged = (iterations, self.lagged.as_deref_mut());
+                runs.push(cg(step, &hessian, &r0, &free, lagged, "true@x*, lagged psd H").0);
             }
             if name == "psd@x0" && hessian.factorise_assembled().is_ok() {
                 hessian.solve(&r0);

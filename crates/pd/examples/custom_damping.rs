@@ -8,12 +8,10 @@
 //! depend on the time step. Nothing in the workspace is edited; the
 //! simulation takes the model as a `Box<dyn Damping>`.
 //!
-//! `cargo run -p pd-solver --example custom_damping`
+//! `cargo run -p pd --example custom_damping`
 
-use pd_damping::{Damping, DampingContext, NoDamping, Point};
-use pd_integrators::ImplicitMidpoint;
-use pd_mesh::generators;
-use pd_solver::{Model, Settings, Simulation};
+use pd::damping::DampingContext;
+use pd::prelude::*;
 
 /// Damps the velocity component along `direction` (a unit vector) at
 /// `rate` (1/s); fixed vertices are left at rest.
@@ -51,12 +49,12 @@ fn thrown(damping: Box<dyn Damping>) -> Result<Simulation, Box<dyn std::error::E
     let mut model = Model::new();
     let body = model.add_body(block, masses)?;
     model.add_tet_strain(body, 1e5, None)?;
-    let settings = Settings {
-        dt: 0.01,
-        gravity: Point::zeros(),
-        ..Settings::default()
-    };
-    let mut sim = Simulation::new(model, Box::new(ImplicitMidpoint), damping, settings)?;
+    let mut sim = Simulation::builder(model)
+        .integrator(ImplicitMidpoint)
+        .damping_boxed(damping)
+        .dt(0.01)
+        .gravity(Point::zeros())
+        .build()?;
     sim.add_rigid_velocity(0, Point::new(1.0, 1.0, 0.0), Point::zeros())
         .unwrap();
     Ok(sim)

@@ -1,12 +1,9 @@
 //! A cantilever beam in a few lines: build a model, pick an integrator and
 //! a damping model, step, read the result.
 //!
-//! `cargo run -p pd-solver --example beam`
+//! `cargo run -p pd --example quickstart`
 
-use pd_damping::LaplacianDamping;
-use pd_integrators::ImplicitMidpoint;
-use pd_mesh::{VertexSelection, generators};
-use pd_solver::{Model, Settings, Simulation};
+use pd::prelude::*;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     // A 1 x 0.2 x 0.2 m beam of 10 x 2 x 2 cubes (6 tets each), 1000 kg/m^3.
@@ -25,17 +22,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // Implicit midpoint adds no numerical damping: all damping is the
     // Laplacian damping's, a2 = 0.003 s.
     let damping = LaplacianDamping::new(0.003, 0.0, false)?;
-    let settings = Settings {
-        dt: 0.01,
-        iterations: 10,
-        ..Settings::default()
-    };
-    let mut sim = Simulation::new(
-        model,
-        Box::new(ImplicitMidpoint),
-        Box::new(damping),
-        settings,
-    )?;
+    let mut sim = Simulation::builder(model)
+        .integrator(ImplicitMidpoint)
+        .damping(damping)
+        .dt(0.01)
+        .iterations(10)
+        .build()?;
     for second in 1..=3 {
         sim.run(100)?;
         let tip = sim

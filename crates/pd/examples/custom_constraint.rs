@@ -9,13 +9,9 @@
 //! A chain of springs hangs from a vertex that slides freely along the rail:
 //! gravity swings the chain and the slider rides along.
 //!
-//! `cargo run -p pd-solver --example custom_constraint`
+//! `cargo run -p pd --example custom_constraint`
 
-use pd_constraints::Constraint;
-use pd_damping::NoDamping;
-use pd_integrators::BackwardEuler;
-use pd_mesh::{Point, generators};
-use pd_solver::{Model, Settings, Simulation};
+use pd::prelude::*;
 
 /// Keeps vertex `vertex[0]` on the line `y = height, z = 0` with weight
 /// `stiffness` (N/m).
@@ -72,17 +68,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         height,
         stiffness: 1e4,
     }])?;
-    let settings = Settings {
-        dt: 0.01,
-        iterations: 20,
-        ..Settings::default()
-    };
-    let mut sim = Simulation::new(
-        model,
-        Box::new(BackwardEuler),
-        Box::new(NoDamping),
-        settings,
-    )?;
+    // Backward Euler and no damping are the builder's defaults.
+    let mut sim = Simulation::builder(model).dt(0.01).iterations(20).build()?;
     for _ in 0..5 {
         sim.run(20)?;
         let s = sim.state().positions[first];

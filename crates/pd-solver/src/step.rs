@@ -18,6 +18,7 @@ pub(crate) mod compatibility;
 pub(crate) mod divergence;
 pub(crate) mod fitted;
 pub(crate) mod iteration;
+#[cfg(feature = "krylov-probe")]
 pub(crate) mod krylov;
 pub(crate) mod lbfgs;
 pub(crate) mod materials;
@@ -49,6 +50,7 @@ pub use anderson::Anderson;
 pub use chebyshev::Chebyshev;
 pub use fitted::{RecurrenceFit, fit_recurrence};
 pub use iteration::{IterationChange, LocalGlobal, PositionSolver, StepProblem};
+#[cfg(feature = "krylov-probe")]
 pub use krylov::{CgRun, KrylovProbe, KrylovRecord};
 pub use lbfgs::Lbfgs;
 pub use method::{SolverMethod, SolverSpec, SpectralRadius};
