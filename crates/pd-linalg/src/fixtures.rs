@@ -96,14 +96,3 @@ pub(crate) fn armadillo() -> Option<pd_mesh::Mesh> {
         .collect();
     Some(pd_mesh::Mesh::from_tets(vertices, tets).unwrap())
 }
-
-/// The fastest of `repetitions` wall times of `f`, s.
-pub(crate) fn fastest(repetitions: usize, mut f: impl FnMut()) -> f64 {
-    (0..repetitions)
-        .map(|_| {
-            let t = std::time::Instant::now();
-            f();
-            t.elapsed().as_secs_f64()
-        })
-        .fold(f64::INFINITY, f64::min)
-}

@@ -77,11 +77,17 @@ fn timed(reps: usize, mut f: impl FnMut() -> f64) -> (f64, f64) {
     (times[0] * 1e3, times[times.len() / 2] * 1e3)
 }
 
+/// The fastest of `repetitions` wall times of `f`, s.
+pub(super) fn fastest(repetitions: usize, mut f: impl FnMut()) -> f64 {
+    let times = (0..repetitions).map(|_| wall_time(&mut f));
+    times.fold(f64::INFINITY, f64::min)
+}
+
 /// The wall time of `f`, in seconds. Not [`cpu_seconds`]: this machine's
 /// schedstat advances in 4 ms ticks, and pd's solve may hand half the tree
 /// to a rayon worker, whose time this thread's clock would not count (the
 /// fit runs on a 1-thread pool, as a 1-thread step does).
-fn wall_time(f: impl FnOnce()) -> f64 {
+pub(super) fn wall_time(f: impl FnOnce()) -> f64 {
     let start = std::time::Instant::now();
     f();
     start.elapsed().as_secs_f64()

@@ -17,7 +17,8 @@
 
 use crate::Point;
 use crate::cholesky::SymbolicFactor;
-use crate::fixtures::{armadillo, fastest, laplacian_factor, laplacian_values};
+use super::calibration::fastest;
+use crate::fixtures::{armadillo, laplacian_factor, laplacian_values};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::LltRef;
 use faer::{Conj, Mat, Par};
