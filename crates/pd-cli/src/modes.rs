@@ -1,5 +1,5 @@
 //! `pd modes SCENE [--count K] [--out DIR]`: the scene's lowest elastic
-//! modes at rest (`pd_solver::modes`), their frequencies and the damping
+//! modes at rest (`pd_modes`), their frequencies and the damping
 //! ratio each gets under the scene's damping and integrator at its time
 //! step (numerical damping included), in `DIR/modes.json`, and each mode
 //! shape as an animated sequence: `DIR/mode_NN.pvd` over VTU frames and
@@ -11,7 +11,7 @@ use pd_damping::Point;
 use pd_damping::registry::DampingSpec;
 use pd_io::frames::{Cells, write_obj};
 use pd_io::vtu::{PvdEntry, write_pvd, write_vtu};
-use pd_solver::modes::{self, Mode};
+use pd_modes::Mode;
 use pd_solver::{Model, Simulation};
 use tracing::info;
 
@@ -38,7 +38,7 @@ pub(crate) fn modes(options: &SceneOptions, count: usize) -> Result<(), Failure>
     let loaded = run::load_scene(options)?;
     let scene = &loaded.scene;
     let sim = run::build(scene)?;
-    let analysis = modes::elastic_modes(sim.model(), count)
+    let analysis = pd_modes::elastic_modes(sim.model(), count)
         .map_err(|e| Failure::Input(format!("{}: modal analysis: {e}", scene.source.display())))?;
     info!(
         "{} elastic modes of {} dofs ({} rigid, {} mechanisms skipped) by {} in {:.1} ms \
@@ -71,7 +71,7 @@ pub(crate) fn modes(options: &SceneOptions, count: usize) -> Result<(), Failure>
         let c = d.mass
             + d.damping_laplacian * mode.laplacian_quotient
             + d.lagged_stiffness * mode.omega * mode.omega;
-        let discrete = modes::discrete_mode(&make, dt, mode.omega, c);
+        let discrete = pd_modes::discrete_mode(&make, dt, mode.omega, c);
         let name = format!("mode_{:02}", i + 1);
         write_animation(&out, &name, &sim, mode)?;
         entries.push(serde_json::json!({

@@ -18,7 +18,6 @@ use std::path::Path;
 use nalgebra::{Complex, Matrix2, Vector2};
 use pd_io::scene::{Scene, Syntax};
 use pd_mesh::Point;
-use pd_solver::modes;
 use pd_solver::{Simulation, State};
 
 fn scene(text: &str) -> Scene {
@@ -113,7 +112,7 @@ fn two_mode_fit_reproduces_both_ratios_on_the_spring_chain() {
     let dt = 0.001;
     let s = scene(&chain(dt, "ratios = [0.02, 0.05]\nmodes = [1, 3]"));
     let mut sim = s.build().unwrap();
-    let analysis = modes::elastic_modes(sim.model(), 3).unwrap();
+    let analysis = pd_modes::elastic_modes(sim.model(), 3).unwrap();
     let d = sim.damping_matrix();
     assert!(d.mass > 0.0 && d.damping_laplacian > 0.0, "{d:?}");
     for (mode, target) in [(0, 0.02), (2, 0.05)] {
@@ -175,7 +174,7 @@ fn ratio_mistakes_are_clear_errors() {
 /// periods: its modal coordinate, the mode, and `sim`.
 fn beam_history(dt: f64, integrator: &str, damping: &str, periods: f64) -> (Vec<f64>, f64) {
     let mut sim = scene(&beam(dt, integrator, damping)).build().unwrap();
-    let analysis = modes::elastic_modes(sim.model(), 1).unwrap();
+    let analysis = pd_modes::elastic_modes(sim.model(), 1).unwrap();
     let mode = &analysis.modes[0];
     let largest = mode.shape.iter().map(|p| p.norm()).fold(0.0, f64::max);
     let steps = (periods * std::f64::consts::TAU / (mode.omega * dt)).round() as usize;

@@ -15,7 +15,7 @@ use std::path::Path;
 use nalgebra::{Complex, Matrix2, Vector2};
 use pd_io::scene::{Scene, Syntax};
 use pd_mesh::Point;
-use pd_solver::{Simulation, State, modes};
+use pd_solver::{Simulation, State};
 
 fn scene(text: &str) -> Scene {
     Scene::parse(text, Syntax::Toml, Path::new("per_body.toml")).unwrap()
@@ -105,7 +105,7 @@ fn an_undamped_and_a_damped_beam_keep_their_own_behaviour() {
     // h omega_1 = 0.1, as in damping_ratio.rs (omega_1 = 5.799 rad/s).
     let dt = 0.1 / 5.798936;
     let one = scene(&scene_text(dt, &beam_body(0.0, "")));
-    let mode = modes::elastic_modes(one.build().unwrap().model(), 1)
+    let mode = pd_modes::elastic_modes(one.build().unwrap().model(), 1)
         .unwrap()
         .modes
         .remove(0);

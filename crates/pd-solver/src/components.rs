@@ -93,3 +93,31 @@ impl Topology {
         }
     }
 }
+
+impl Model {
+    /// Every connected component of the mesh graphs (edges, those of
+    /// tetrahedra and triangles included) with its free vertices and the
+    /// rigid motions it keeps, judged from what holds it at rest: fixed
+    /// vertices and the vertices of the constraints among `blocks` that are
+    /// not translation invariant (attachments). `blocks` are the model's
+    /// constraints, as [`Model::constraint_blocks`] returns them. These are
+    /// the rigid bodies the damping models see
+    /// ([`pd_damping::StepContext`]); components without free vertices are
+    /// left out.
+    ///
+    /// ```
+    /// use pd_damping::rigid::RigidFreedom;
+    /// use pd_mesh::generators;
+    /// use pd_solver::Model;
+    ///
+    /// let mut model = Model::new();
+    /// let body = model.add_body(generators::chain(3, 1.0).unwrap(), vec![1.0; 3]).unwrap();
+    /// model.add_springs(body, 10.0).unwrap();
+    /// let free = model.rigid_bodies(&model.constraint_blocks());
+    /// assert_eq!(free.len(), 1);
+    /// assert_eq!(free[0].freedom, RigidFreedom::Free);
+    /// ```
+    pub fn rigid_bodies(&self, blocks: &[Box<dyn ConstraintBlock>]) -> Vec<RigidBody> {
+        Topology::of(self, blocks).rigid_bodies
+    }
+}

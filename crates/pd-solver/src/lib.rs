@@ -42,7 +42,6 @@ mod global;
 mod lagged;
 mod local;
 mod model;
-pub mod modes;
 mod phases;
 mod projection_scatter;
 mod settings;

@@ -1,10 +1,10 @@
 //! Damping by ratio: a `[damping]` table with `ratio` (and `mode`) or
 //! `ratios` and `modes` instead of `stiffness` is turned into coefficients
-//! from the model's elastic modes at rest ([`pd_solver::modes`],
+//! from the model's elastic modes at rest ([`pd_modes`],
 //! [`pd_damping::ratio`]) when the scene is built.
 
 use pd_damping::ratio::{FittedCoefficients, ModalData};
-use pd_solver::{Model, modes};
+use pd_solver::Model;
 
 use super::spec::Scene;
 use crate::Result;
@@ -46,7 +46,7 @@ impl Scene {
         let (Some(target), Some(quotient)) = (target, spec.model().ratio) else {
             return Ok((spec.clone(), None));
         };
-        let analysis = modes::elastic_modes(model, target.highest_mode()).map_err(|e| {
+        let analysis = pd_modes::elastic_modes(model, target.highest_mode()).map_err(|e| {
             super::field_error(
                 &self.source,
                 field,

@@ -1,13 +1,13 @@
-//! Block Lanczos, the modal analysis of large models (`modes/lanczos.rs`),
+//! Block Lanczos, the modal analysis of large models (`Method::Lanczos`),
 //! against the dense eigensolver (values and shapes), its fallback to
 //! subspace iteration on a model with mechanisms, its determinism across
 //! thread counts, and the number of columns it solves.
 
-mod beam_modes;
+mod common;
 
 use pd_mesh::generators;
+use pd_modes::{Method, Mode};
 use pd_solver::Model;
-use pd_solver::modes::{self, Method, Mode};
 
 /// A free tet body: six rigid motions, deflated by Lanczos, found as zero
 /// modes by the dense solver.
@@ -41,10 +41,10 @@ fn mass_cosine(model: &Model, a: &Mode, b: &Mode) -> f64 {
 /// sin^2 / 2 + ...`, bounded here by `sin` itself.
 #[test]
 fn dense_and_lanczos_agree() {
-    let clamped = beam_modes::beam([1.0, 0.1, 0.1], [20, 2, 2]);
+    let clamped = common::beam([1.0, 0.1, 0.1], [20, 2, 2]);
     for (name, model, rigid) in [("clamped", clamped, 0), ("free", free_box(), 6)] {
-        let all = modes::elastic_modes_by(&model, usize::MAX, Method::Dense).unwrap();
-        let lanczos = modes::elastic_modes_by(&model, 8, Method::Lanczos).unwrap();
+        let all = pd_modes::elastic_modes_by(&model, usize::MAX, Method::Dense).unwrap();
+        let lanczos = pd_modes::elastic_modes_by(&model, 8, Method::Lanczos).unwrap();
         println!(
             "{name}: {} blocks, {} restarts",
             lanczos.iterations, lanczos.restarts
@@ -91,13 +91,13 @@ fn dense_and_lanczos_agree() {
 /// tolerance (omega within 5e-10 relative) plus its round-off (1e-12).
 #[test]
 fn a_model_with_mechanisms_falls_back_to_subspace_iteration() {
-    let mut model = beam_modes::beam([1.0, 0.1, 0.1], [20, 2, 2]);
+    let mut model = common::beam([1.0, 0.1, 0.1], [20, 2, 2]);
     let mesh = generators::chain(3, 0.2).unwrap();
     let body = model.add_body(mesh, vec![0.01; 3]).unwrap();
     model.add_springs(body, 100.0).unwrap();
     model.fix_vertices(body, &[0, 2]).unwrap();
-    let analysis = modes::elastic_modes(&model, 6).unwrap();
-    let dense = modes::elastic_modes_by(&model, 6, Method::Dense).unwrap();
+    let analysis = pd_modes::elastic_modes(&model, 6).unwrap();
+    let dense = pd_modes::elastic_modes_by(&model, 6, Method::Dense).unwrap();
     assert_eq!(analysis.dofs, 543);
     assert_eq!(analysis.method, "shift-invert subspace iteration");
     assert_eq!(analysis.mechanisms, 2);
@@ -118,13 +118,13 @@ fn a_model_with_mechanisms_falls_back_to_subspace_iteration() {
 /// one thread and on two.
 #[test]
 fn lanczos_is_the_same_on_one_and_two_threads() {
-    let model = beam_modes::beam([1.0, 0.1, 0.1], [40, 4, 4]);
+    let model = common::beam([1.0, 0.1, 0.1], [40, 4, 4]);
     let run = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| modes::elastic_modes(&model, 6).unwrap())
+            .install(|| pd_modes::elastic_modes(&model, 6).unwrap())
     };
     let (one, two) = (run(1), run(2));
     assert_eq!(one.method, "shift-invert block Lanczos");
@@ -156,10 +156,10 @@ fn lanczos_is_the_same_on_one_and_two_threads() {
 /// Rayleigh-Ritz check.
 #[test]
 fn lanczos_blocks_stay_below_the_kaniel_paige_saad_bound() {
-    let model = beam_modes::beam([1.0, 0.1, 0.1], [20, 2, 2]);
+    let model = common::beam([1.0, 0.1, 0.1], [20, 2, 2]);
     let count = 6;
     let p = 3;
-    let all = modes::elastic_modes_by(&model, usize::MAX, Method::Dense).unwrap();
+    let all = pd_modes::elastic_modes_by(&model, usize::MAX, Method::Dense).unwrap();
     let lambda: Vec<f64> = all.modes.iter().map(|m| m.omega * m.omega).collect();
     let theta = |i: usize| 1.0 / lambda[i - 1];
     let theta_min = theta(lambda.len());
@@ -172,7 +172,7 @@ fn lanczos_blocks_stay_below_the_kaniel_paige_saad_bound() {
         })
         .max()
         .unwrap();
-    let lanczos = modes::elastic_modes_by(&model, count, Method::Lanczos).unwrap();
+    let lanczos = pd_modes::elastic_modes_by(&model, count, Method::Lanczos).unwrap();
     println!(
         "{} blocks ({} columns, {} restarts); bound {bound} blocks",
         lanczos.iterations, lanczos.solved_columns, lanczos.restarts
@@ -193,8 +193,8 @@ fn lanczos_spans_a_small_model_entirely() {
     let masses = mesh.lumped_masses(1000.0).unwrap();
     let body = model.add_body(mesh, masses).unwrap();
     model.add_tet_strain(body, 1.0e5, None).unwrap();
-    let dense = modes::elastic_modes_by(&model, usize::MAX, Method::Dense).unwrap();
-    let lanczos = modes::elastic_modes_by(&model, usize::MAX, Method::Lanczos).unwrap();
+    let dense = pd_modes::elastic_modes_by(&model, usize::MAX, Method::Dense).unwrap();
+    let lanczos = pd_modes::elastic_modes_by(&model, usize::MAX, Method::Lanczos).unwrap();
     assert_eq!(lanczos.method, "shift-invert block Lanczos");
     assert_eq!(lanczos.rigid_modes, 6);
     assert_eq!(dense.modes.len(), 18);

@@ -2,7 +2,7 @@
 //! pattern from the constraint stencils (every pair of free vertices that
 //! share a constraint gives a 3 x 3 block), then each element Hessian added
 //! into its slots in element order. The triplet sort of the dense path
-//! (`assemble` in `modes.rs`, kept there so that small models keep their
+//! (`assemble` in `lib.rs`, kept there so that small models keep their
 //! bits) cost about as much as the factorisation on the test beams; this
 //! costs one pass over the Hessians and a binary search per vertex pair.
 //! Entries that end exactly zero off the diagonal are dropped, as the
@@ -121,8 +121,9 @@ fn compact(
 mod tests {
     use pd_mesh::{VertexSelection, generators};
 
-    use crate::Model;
-    use crate::modes::assemble;
+    use pd_solver::Model;
+
+    use crate::assemble;
 
     /// The scattered `K` is the triplet-assembled `K`: the same pattern and
     /// the same values up to the order of summation (each entry sums at

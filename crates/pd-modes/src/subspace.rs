@@ -13,8 +13,9 @@ use std::time::Instant;
 use faer::Mat;
 use nalgebra::{DMatrix, SymmetricEigen};
 
+use pd_solver::SolverError;
+
 use super::{Phases, ShiftedFactor, Stiffness, ZERO, mass_dot};
-use crate::SolverError;
 
 /// A Ritz pair counts as converged when `|K x - lambda M x|_{M^-1} <=
 /// TOLERANCE lambda` for mass-normalised `x`: then an exact eigenvalue lies

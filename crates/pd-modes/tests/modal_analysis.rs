@@ -1,14 +1,14 @@
-//! Modal analysis (`pd_solver::modes`) against analytic frequencies: a
+//! Modal analysis (`pd_modes`) against analytic frequencies: a
 //! fixed-fixed spring chain (exact discrete frequencies) and a clamped tet
 //! beam (Euler-Bernoulli, approached from above with refinement).
 
-mod beam_modes;
+mod common;
 
 use std::f64::consts::PI;
 
 use pd_mesh::{Mesh, Point, generators};
+use pd_modes::ModalAnalysis;
 use pd_solver::Model;
-use pd_solver::modes::{self, ModalAnalysis};
 
 /// Free vertices of the chain.
 const N: usize = 10;
@@ -27,7 +27,7 @@ fn chain() -> Model {
 
 #[test]
 fn spring_chain_frequencies_are_exact() {
-    let analysis = modes::elastic_modes(&chain(), N).unwrap();
+    let analysis = pd_modes::elastic_modes(&chain(), N).unwrap();
     // At rest a spring has no transverse stiffness: the 2N sideways motions
     // are mechanisms, skipped; the chain is held at both ends (no rigid mode).
     assert_eq!(analysis.method, "dense");
@@ -109,8 +109,8 @@ fn bending(analysis: &ModalAnalysis, model: &Model) -> Vec<f64> {
 #[test]
 fn clamped_beam_bending_converges_to_euler_bernoulli_from_above() {
     let (size, b) = ([1.0, 0.1, 0.1], 0.1);
-    let reference = beam_modes::DENSITY;
-    let ei = beam_modes::YOUNGS_MODULUS * b * b * b * b / 12.0;
+    let reference = common::DENSITY;
+    let ei = common::YOUNGS_MODULUS * b * b * b * b / 12.0;
     let base = (ei / (reference * b * b)).sqrt();
     let euler_bernoulli: Vec<f64> = [1.875104, 4.694091, 7.854757]
         .iter()
@@ -122,8 +122,8 @@ fn clamped_beam_bending_converges_to_euler_bernoulli_from_above() {
     let independent = [5.798936, 4.033651, 3.424420];
     let mut previous: Option<Vec<f64>> = None;
     for (n, expected) in [1, 2, 4].into_iter().zip(independent) {
-        let model = beam_modes::beam(size, [10 * n, n, n]);
-        let analysis = modes::elastic_modes(&model, 12).unwrap();
+        let model = common::beam(size, [10 * n, n, n]);
+        let analysis = pd_modes::elastic_modes(&model, 12).unwrap();
         let bending = bending(&analysis, &model);
         println!(
             "n = {n}: {} dofs, {} ({} iterations, factor {:.3} s, total {:.3} s): bending y {:?}, / EB {:?}",
@@ -190,7 +190,7 @@ fn free_chain_skips_its_rigid_motions() {
     let mut model = Model::new();
     let body = model.add_body(mesh, vec![M; n]).unwrap();
     model.add_springs(body, K).unwrap();
-    let analysis = modes::elastic_modes(&model, n - 1).unwrap();
+    let analysis = pd_modes::elastic_modes(&model, n - 1).unwrap();
     assert_eq!(analysis.rigid_modes, 5);
     assert_eq!(analysis.mechanisms, 2 * n - 4);
     assert_eq!(analysis.modes.len(), n - 1);
@@ -214,15 +214,15 @@ fn free_chain_skips_its_rigid_motions() {
 /// the dense solver's round-off, 1e-12 here).
 #[test]
 fn dense_and_subspace_iteration_agree() {
-    let clamped = beam_modes::beam([1.0, 0.1, 0.1], [20, 2, 2]);
+    let clamped = common::beam([1.0, 0.1, 0.1], [20, 2, 2]);
     let mesh = generators::box_tets([0.3, 0.2, 0.1], [3, 2, 1]).unwrap();
     let mut free = Model::new();
     let masses = mesh.lumped_masses(1000.0).unwrap();
     let body = free.add_body(mesh, masses).unwrap();
     free.add_tet_strain(body, 1.0e5, None).unwrap();
     for (name, model, rigid) in [("clamped", clamped, 0), ("free", free, 6)] {
-        let dense = modes::elastic_modes_by(&model, 8, modes::Method::Dense).unwrap();
-        let subspace = modes::elastic_modes_by(&model, 8, modes::Method::Subspace).unwrap();
+        let dense = pd_modes::elastic_modes_by(&model, 8, pd_modes::Method::Dense).unwrap();
+        let subspace = pd_modes::elastic_modes_by(&model, 8, pd_modes::Method::Subspace).unwrap();
         assert_eq!(dense.rigid_modes, rigid, "{name}");
         assert_eq!(subspace.rigid_modes, rigid, "{name}");
         assert_eq!(dense.mechanisms + subspace.mechanisms, 0, "{name}");
@@ -243,11 +243,11 @@ fn dense_and_subspace_iteration_agree() {
 #[test]
 fn auto_solves_many_modes_of_a_mid_sized_model_densely() {
     // 40 x 2 x 2 cells, one end clamped: 360 free vertices, 1,080 dofs.
-    let model = beam_modes::beam([1.0, 0.1, 0.1], [40, 2, 2]);
-    let few = modes::elastic_modes(&model, 4).unwrap();
-    assert!(few.dofs > modes::DENSE_LIMIT, "{}", few.dofs);
+    let model = common::beam([1.0, 0.1, 0.1], [40, 2, 2]);
+    let few = pd_modes::elastic_modes(&model, 4).unwrap();
+    assert!(few.dofs > pd_modes::DENSE_LIMIT, "{}", few.dofs);
     assert_eq!(few.method, "shift-invert block Lanczos");
-    let many = modes::elastic_modes(&model, few.dofs.div_ceil(4)).unwrap();
+    let many = pd_modes::elastic_modes(&model, few.dofs.div_ceil(4)).unwrap();
     assert_eq!(many.method, "dense");
     // The same lowest modes either way (Lanczos converged to 1e-9 relative,
     // the threshold of `dense_and_subspace_iteration_agree`).
@@ -274,7 +274,7 @@ fn a_free_vertex_without_mass_is_named_by_body_and_local_index() {
     let second = model.add_body(mesh, vec![M, M, M, 0.0]).unwrap();
     model.add_springs(second, K).unwrap();
     let expected = "body 1 vertex 3 (vertex 7 of the model) is free but has mass 0";
-    let message = modes::elastic_modes(&model, 2).unwrap_err().to_string();
+    let message = pd_modes::elastic_modes(&model, 2).unwrap_err().to_string();
     assert!(message.contains(expected), "{message}");
     // A simulation of the same model says the same.
     let message = pd_solver::Simulation::new(

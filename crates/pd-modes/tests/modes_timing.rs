@@ -9,11 +9,11 @@
 //! another mesh and `PD_MODES_METHOD=lanczos` (or `subspace`) one method
 //! alone (for `valgrind --tool=callgrind` instruction counts).
 
-mod beam_modes;
+mod common;
 
 use pd_damping::NoDamping;
 use pd_integrators::ImplicitMidpoint;
-use pd_solver::modes::{self, Method};
+use pd_modes::Method;
 use pd_solver::{Settings, Simulation};
 
 /// CPU seconds the calling thread has run, if the kernel says.
@@ -30,7 +30,7 @@ fn modes_cost_against_one_factorisation() {
         .ok()
         .map(|s| s.split(',').map(|c| c.trim().parse().unwrap()).collect())
         .unwrap_or_else(|| vec![80, 8, 8]);
-    let model = beam_modes::beam([1.0, 0.1, 0.1], [cells[0], cells[1], cells[2]]);
+    let model = common::beam([1.0, 0.1, 0.1], [cells[0], cells[1], cells[2]]);
     let one_thread = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
@@ -43,7 +43,7 @@ fn modes_cost_against_one_factorisation() {
     for &method in methods {
         let (analysis, cpu) = one_thread.install(|| {
             let before = thread_cpu_seconds();
-            let analysis = modes::elastic_modes_by(&model, 6, method).unwrap();
+            let analysis = pd_modes::elastic_modes_by(&model, 6, method).unwrap();
             let cpu = thread_cpu_seconds().zip(before).map(|(b, a)| b - a);
             (analysis, cpu)
         });
@@ -79,7 +79,7 @@ fn modes_cost_against_one_factorisation() {
     if std::env::var("PD_MODES_METHOD").is_ok() {
         return;
     }
-    let analysis = modes::elastic_modes(&model, 6).unwrap();
+    let analysis = pd_modes::elastic_modes(&model, 6).unwrap();
     let sim = Simulation::new(
         model,
         Box::new(ImplicitMidpoint),

@@ -1,9 +1,23 @@
-//! Modal analysis: the lowest elastic modes of a model at rest, the
-//! generalized eigenpairs `K phi = omega^2 M phi` of the elastic stiffness
-//! `K` (the Hessian of every constraint energy at the rest positions, the
-//! exact element Hessians of `ConstraintBlock::hessian_range`, attachments
-//! included) and the lumped mass matrix `M`, over the free degrees of
-//! freedom (fixed vertices removed).
+//! Modal analysis of a Projective Dynamics model: the lowest elastic modes
+//! of a [`pd_solver::Model`] at rest, and what an integrator does to each.
+//! [`elastic_modes`] computes the frequencies `omega`, the mass-normalised
+//! shapes and each shape's damping Laplacian quotient `phi^T L_d phi`;
+//! [`discrete_mode`] gives the damping ratio a mode of given `omega` and
+//! modal damping coefficient actually gets under an integrator's step,
+//! numerical damping included. Damping given by ratio (`ratio` and `mode`,
+//! or `ratios` and `modes`, in a scene's `[damping]`) is fitted from these
+//! when the scene is built: the named modes' frequencies and Laplacian
+//! quotients turn the asked ratios into the coefficients `(a1, a2)` of
+//! `D = a1 M + a2 Q` ([`pd_damping::ratio`]), and `pd modes` reports the
+//! ratio each mode then gets under the scene's integrator
+//! (docs/design/damping.md).
+//!
+//! The modes are the generalized eigenpairs `K phi = omega^2 M phi` of the
+//! elastic stiffness `K` (the Hessian of every constraint energy at the
+//! rest positions, the exact element Hessians of
+//! `ConstraintBlock::hessian_range`, attachments included) and the lumped
+//! mass matrix `M`, over the free degrees of freedom (fixed vertices
+//! removed).
 //!
 //! Zero-frequency modes are skipped: the rigid motions a body keeps (six for
 //! a free body, three about a pivot, one about a hinge, as
@@ -16,11 +30,11 @@
 //! Small systems (at most [`DENSE_LIMIT`] degrees of freedom, or at most
 //! [`DENSE_MANY_LIMIT`] when a quarter of them are asked for) are solved
 //! densely (`M^-1/2 K M^-1/2`, a symmetric eigensolver: exact to round-off);
-//! larger ones by shift-invert block Lanczos (`modes/lanczos.rs`): one
+//! larger ones by shift-invert block Lanczos (`lanczos.rs`): one
 //! sparse Cholesky factorisation of `K + s M` (`s` a small positive shift
 //! that makes it definite even with rigid modes present), then three-column
 //! solves. Models with mechanisms fall back to shift-invert subspace
-//! iteration with Rayleigh-Ritz (`modes/subspace.rs`) on the same factor.
+//! iteration with Rayleigh-Ritz (`subspace.rs`) on the same factor.
 //! See `docs/design/damping.md`.
 
 mod lanczos;
@@ -40,9 +54,8 @@ use pd_mesh::Point;
 
 use faer::MatMut;
 
-use crate::components::Topology;
-use crate::{Model, SolverError};
 use pd_linalg::cholesky::{LowerPattern, NumericFactor, SymbolicFactor};
+use pd_solver::{Model, SolverError};
 
 /// Systems with at most this many free degrees of freedom are solved with a
 /// dense symmetric eigensolver.
@@ -420,7 +433,7 @@ fn for_each_lower_hessian_entry(
 }
 
 /// Assembles `K` at the rest positions over the free degrees of freedom:
-/// `scattered` into a pattern from the stencils (`modes/scatter.rs`, for
+/// `scattered` into a pattern from the stencils (`scatter.rs`, for
 /// the sparse eigensolvers), else from sorted triplets (the dense path).
 fn assemble(
     model: &Model,
@@ -492,7 +505,6 @@ fn rigid_basis(
     blocks: &[Box<dyn pd_constraints::ConstraintBlock>],
     stiffness: &Stiffness,
 ) -> Vec<Vec<f64>> {
-    let topology = Topology::of(model, blocks);
     let mut dof_of = vec![usize::MAX; model.num_vertices()];
     for (f, &v) in stiffness.free.iter().enumerate() {
         dof_of[v] = 3 * f;
@@ -500,7 +512,7 @@ fn rigid_basis(
     let rest = model.rest_positions();
     let axes = [Point::x(), Point::y(), Point::z()];
     let mut basis: Vec<Vec<f64>> = Vec::new();
-    for body in &topology.rigid_bodies {
+    for body in &model.rigid_bodies(blocks) {
         let field = |velocity: &dyn Fn(&Point) -> Point| {
             let mut out = vec![0.0; stiffness.pattern.n];
             for &v in &body.vertices {
