@@ -9,6 +9,7 @@
 use std::path::Path;
 
 use pd_io::scene::{Scene, Syntax};
+use pd_io::stats::upper_median;
 use serde_json::{Value, json};
 
 /// The scene: one cube of `cells` per side resting on the floor, or two
@@ -56,12 +57,6 @@ fn build(text: &str, warmup: usize) -> Result<pd_solver::Simulation, String> {
 
 /// Steps per round of [`interleaved`].
 const ROUND: usize = 10;
-
-/// Median of a sample (upper median for an even count); NaN when empty.
-fn median(mut values: Vec<f64>) -> f64 {
-    values.sort_by(f64::total_cmp);
-    values.get(values.len() / 2).copied().unwrap_or(f64::NAN)
-}
 
 /// One scene's timings over the interleaved rounds.
 #[derive(Default)]
@@ -125,8 +120,8 @@ pub fn measure(cells: usize, warmup: usize, steps: usize) -> Result<Value, Strin
             steps,
         )?;
         let (without_ms, with_ms) = (
-            median(without.steps_ms.clone()),
-            median(with.steps_ms.clone()),
+            upper_median(&without.steps_ms),
+            upper_median(&with.steps_ms),
         );
         let min_round = |t: &Timings| t.rounds_ms.iter().copied().fold(f64::INFINITY, f64::min);
         let measured = steps.max(1);

@@ -13,7 +13,7 @@
 //! `iterations + evaluations * local_fraction`, the local step's share of a
 //! plain iteration measured in the same run.
 
-use pd_io::recorder::median;
+use pd_io::stats::median;
 use pd_mesh::Mesh;
 use pd_solver::{Predictor, Settings, Simulation, SolverMethod, SolverSpec, StepStats};
 use serde_json::{Value, json};

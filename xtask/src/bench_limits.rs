@@ -34,6 +34,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use pd_io::stats::upper_median;
 use serde_json::{Value, json};
 
 /// `some avg10` CPU pressure (%) above which a run is flagged.
@@ -79,11 +80,6 @@ fn f(value: &Value) -> f64 {
     value.as_f64().unwrap_or(f64::NAN)
 }
 
-fn median(mut values: Vec<f64>) -> f64 {
-    values.sort_by(f64::total_cmp);
-    values.get(values.len() / 2).copied().unwrap_or(f64::NAN)
-}
-
 /// Runs the measurements with `probe` (one `pd-probe` invocation per call).
 pub fn measure(
     probe: &dyn Fn(Vec<String>) -> Result<Value, String>,
@@ -127,7 +123,7 @@ pub fn measure(
                 threads,
             ]))?);
         }
-        let pick = |key: &str| median(runs.iter().map(|r| f(&r[key])).collect());
+        let pick = |key: &str| upper_median(&runs.iter().map(|r| f(&r[key])).collect::<Vec<_>>());
         let steps: Vec<f64> = runs.iter().map(|r| f(&r["step_ms_median"])).collect();
         let low = steps.iter().copied().fold(f64::INFINITY, f64::min);
         let high = steps.iter().copied().fold(f64::NEG_INFINITY, f64::max);

@@ -28,7 +28,7 @@ use std::time::Instant;
 
 use pd_benches::{Beam, Clamp, Options, Sheet, damping_models, peak_memory_bytes};
 use pd_damping::registry::UNDAMPED;
-use pd_io::recorder::median;
+use pd_io::stats::median;
 use pd_mesh::Point;
 use pd_solver::Simulation;
 use serde_json::{Value, json};
