@@ -10,7 +10,9 @@ use std::path::Path;
 
 use pd_io::scene::{Scene, Syntax};
 use pd_io::stats::upper_median;
-use serde_json::{Value, json};
+use serde_json::Value;
+
+use crate::schema::{Contact, ContactRow};
 
 /// The scene: one cube of `cells` per side resting on the floor, or two
 /// stacked (`stack`); `contact` adds the floor and, for the stack,
@@ -125,19 +127,24 @@ pub fn measure(cells: usize, warmup: usize, steps: usize) -> Result<Value, Strin
         );
         let min_round = |t: &Timings| t.rounds_ms.iter().copied().fold(f64::INFINITY, f64::min);
         let measured = steps.max(1);
-        rows.push(json!({
-            "scene": label,
-            "cells": cells,
-            "without_ms": without_ms,
-            "with_ms": with_ms,
-            "ratio": with_ms / without_ms,
-            "min_round_without_ms": min_round(&without),
-            "min_round_with_ms": min_round(&with),
-            "min_round_ratio": min_round(&with) / min_round(&without),
-            "contacts": with.contacts,
-            "iterations_without": without.iterations / measured,
-            "iterations_with": with.iterations / measured,
-        }));
+        rows.push(ContactRow {
+            scene: label.into(),
+            cells,
+            without_ms,
+            with_ms,
+            ratio: with_ms / without_ms,
+            min_round_without_ms: min_round(&without),
+            min_round_with_ms: min_round(&with),
+            min_round_ratio: min_round(&with) / min_round(&without),
+            contacts: with.contacts,
+            iterations_without: without.iterations / measured,
+            iterations_with: with.iterations / measured,
+        });
     }
-    Ok(json!({ "rows": rows, "steps": steps, "warmup": warmup }))
+    serde_json::to_value(Contact {
+        rows,
+        steps,
+        warmup,
+    })
+    .map_err(|e| e.to_string())
 }

@@ -24,6 +24,7 @@ use pd_solver::{Model, Settings, Simulation};
 pub mod contact;
 pub mod methods;
 mod options;
+pub mod schema;
 
 pub use options::Options;
 
