@@ -9,7 +9,7 @@
 //! for checking that a change keeps its results bit for bit.
 
 use pd_benches::{Beam, Options};
-use pd_io::recorder::median;
+use pd_io::stats::median;
 use pd_solver::{Predictor, SolverMethod, SolverSpec};
 
 /// A predictor name, or `fittedK/M` (the fitted predictor of order `K`

@@ -9,7 +9,10 @@
 use std::path::Path;
 
 use pd_io::scene::{Scene, Syntax};
-use serde_json::{Value, json};
+use pd_io::stats::upper_median;
+use serde_json::Value;
+
+use crate::schema::{Contact, ContactRow};
 
 /// The scene: one cube of `cells` per side resting on the floor, or two
 /// stacked (`stack`); `contact` adds the floor and, for the stack,
@@ -56,12 +59,6 @@ fn build(text: &str, warmup: usize) -> Result<pd_solver::Simulation, String> {
 
 /// Steps per round of [`interleaved`].
 const ROUND: usize = 10;
-
-/// Median of a sample (upper median for an even count); NaN when empty.
-fn median(mut values: Vec<f64>) -> f64 {
-    values.sort_by(f64::total_cmp);
-    values.get(values.len() / 2).copied().unwrap_or(f64::NAN)
-}
 
 /// One scene's timings over the interleaved rounds.
 #[derive(Default)]
@@ -125,24 +122,29 @@ pub fn measure(cells: usize, warmup: usize, steps: usize) -> Result<Value, Strin
             steps,
         )?;
         let (without_ms, with_ms) = (
-            median(without.steps_ms.clone()),
-            median(with.steps_ms.clone()),
+            upper_median(&without.steps_ms),
+            upper_median(&with.steps_ms),
         );
         let min_round = |t: &Timings| t.rounds_ms.iter().copied().fold(f64::INFINITY, f64::min);
         let measured = steps.max(1);
-        rows.push(json!({
-            "scene": label,
-            "cells": cells,
-            "without_ms": without_ms,
-            "with_ms": with_ms,
-            "ratio": with_ms / without_ms,
-            "min_round_without_ms": min_round(&without),
-            "min_round_with_ms": min_round(&with),
-            "min_round_ratio": min_round(&with) / min_round(&without),
-            "contacts": with.contacts,
-            "iterations_without": without.iterations / measured,
-            "iterations_with": with.iterations / measured,
-        }));
+        rows.push(ContactRow {
+            scene: label.into(),
+            cells,
+            without_ms,
+            with_ms,
+            ratio: with_ms / without_ms,
+            min_round_without_ms: min_round(&without),
+            min_round_with_ms: min_round(&with),
+            min_round_ratio: min_round(&with) / min_round(&without),
+            contacts: with.contacts,
+            iterations_without: without.iterations / measured,
+            iterations_with: with.iterations / measured,
+        });
     }
-    Ok(json!({ "rows": rows, "steps": steps, "warmup": warmup }))
+    serde_json::to_value(Contact {
+        rows,
+        steps,
+        warmup,
+    })
+    .map_err(|e| e.to_string())
 }

@@ -16,30 +16,21 @@
 
 use pd_damping::Damping;
 use pd_damping::registry;
-use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
+use pd_integrators::Integrator;
+use pd_integrators::registry as integrators;
 use pd_mesh::{Mesh, Point};
 use pd_solver::{Model, Settings, Simulation};
 
 pub mod contact;
 pub mod methods;
 mod options;
+pub mod schema;
 
 pub use options::Options;
 
-/// FNV-1a over the bits of every position and velocity of `state`: two
-/// runs with the same hash ended in the same state bit for bit (how a change
-/// that must not move results is checked).
-pub fn state_hash(state: &pd_solver::State) -> u64 {
-    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
-    for p in state.positions.iter().chain(&state.velocities) {
-        for c in p.iter() {
-            for byte in c.to_bits().to_le_bytes() {
-                hash = (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
-            }
-        }
-    }
-    hash
-}
+/// FNV-1a over the bits of every position and velocity of a state (the
+/// one implementation, in `pd_io::hash`).
+pub use pd_io::hash::state_hash;
 
 /// The damping models every benchmark runs: the main preset of each model
 /// of `pd_damping::registry`, by name, in registry order (the undamped
@@ -102,20 +93,23 @@ pub fn damping(name: &str) -> Result<Box<dyn Damping>, String> {
         .map_err(|e| e.to_string())
 }
 
-/// The integrator `name`: `be` (backward Euler), `im` (implicit midpoint)
-/// or `bdf2` (used by the speed-against-accuracy report only).
+/// The integrator whose short name in `pd_integrators::registry` is `name`:
+/// `be` (backward Euler), `im` (implicit midpoint) or `bdf2` (used by the
+/// speed-against-accuracy report only).
 ///
 /// # Errors
 /// An unknown name.
 pub fn integrator(name: &str) -> Result<Box<dyn Integrator>, String> {
-    match name {
-        "be" => Ok(Box::new(BackwardEuler)),
-        "im" => Ok(Box::new(ImplicitMidpoint)),
-        "bdf2" => Ok(Box::new(Bdf2::new())),
-        other => Err(format!(
-            "unknown integrator {other:?}; expected be, im or bdf2"
-        )),
-    }
+    integrators::by_short_name(name)
+        .map(integrators::Entry::create)
+        .ok_or_else(|| {
+            let names = integrators::short_names();
+            let (last, rest) = names.split_last().unwrap_or((&"", &[]));
+            format!(
+                "unknown integrator {name:?}; expected {} or {last}",
+                rest.join(", ")
+            )
+        })
 }
 
 /// How the beam is held at `x = 0`.

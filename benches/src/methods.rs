@@ -13,12 +13,13 @@
 //! `iterations + evaluations * local_fraction`, the local step's share of a
 //! plain iteration measured in the same run.
 
-use pd_io::recorder::median;
+use pd_io::stats::median;
 use pd_mesh::Mesh;
 use pd_solver::{Predictor, Settings, Simulation, SolverMethod, SolverSpec, StepStats};
-use serde_json::{Value, json};
+use serde_json::Value;
 
 use crate::Beam;
+use crate::schema::{Methods, MethodsRow};
 
 /// What one `methods` measurement runs.
 #[derive(Debug, Clone)]
@@ -148,36 +149,48 @@ pub fn measure(beam: &Beam, mesh: &Mesh, plan: &MethodsPlan) -> Result<Value, St
                         let global = per_step(&stats, |s| s.global_seconds);
                         local_fraction = local / (local + global);
                     }
-                    json!({
-                        "method": name,
-                        "budget": iterations,
-                        "position_error_rel": error / diagonal,
-                        "iterations_per_step": per_step(&stats, |s| s.iterations as f64),
-                        "evaluations_per_step":
-                            per_step(&stats, |s| s.objective_evaluations as f64),
-                        "step_ms_median": 1e3 * median(
-                            &stats.iter().map(|s| s.total_seconds).collect::<Vec<_>>()),
-                        "diverged": false,
-                    })
+                    MethodsRow {
+                        method: name.clone(),
+                        budget: iterations,
+                        position_error_rel: Some(error / diagonal),
+                        iterations_per_step: Some(per_step(&stats, |s| s.iterations as f64)),
+                        evaluations_per_step: Some(per_step(&stats, |s| {
+                            s.objective_evaluations as f64
+                        })),
+                        step_ms_median: Some(
+                            1e3 * median(
+                                &stats.iter().map(|s| s.total_seconds).collect::<Vec<_>>(),
+                            ),
+                        ),
+                        diverged: false,
+                        error: None,
+                    }
                 }
-                Err(e) => json!({
-                    "method": name, "budget": iterations, "diverged": true,
-                    "error": e.to_string(),
-                }),
+                Err(e) => MethodsRow {
+                    method: name.clone(),
+                    budget: iterations,
+                    position_error_rel: None,
+                    iterations_per_step: None,
+                    evaluations_per_step: None,
+                    step_ms_median: None,
+                    diverged: true,
+                    error: Some(e.to_string()),
+                },
             };
             rows.push(row);
         }
     }
-    Ok(json!({
-        "integrator": plan.integrator,
-        "damping": plan.damping,
-        "n_verts": mesh.num_vertices(),
-        "steps": plan.steps,
-        "dt": beam.dt,
-        "reference_tolerance": plan.reference_tolerance,
-        "reference_unconverged_steps": unconverged,
-        "reference_iterations_per_step": reference_iterations,
-        "local_fraction": local_fraction,
-        "rows": rows,
-    }))
+    serde_json::to_value(Methods {
+        integrator: plan.integrator.clone(),
+        damping: plan.damping.clone(),
+        n_verts: mesh.num_vertices(),
+        steps: plan.steps,
+        dt: beam.dt,
+        reference_tolerance: plan.reference_tolerance,
+        reference_unconverged_steps: unconverged,
+        reference_iterations_per_step: reference_iterations,
+        local_fraction,
+        rows,
+    })
+    .map_err(|e| e.to_string())
 }

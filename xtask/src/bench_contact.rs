@@ -4,7 +4,10 @@
 
 use std::fmt::Write as _;
 
+use pd_benches::schema::Contact;
 use serde_json::Value;
+
+use crate::bench_report::typed;
 
 /// Runs `pd-probe contact` for the cube sizes of the mode.
 ///
@@ -13,7 +16,7 @@ use serde_json::Value;
 pub fn measure(
     probe: &dyn Fn(Vec<String>) -> Result<Value, String>,
     quick: bool,
-) -> Result<Value, String> {
+) -> Result<Vec<Contact>, String> {
     let sides: &[usize] = if quick { &[4] } else { &[4, 8] };
     let steps = if quick { "40" } else { "100" };
     let mut runs = Vec::new();
@@ -25,13 +28,13 @@ pub fn measure(
             "--steps",
             steps,
         ];
-        runs.push(probe(args.iter().map(|a| a.to_string()).collect())?);
+        runs.push(typed(probe(args.iter().map(|a| a.to_string()).collect())?)?);
     }
-    Ok(Value::Array(runs))
+    Ok(runs)
 }
 
 /// The section's markdown.
-pub fn markdown(contact: &Value) -> String {
+pub fn markdown(contact: &[Contact]) -> String {
     let mut md = String::from(
         "## Contact\n\n\
          Median step time with contact against the same scene with no contact at all (the \
@@ -45,19 +48,19 @@ pub fn markdown(contact: &Value) -> String {
          | scene | vertices per cube | contacts | without (ms) | with (ms) | ratio of medians | ratio of fastest rounds |\n\
          |---|---|---|---|---|---|---|\n",
     );
-    for run in contact.as_array().into_iter().flatten() {
-        for row in run["rows"].as_array().into_iter().flatten() {
-            let cells = row["cells"].as_u64().unwrap_or(0) + 1;
+    for run in contact {
+        for row in &run.rows {
+            let cells = row.cells + 1;
             let _ = writeln!(
                 md,
                 "| {} | {} | {} | {:.3} | {:.3} | {:.2}x | {:.2}x |",
-                row["scene"].as_str().unwrap_or("?"),
+                row.scene,
                 cells * cells * cells,
-                row["contacts"],
-                row["without_ms"].as_f64().unwrap_or(f64::NAN),
-                row["with_ms"].as_f64().unwrap_or(f64::NAN),
-                row["ratio"].as_f64().unwrap_or(f64::NAN),
-                row["min_round_ratio"].as_f64().unwrap_or(f64::NAN),
+                row.contacts,
+                row.without_ms,
+                row.with_ms,
+                row.ratio,
+                row.min_round_ratio,
             );
         }
     }

@@ -23,9 +23,54 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
+use pd_benches::schema::Step;
+use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
-use crate::bench_report::{build_probe, machine, provenance};
+use crate::bench_report::{Machine, build_probe, machine, provenance, typed};
+
+/// A `pd-probe step` run with the peak memory polled while it ran.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct PdRun {
+    #[serde(flatten)]
+    step: Step,
+    /// `VmHWM` polled from `/proc/PID/status` (bytes), if it was read.
+    peak_bytes_polled: Option<u64>,
+}
+
+/// One mesh and thread count: pd and the reference's two back ends (the
+/// reference's own output, untyped).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct Row {
+    mesh: String,
+    threads: usize,
+    steps: usize,
+    eigen: Value,
+    cholmod: Value,
+    pd: Option<PdRun>,
+}
+
+/// Everything `docs/reports/bench-report/cpp-comparison.json` holds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct Report {
+    commit: String,
+    date: String,
+    machine: Machine,
+    machine_after: Machine,
+    reference: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    reference_source: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    reference_blas: Option<String>,
+    #[serde(default = "one")]
+    repeat: u64,
+    rows: Vec<Row>,
+}
+
+/// The repetitions of a report that does not say.
+fn one() -> u64 {
+    1
+}
 
 /// The meshes: label, cells, steps timed.
 fn meshes(quick: bool) -> Vec<(&'static str, [usize; 3], usize)> {
@@ -127,12 +172,25 @@ fn reference_source(program: &Path) -> String {
     }
 }
 
-/// Keeps the run with the lower median step time.
+/// Keeps the reference run with the lower median step time.
 fn keep_faster(best: Option<Value>, candidate: Value) -> Value {
     match best {
         Some(best) if f(&best["step_ms_median"]) <= f(&candidate["step_ms_median"]) => best,
         _ => candidate,
     }
+}
+
+/// Keeps the pd run with the lower median step time.
+fn keep_faster_pd(best: Option<PdRun>, candidate: PdRun) -> PdRun {
+    match best {
+        Some(best) if best.step.step_ms_median <= candidate.step.step_ms_median => best,
+        _ => candidate,
+    }
+}
+
+/// A byte count as a number, NaN if it is not known.
+fn bytes(value: Option<u64>) -> f64 {
+    value.map_or(f64::NAN, |b| b as f64)
 }
 
 fn f(value: &Value) -> f64 {
@@ -219,7 +277,8 @@ pub fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
                 );
                 v
             };
-            let mut best: [Option<Value>; 3] = [None, None, None];
+            let mut best: [Option<Value>; 2] = [None, None];
+            let mut best_pd: Option<PdRun> = None;
             for _ in 0..repeat {
                 for (slot, solver) in ["eigen", "cholmod"].into_iter().enumerate() {
                     let (out, peak) = run_measured(
@@ -257,34 +316,41 @@ pub fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
                         "be",
                     ]),
                 )?;
-                let mut value = parse(&out)?;
-                value["peak_bytes_polled"] = json!(peak);
-                best[2] = Some(keep_faster(best[2].take(), value));
+                let run = PdRun {
+                    step: typed(parse(&out)?)?,
+                    peak_bytes_polled: peak,
+                };
+                best_pd = Some(keep_faster_pd(best_pd.take(), run));
             }
-            let [eigen, cholmod, pd] = best.map(|b| b.unwrap_or(Value::Null));
-            let entry = json!({
-                "mesh": label, "threads": threads, "steps": steps,
-                "eigen": eigen, "cholmod": cholmod, "pd": pd,
+            let [eigen, cholmod] = best.map(|b| b.unwrap_or(Value::Null));
+            rows.push(Row {
+                mesh: label.clone(),
+                threads,
+                steps,
+                eigen,
+                cholmod,
+                pd: best_pd,
             });
-            rows.push(entry);
         }
     }
 
-    let report = json!({
-        "commit": commit,
-        "date": date,
-        "machine": machine_before,
-        "machine_after": machine(),
-        "reference": reference.display().to_string(),
-        "reference_source": reference_source(&reference),
-        "reference_blas": blas_of(&reference),
-        "repeat": repeat,
-        "rows": rows,
-    });
+    let report = Report {
+        commit,
+        date,
+        machine: machine_before,
+        machine_after: machine(),
+        reference: reference.display().to_string(),
+        reference_source: Some(reference_source(&reference)),
+        reference_blas: Some(blas_of(&reference)),
+        repeat: repeat as u64,
+        rows,
+    };
     let dir = root.join("docs/reports").join("bench-report");
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let json_path = dir.join("cpp-comparison.json");
-    let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+    // Through `Value`, whose objects keep their keys sorted.
+    let value = serde_json::to_value(&report).map_err(|e| e.to_string())?;
+    let text = serde_json::to_string_pretty(&value).map_err(|e| e.to_string())?;
     std::fs::write(&json_path, text + "\n").map_err(|e| format!("{}: {e}", json_path.display()))?;
     let md_path = root.join("docs/reports").join("cpp-comparison.md");
     std::fs::write(&md_path, markdown(&report))
@@ -292,9 +358,8 @@ pub fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
     Ok(md_path)
 }
 
-fn markdown(r: &Value) -> String {
-    let empty = Vec::new();
-    let m = &r["machine"];
+fn markdown(r: &Report) -> String {
+    let m = &r.machine;
     let mut md = String::new();
     let _ = writeln!(md, "# pd against the C++ reference (Eigen, CHOLMOD)\n");
     let _ = writeln!(
@@ -307,13 +372,13 @@ fn markdown(r: &Value) -> String {
         md,
         "Machine: {}, {} logical cores, {:.1} GiB. Commit `{}`, {}. CPU pressure before / after: \
          `{}` / `{}`.\n",
-        m["cpu"].as_str().unwrap_or("?"),
-        m["logical_cores"],
-        f(&m["memory_gib"]),
-        r["commit"].as_str().unwrap_or("?"),
-        r["date"].as_str().unwrap_or("?"),
-        m["cpu_pressure"].as_str().unwrap_or("n/a"),
-        r["machine_after"]["cpu_pressure"].as_str().unwrap_or("n/a"),
+        m.cpu,
+        m.logical_cores,
+        m.memory_gib.unwrap_or(f64::NAN),
+        r.commit,
+        r.date,
+        m.cpu_pressure.as_deref().unwrap_or("n/a"),
+        r.machine_after.cpu_pressure.as_deref().unwrap_or("n/a"),
     );
     let _ = writeln!(
         md,
@@ -325,9 +390,9 @@ fn markdown(r: &Value) -> String {
          resident set (`VmHWM`) of each process. Each program ran {} time(s) per row, \
          alternating, and the run with the lowest median step is shown. CHOLMOD's BLAS: `{}`. \
          Reference source: `{}`.\n",
-        r["repeat"].as_u64().unwrap_or(1),
-        r["reference_blas"].as_str().unwrap_or("not recorded"),
-        r["reference_source"].as_str().unwrap_or("not recorded"),
+        r.repeat,
+        r.reference_blas.as_deref().unwrap_or("not recorded"),
+        r.reference_source.as_deref().unwrap_or("not recorded"),
     );
     let _ = writeln!(
         md,
@@ -337,47 +402,73 @@ fn markdown(r: &Value) -> String {
         md,
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
     );
-    for row in r["rows"].as_array().unwrap_or(&empty) {
-        let (pd, eigen, cholmod) = (&row["pd"], &row["eigen"], &row["cholmod"]);
+    for row in &r.rows {
+        let Some(pd) = row.pd.as_ref().map(|run| &run.step) else {
+            continue;
+        };
+        let (eigen, cholmod) = (&row.eigen, &row.cholmod);
         let centroid_difference = (0..3)
             .map(|k| {
                 let key = ["centroid_x", "centroid_y", "centroid_z"][k];
-                (f(&pd["centroid"][k]) - f(&eigen[key])).abs()
+                (pd.centroid[k] - f(&eigen[key])).abs()
             })
             .fold(0.0, f64::max);
         let _ = writeln!(
             md,
             "| {} | {} | {} | {} | {:.1} ({:.1} + {:.1}) | {:.1} ({:.1} + {:.1}) | {:.1} ({:.1} + {:.1}) | {:.2} | {:.2} | {:.0} / {:.0} / {:.0} | {:.2} ({:.2}) / {:.2} / {:.2} | {:.0} / {:.0} / {:.0} | {:.2} | {:.1e} |",
-            row["mesh"].as_str().unwrap_or("?"),
-            pd["n_verts"],
-            row["threads"],
-            row["steps"],
-            f(&pd["step_ms_median"]),
-            f(&pd["local_ms_median"]),
-            f(&pd["global_ms_median"]),
+            row.mesh,
+            pd.n_verts,
+            row.threads,
+            row.steps,
+            pd.step_ms_median,
+            pd.local_ms_median,
+            pd.global_ms_median,
             f(&eigen["step_ms_median"]),
             f(&eigen["local_ms_median"]),
             f(&eigen["global_ms_median"]),
             f(&cholmod["step_ms_median"]),
             f(&cholmod["local_ms_median"]),
             f(&cholmod["global_ms_median"]),
-            f(&pd["step_ms_median"]) / f(&eigen["step_ms_median"]),
-            f(&pd["step_ms_median"]) / f(&cholmod["step_ms_median"]),
-            f(&pd["factor_ms"]),
+            pd.step_ms_median / f(&eigen["step_ms_median"]),
+            pd.step_ms_median / f(&cholmod["step_ms_median"]),
+            pd.factor_ms,
             f(&eigen["factor_ms"]),
             f(&cholmod["factor_ms"]),
             // Structural non-zeros, as Eigen and CHOLMOD (`lnz`) count them;
             // the stored values add faer's supernode padding.
-            f(&pd["nnz_L_exact"]) / 1e6,
-            f(&pd["nnz_L_factor"]) / 1e6,
+            pd.nnz_l_exact as f64 / 1e6,
+            pd.nnz_l_factor as f64 / 1e6,
             f(&eigen["nnz_L_factor"]) / 1e6,
             f(&cholmod["nnz_L_factor"]) / 1e6,
-            f(&pd["peak_bytes"]) / 1e6,
+            bytes(pd.peak_bytes) / 1e6,
             f(&eigen["peak_bytes"]) / 1e6,
             f(&cholmod["peak_bytes"]) / 1e6,
-            f(&pd["peak_bytes"]) / f(&cholmod["peak_bytes"]),
+            bytes(pd.peak_bytes) / f(&cholmod["peak_bytes"]),
             centroid_difference,
         );
     }
     md
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The stored comparison reads into the typed report and writes back
+    /// byte for byte (through `Value`, keys sorted), and renders.
+    #[test]
+    fn the_stored_comparison_round_trips_through_the_schema() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .parent()
+            .expect("xtask lives inside the workspace");
+        let path = root.join("docs/reports/bench-report/cpp-comparison.json");
+        let text = std::fs::read_to_string(&path).expect("the stored comparison");
+        let report: Report = serde_json::from_str(&text).expect("a comparison");
+        let value = serde_json::to_value(&report).expect("a value");
+        assert_eq!(
+            serde_json::to_string_pretty(&value).expect("JSON") + "\n",
+            text
+        );
+        assert!(markdown(&report).starts_with("# pd against the C++ reference"));
+    }
 }

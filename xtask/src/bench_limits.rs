@@ -34,7 +34,11 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use pd_benches::schema::{Bandwidth, Step};
+use pd_io::stats::upper_median;
 use serde_json::{Value, json};
+
+use crate::bench_report::typed;
 
 /// `some avg10` CPU pressure (%) above which a run is flagged.
 const PRESSURE_NOISY: f64 = 5.0;
@@ -79,11 +83,6 @@ fn f(value: &Value) -> f64 {
     value.as_f64().unwrap_or(f64::NAN)
 }
 
-fn median(mut values: Vec<f64>) -> f64 {
-    values.sort_by(f64::total_cmp);
-    values.get(values.len() / 2).copied().unwrap_or(f64::NAN)
-}
-
 /// Runs the measurements with `probe` (one `pd-probe` invocation per call).
 pub fn measure(
     probe: &dyn Fn(Vec<String>) -> Result<Value, String>,
@@ -92,18 +91,18 @@ pub fn measure(
 ) -> Result<Value, String> {
     let strings = |list: &[&str]| list.iter().map(|s| s.to_string()).collect::<Vec<_>>();
     let pressure_before = cpu_pressure();
-    let bandwidth = probe(strings(&[
+    let bandwidth: Bandwidth = typed(probe(strings(&[
         "bandwidth",
         "--mib",
         if quick { "256" } else { "512" },
-    ]))?;
-    let bandwidth_2 = probe(strings(&[
+    ]))?)?;
+    let bandwidth_2: Bandwidth = typed(probe(strings(&[
         "bandwidth",
         "--mib",
         if quick { "256" } else { "512" },
         "--threads",
         "2",
-    ]))?;
+    ]))?)?;
     let cells = cells(quick);
     let cells_arg = format!("{},{},{}", cells[0], cells[1], cells[2]);
     let repeats = if quick { 2 } else { 3 };
@@ -114,10 +113,10 @@ pub fn measure(
         } else {
             &bandwidth_2
         };
-        let bytes_per_second = f(&measured["bytes_per_second"]);
-        let mut runs = Vec::new();
+        let bytes_per_second = measured.bytes_per_second;
+        let mut runs: Vec<Step> = Vec::new();
         for _ in 0..repeats {
-            runs.push(probe(strings(&[
+            runs.push(typed(probe(strings(&[
                 "step",
                 "--cells",
                 &cells_arg,
@@ -125,26 +124,28 @@ pub fn measure(
                 "5",
                 "--threads",
                 threads,
-            ]))?);
+            ]))?)?);
         }
-        let pick = |key: &str| median(runs.iter().map(|r| f(&r[key])).collect());
-        let steps: Vec<f64> = runs.iter().map(|r| f(&r["step_ms_median"])).collect();
+        let first = runs.first().ok_or("no step runs")?;
+        let pick =
+            |time: fn(&Step) -> f64| upper_median(&runs.iter().map(time).collect::<Vec<_>>());
+        let steps: Vec<f64> = runs.iter().map(|r| r.step_ms_median).collect();
         let low = steps.iter().copied().fold(f64::INFINITY, f64::min);
         let high = steps.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let (iters, tets) = (f(&runs[0]["iters"]), f(&runs[0]["n_tets"]));
-        let factor_bytes = 8.0 * f(&runs[0]["nnz_L_factor"]);
+        let (iters, tets) = (first.iters as f64, first.n_tets as f64);
+        let factor_bytes = 8.0 * first.nnz_l_factor as f64;
         let bound_ms = 2.0 * factor_bytes / bytes_per_second * 1e3;
-        let global_per_iteration = pick("global_ms_median") / iters;
-        let solve = pick("solve_ms_median");
+        let global_per_iteration = pick(|r| r.global_ms_median) / iters;
+        let solve = pick(|r| r.solve_ms_median);
         let fastest = runs
             .iter()
-            .map(|r| f(&r["solve_ms_min"]))
+            .map(|r| r.solve_ms_min)
             .fold(f64::INFINITY, f64::min);
         per_threads.push(json!({
             "threads": threads,
-            "local_bytes": f(&runs[0]["local_bytes"]),
-            "step_ms": pick("step_ms_median"),
-            "local_ns_per_tet_iteration": pick("local_ms_median") * 1e6 / (iters * tets),
+            "local_bytes": first.local_bytes as f64,
+            "step_ms": pick(|r| r.step_ms_median),
+            "local_ns_per_tet_iteration": pick(|r| r.local_ms_median) * 1e6 / (iters * tets),
             "global_ms_per_iteration": global_per_iteration,
             "factor_bytes": factor_bytes,
             "bandwidth_bytes_per_second": bytes_per_second,
@@ -163,7 +164,7 @@ pub fn measure(
     // per stored value, against the streaming bound's, says whether the
     // kernels or the memory set the solve's floor.
     let small = cells_in_cache(quick);
-    let in_cache = probe(strings(&[
+    let in_cache: Step = typed(probe(strings(&[
         "step",
         "--cells",
         &format!("{},{},{}", small[0], small[1], small[2]),
@@ -171,15 +172,15 @@ pub fn measure(
         "2",
         "--threads",
         "1",
-    ]))?;
-    let cached_values = f(&in_cache["nnz_L_factor"]);
-    let cached_ns = f(&in_cache["solve_ms_median"]) * 1e6 / (2.0 * cached_values);
-    let cached_fastest_ns = f(&in_cache["solve_ms_min"]) * 1e6 / (2.0 * cached_values);
-    let bound_ns = 8.0 / f(&bandwidth["bytes_per_second"]) * 1e9;
+    ]))?)?;
+    let cached_values = in_cache.nnz_l_factor as f64;
+    let cached_ns = in_cache.solve_ms_median * 1e6 / (2.0 * cached_values);
+    let cached_fastest_ns = in_cache.solve_ms_min * 1e6 / (2.0 * cached_values);
+    let bound_ns = 8.0 / bandwidth.bytes_per_second * 1e9;
     let in_cache = json!({
         "cells": small,
         "factor_bytes": 8.0 * cached_values,
-        "solve_ms": f(&in_cache["solve_ms_median"]),
+        "solve_ms": in_cache.solve_ms_median,
         "ns_per_value_pass": cached_ns,
         "bound_ns_per_value": bound_ns,
         "ratio_to_bound": cached_ns / bound_ns,
@@ -464,22 +465,58 @@ pub fn markdown(limits: &Value) -> String {
 mod tests {
     use super::*;
 
+    /// The output of `pd-probe bandwidth` measuring `bytes_per_second`.
+    fn bandwidth(bytes_per_second: f64) -> Value {
+        serde_json::to_value(Bandwidth {
+            bytes: 1 << 29,
+            reps: 7,
+            threads: 1,
+            best_seconds: f64::from(1 << 29) / bytes_per_second,
+            bytes_per_second,
+            checksum: 0.0,
+        })
+        .unwrap()
+    }
+
     /// A fake probe: bandwidth 10 GB/s, 100 tets, 10 iterations, a factor
     /// of 1e6 values (8 MB: bound 1.6 ms per solve).
     fn fake(speedup: f64) -> impl Fn(Vec<String>) -> Result<Value, String> {
         move |a: Vec<String>| {
             if a[0] == "bandwidth" {
-                return Ok(json!({ "bytes_per_second": 1e10 }));
+                return Ok(bandwidth(1e10));
             }
             let two = a.iter().any(|x| x == "2");
             let s = if two { speedup } else { 1.0 };
-            Ok(json!({
-                "step_ms_median": 40.0 / s, "local_ms_median": 20.0 / s,
-                "global_ms_median": 20.0, "solve_ms_median": 1.8, "solve_ms_min": 1.7,
-                "iters": 10, "n_tets": 100,
-                "nnz_L_factor": 1e6, "nnz_L_exact": 8e5, "n_verts": 40, "threads": if two { 2 } else { 1 },
-                "peak_bytes": 1e7,
-            }))
+            Ok(serde_json::to_value(Step {
+                n_verts: 40,
+                n_tets: 100,
+                n_triangles: None,
+                local_bytes: 0,
+                n_free: 40,
+                nnz_l_factor: 1_000_000,
+                nnz_l_exact: 800_000,
+                symbolic_ms: 0.0,
+                factor_ms: 0.0,
+                numeric_factor_ms: 0.0,
+                step_ms_median: 40.0 / s,
+                local_ms_median: 20.0 / s,
+                global_ms_median: 20.0,
+                solve_ms_median: 1.8,
+                solve_ms_min: 1.7,
+                rhs_and_solve_ms_median: 2.0,
+                steps: 5,
+                iters: 10,
+                threads: if two { 2 } else { 1 },
+                model: "none".into(),
+                integrator: "be".into(),
+                centroid: [0.0; 3],
+                min_y: 0.0,
+                kinetic_energy: 0.0,
+                peak_bytes: Some(10_000_000),
+                setup_peak_bytes: Some(10_000_000),
+                state_hash: "0".into(),
+            })
+            .unwrap())
         }
     }
 
@@ -515,7 +552,7 @@ mod tests {
         // is 2 x 8 MB / 16 GB/s = 1 ms, the 1-thread one 1.6 ms.
         let probe = |a: Vec<String>| {
             if a[0] == "bandwidth" && a.iter().any(|x| x == "--threads") {
-                return Ok(json!({ "bytes_per_second": 1.6e10 }));
+                return Ok(bandwidth(1.6e10));
             }
             fake(1.5)(a)
         };
@@ -564,8 +601,8 @@ mod tests {
                 }
                 let mut v = fake(2.2)(a)?;
                 if v.get("step_ms_median").is_some() {
-                    // 16.1 MiB: the control runs at 17 MiB.
-                    v["local_bytes"] = json!(16.1 * f64::from(1 << 20));
+                    // 16.1 MiB (in whole bytes): the control runs at 17 MiB.
+                    v["local_bytes"] = json!((16.1 * f64::from(1 << 20)) as u64);
                 }
                 Ok(v)
             };

@@ -14,12 +14,26 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use serde_json::{Value, json};
+use pd_benches::schema::{Methods, MethodsRow};
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
 
 use crate::bench_plot::{self, Series};
+use crate::bench_report::{json_text, typed};
 
-fn f(value: &Value) -> f64 {
-    value.as_f64().unwrap_or(f64::NAN)
+/// One `pd-probe methods` run with the label of its mesh.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MethodsRun {
+    /// The mesh (`beam 2,304`).
+    pub mesh: String,
+    /// What the probe measured.
+    #[serde(flatten)]
+    pub run: Methods,
+}
+
+/// An optional number, NaN when it is missing (a run that stopped).
+fn number(value: Option<f64>) -> f64 {
+    value.unwrap_or(f64::NAN)
 }
 
 /// The meshes (cells of the beam, label) and steps of one mode.
@@ -47,15 +61,15 @@ const BUDGETS: &str = "2,3,4,5,6,8,10,12,15,20,30";
 pub fn measure(
     probe: &dyn Fn(Vec<String>) -> Result<Value, String>,
     quick: bool,
-) -> Result<Value, String> {
+) -> Result<Vec<MethodsRun>, String> {
     let (meshes, steps) = plan(quick);
     let mut runs = Vec::new();
     for (cells, label) in meshes {
         for damping in ["none", "laplacian"] {
-            for integrator in ["be", "im", "bdf2"] {
+            for integrator in pd_integrators::registry::short_names() {
                 eprintln!("  methods: {label}, {integrator}, damping {damping}");
                 let cells = format!("{},{},{}", cells[0], cells[1], cells[2]);
-                let mut run = probe(
+                let run = probe(
                     [
                         "methods",
                         "--cells",
@@ -77,25 +91,32 @@ pub fn measure(
                     .map(|s| s.to_string())
                     .collect(),
                 )?;
-                run["mesh"] = json!(label);
-                runs.push(run);
+                runs.push(MethodsRun {
+                    mesh: label.into(),
+                    run: typed(run)?,
+                });
             }
         }
     }
-    Ok(Value::Array(runs))
+    Ok(runs)
 }
 
 /// A row's cost per step in plain-iteration equivalents.
-fn work(row: &Value, local_fraction: f64) -> f64 {
-    f(&row["iterations_per_step"]) + f(&row["evaluations_per_step"]) * local_fraction
+fn work(row: &MethodsRow, local_fraction: f64) -> f64 {
+    number(row.iterations_per_step) + number(row.evaluations_per_step) * local_fraction
 }
 
 /// The cheapest row of `method` whose error is at most `target`:
 /// `(work, step_ms)`.
-fn cheapest(rows: &[Value], method: &str, target: f64, local_fraction: f64) -> Option<(f64, f64)> {
+fn cheapest(
+    rows: &[MethodsRow],
+    method: &str,
+    target: f64,
+    local_fraction: f64,
+) -> Option<(f64, f64)> {
     rows.iter()
-        .filter(|r| r["method"] == method && f(&r["position_error_rel"]) <= target)
-        .map(|r| (work(r, local_fraction), f(&r["step_ms_median"])))
+        .filter(|r| r.method == method && number(r.position_error_rel) <= target)
+        .map(|r| (work(r, local_fraction), number(r.step_ms_median)))
         .min_by(|a, b| a.0.total_cmp(&b.0))
 }
 
@@ -113,10 +134,8 @@ const PREDICTED: [&str; 4] = [
 ];
 
 /// The section's Markdown.
-pub fn markdown(runs: &Value) -> String {
+pub fn markdown(runs: &[MethodsRun]) -> String {
     let mut md = String::new();
-    let empty = Vec::new();
-    let runs = runs.as_array().unwrap_or(&empty);
     let _ = writeln!(md, "## Iteration methods\n");
     let Some(first) = runs.first() else {
         return md;
@@ -136,9 +155,9 @@ pub fn markdown(runs: &Value) -> String {
          (`[solver] predictor = \"linear\"`, docs/design/solver.md) instead of the inertial target \
          `y`, against the same PD-20 (inertial) baseline; plain PD's column shows what the \
          start alone gains.\n",
-        first["steps"],
-        first["dt"],
-        f(&first["reference_tolerance"]),
+        first.run.steps,
+        json_text(first.run.dt),
+        first.run.reference_tolerance,
     );
     let _ = writeln!(
         md,
@@ -151,18 +170,18 @@ pub fn markdown(runs: &Value) -> String {
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
     );
     for run in runs {
-        let rows = run["rows"].as_array().unwrap_or(&empty);
-        let fraction = f(&run["local_fraction"]);
+        let rows = &run.run.rows;
+        let fraction = run.run.local_fraction;
         let Some(plain) = rows
             .iter()
-            .find(|r| r["method"] == "local-global" && r["budget"] == 20)
+            .find(|r| r.method == "local-global" && r.budget == 20)
         else {
             continue;
         };
-        let target = f(&plain["position_error_rel"]);
+        let target = number(plain.position_error_rel);
         let base = work(plain, fraction);
         let mut cells = Vec::new();
-        let base_ms = f(&plain["step_ms_median"]);
+        let base_ms = number(plain.step_ms_median);
         let predicted: Vec<String> = PREDICTED.iter().map(|p| p.replace(':', "+")).collect();
         let columns = METHODS[1..]
             .iter()
@@ -182,11 +201,11 @@ pub fn markdown(runs: &Value) -> String {
         let _ = writeln!(
             md,
             "| {} | {} | {} | {:.2e} ({:.1} ms) | {} |",
-            run["mesh"].as_str().unwrap_or("?"),
-            run["integrator"].as_str().unwrap_or("?"),
-            run["damping"].as_str().unwrap_or("?"),
+            run.mesh,
+            run.run.integrator,
+            run.run.damping,
             target,
-            f(&plain["step_ms_median"]),
+            number(plain.step_ms_median),
             cells.join(" | ")
         );
     }
@@ -204,31 +223,29 @@ pub fn markdown(runs: &Value) -> String {
 ///
 /// # Errors
 /// A plot that cannot be written.
-pub fn figure(dir: &Path, runs: &Value) -> Result<(), String> {
-    let empty = Vec::new();
-    let runs = runs.as_array().unwrap_or(&empty);
-    let Some(mesh) = runs.first().map(|r| r["mesh"].clone()) else {
+pub fn figure(dir: &Path, runs: &[MethodsRun]) -> Result<(), String> {
+    let Some(mesh) = runs.first().map(|r| &r.mesh) else {
         return Ok(());
     };
     let mut panels: Vec<(String, Vec<Series>)> = Vec::new();
     for run in runs
         .iter()
-        .filter(|r| r["mesh"] == mesh && r["damping"] == "none")
+        .filter(|r| &r.mesh == mesh && r.run.damping == "none")
     {
-        let rows = run["rows"].as_array().unwrap_or(&empty);
-        let fraction = f(&run["local_fraction"]);
+        let rows = &run.run.rows;
+        let fraction = run.run.local_fraction;
         let series = METHODS
             .iter()
             .map(|&method| Series {
                 name: method.to_string(),
                 points: rows
                     .iter()
-                    .filter(|r| r["method"] == method)
-                    .map(|r| (work(r, fraction), f(&r["position_error_rel"])))
+                    .filter(|r| r.method == method)
+                    .map(|r| (work(r, fraction), number(r.position_error_rel)))
                     .collect(),
             })
             .collect();
-        let name = run["integrator"].as_str().unwrap_or("?").to_uppercase();
+        let name = run.run.integrator.to_uppercase();
         panels.push((format!("{name}: position error"), series));
     }
     let panels: Vec<(&str, &[Series])> = panels

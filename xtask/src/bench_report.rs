@@ -14,9 +14,61 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use serde_json::{Value, json};
+use pd_benches::schema::{Accuracy, AccuracyRow, Contact, Overhead, Phases, Step};
+use serde::de::DeserializeOwned;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
 
+use crate::bench_methods::MethodsRun;
 use crate::bench_plot::{self, Series};
+
+/// The machine a report ran on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Machine {
+    /// The CPU model (`unknown` if not found).
+    pub cpu: String,
+    /// Logical cores (0 if not known).
+    pub logical_cores: usize,
+    /// Memory in GiB, if known.
+    pub memory_gib: Option<f64>,
+    /// The first line of `/proc/pressure/cpu`, if there is one.
+    pub cpu_pressure: Option<String>,
+}
+
+/// One pair of `pd-probe phases` runs, on 1 and on 2 threads.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct LocalSpeedup {
+    one: Phases,
+    two: Phases,
+    /// The local step's median on one thread over that on two.
+    #[serde(
+        default = "pd_benches::schema::nan",
+        deserialize_with = "pd_benches::schema::number"
+    )]
+    speedup: f64,
+}
+
+/// Everything `docs/reports/bench-report/report.json` holds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct Report {
+    limits: Value,
+    methods: Vec<MethodsRun>,
+    contact: Vec<Contact>,
+    mode: String,
+    commit: String,
+    date: String,
+    machine: Machine,
+    machine_after: Machine,
+    #[serde(
+        default = "pd_benches::schema::nan",
+        deserialize_with = "pd_benches::schema::number"
+    )]
+    wall_seconds: f64,
+    overhead: Vec<Overhead>,
+    accuracy: Vec<Accuracy>,
+    scaling: Vec<Step>,
+    local_speedup: Vec<LocalSpeedup>,
+}
 
 /// What one mode (full or quick) measures.
 struct Plan {
@@ -114,12 +166,17 @@ pub fn probe(binary: &Path, args: &[String]) -> Result<Value, String> {
         .map_err(|e| format!("pd-probe printed bad JSON ({e}): {text}"))
 }
 
+/// A probe's output as its typed schema (`pd_benches::schema`).
+pub fn typed<T: DeserializeOwned>(value: Value) -> Result<T, String> {
+    serde_json::from_value(value).map_err(|e| format!("pd-probe output: {e}"))
+}
+
 fn args(list: &[&str]) -> Vec<String> {
     list.iter().map(|s| s.to_string()).collect()
 }
 
 /// The machine: CPU model, logical cores, memory.
-pub fn machine() -> Value {
+pub fn machine() -> Machine {
     let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
     let cpu = cpuinfo
         .lines()
@@ -138,7 +195,12 @@ pub fn machine() -> Value {
     let pressure = std::fs::read_to_string("/proc/pressure/cpu")
         .ok()
         .and_then(|t| t.lines().next().map(str::to_string));
-    json!({ "cpu": cpu, "logical_cores": cores, "memory_gib": memory_gib, "cpu_pressure": pressure })
+    Machine {
+        cpu,
+        logical_cores: cores,
+        memory_gib,
+        cpu_pressure: pressure,
+    }
 }
 
 fn command_output(program: &str, arguments: &[&str], root: &Path) -> Option<String> {
@@ -195,8 +257,14 @@ pub fn fitted_exponent(points: &[(f64, f64)]) -> Option<f64> {
     (sxx > 0.0).then(|| sxy / sxx)
 }
 
-fn f(value: &Value) -> f64 {
-    value.as_f64().unwrap_or(f64::NAN)
+/// A byte count as a number, NaN if it is not known.
+fn bytes(value: Option<u64>) -> f64 {
+    value.map_or(f64::NAN, |b| b as f64)
+}
+
+/// A number as JSON writes it (`0.01`, `1.0`; `null` if not finite).
+pub fn json_text(value: f64) -> String {
+    Value::from(value).to_string()
 }
 
 /// Runs every measurement and writes the report; returns the Markdown path.
@@ -211,9 +279,9 @@ pub fn run(root: &Path, quick: bool, meshes: &[PathBuf]) -> Result<PathBuf, Stri
     let machine_before = machine();
 
     eprintln!("damping overhead...");
-    let mut overhead = Vec::new();
+    let mut overhead: Vec<Overhead> = Vec::new();
     for integrator in ["be", "im"] {
-        overhead.push(p(args(&[
+        overhead.push(typed(p(args(&[
             "overhead",
             "--cells",
             &cells_arg(plan.overhead_cells),
@@ -225,13 +293,13 @@ pub fn run(root: &Path, quick: bool, meshes: &[PathBuf]) -> Result<PathBuf, Stri
             "5",
             "--threads",
             "1",
-        ]))?);
+        ]))?)?);
     }
 
     eprintln!("speed against accuracy...");
-    let mut accuracy = Vec::new();
-    for integrator in ["be", "im", "bdf2"] {
-        accuracy.push(p(args(&[
+    let mut accuracy: Vec<Accuracy> = Vec::new();
+    for integrator in pd_integrators::registry::short_names() {
+        accuracy.push(typed(p(args(&[
             "accuracy",
             "--cells",
             &cells_arg(plan.accuracy_cells),
@@ -241,13 +309,13 @@ pub fn run(root: &Path, quick: bool, meshes: &[PathBuf]) -> Result<PathBuf, Stri
             &plan.accuracy_time.to_string(),
             "--threads",
             "1",
-        ]))?);
+        ]))?)?);
     }
 
     eprintln!("scaling...");
-    let mut scaling = Vec::new();
+    let mut scaling: Vec<Step> = Vec::new();
     for &cells in &plan.scaling_cells {
-        scaling.push(p(args(&[
+        scaling.push(typed(p(args(&[
             "step",
             "--cells",
             &cells_arg(cells),
@@ -255,15 +323,15 @@ pub fn run(root: &Path, quick: bool, meshes: &[PathBuf]) -> Result<PathBuf, Stri
             &plan.scaling_steps.to_string(),
             "--threads",
             "1",
-        ]))?);
+        ]))?)?);
     }
 
     eprintln!("local-step speed-up...");
     let mut speedup = Vec::new();
     for _ in 0..plan.speedup_pairs {
-        let mut pair = Vec::new();
+        let mut pair: Vec<Phases> = Vec::new();
         for threads in ["1", "2"] {
-            pair.push(p(args(&[
+            pair.push(typed(p(args(&[
                 "phases",
                 "--cells",
                 &cells_arg(plan.speedup_cells),
@@ -273,67 +341,73 @@ pub fn run(root: &Path, quick: bool, meshes: &[PathBuf]) -> Result<PathBuf, Stri
                 "20",
                 "--factor-reps",
                 "1",
-            ]))?);
+            ]))?)?);
         }
-        speedup.push(json!({ "one": pair[0], "two": pair[1],
-            "speedup": f(&pair[0]["local_ms_median"]) / f(&pair[1]["local_ms_median"]) }));
+        let [one, two]: [Phases; 2] = pair
+            .try_into()
+            .map_err(|_| "a speed-up pair is two runs".to_string())?;
+        speedup.push(LocalSpeedup {
+            speedup: one.local_ms_median / two.local_ms_median,
+            one,
+            two,
+        });
     }
 
     eprintln!("limits and real meshes...");
     let mut limits = crate::bench_limits::measure(&p, quick, meshes)?;
-    let pair_speedups: Vec<f64> = speedup.iter().map(|pair| f(&pair["speedup"])).collect();
+    let pair_speedups: Vec<f64> = speedup.iter().map(|pair| pair.speedup).collect();
     crate::bench_limits::flag_speedups(&mut limits, "local step", &pair_speedups);
     eprintln!("iteration methods...");
     let methods = crate::bench_methods::measure(&p, quick)?;
     eprintln!("contact...");
     let contact = crate::bench_contact::measure(&p, quick)?;
 
-    let report = json!({
-        "limits": limits,
-        "methods": methods,
-        "contact": contact,
-        "mode": if quick { "quick" } else { "full" },
-        "commit": commit,
-        "date": date,
-        "machine": machine_before,
-        "machine_after": machine(),
-        "wall_seconds": started.elapsed().as_secs_f64(),
-        "overhead": overhead,
-        "accuracy": accuracy,
-        "scaling": scaling,
-        "local_speedup": speedup,
-    });
+    let report = Report {
+        limits,
+        methods,
+        contact,
+        mode: if quick { "quick" } else { "full" }.into(),
+        commit,
+        date,
+        machine: machine_before,
+        machine_after: machine(),
+        wall_seconds: started.elapsed().as_secs_f64(),
+        overhead,
+        accuracy,
+        scaling,
+        local_speedup: speedup,
+    };
     write_report(root, &report)
 }
 
-fn write_report(root: &Path, report: &Value) -> Result<PathBuf, String> {
+fn write_report(root: &Path, report: &Report) -> Result<PathBuf, String> {
     let dir = root.join("docs/reports").join("bench-report");
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let json_path = dir.join("report.json");
-    let text = serde_json::to_string_pretty(report).map_err(|e| e.to_string())?;
+    // Through `Value`, whose objects keep their keys sorted.
+    let value = serde_json::to_value(report).map_err(|e| e.to_string())?;
+    let text = serde_json::to_string_pretty(&value).map_err(|e| e.to_string())?;
     std::fs::write(&json_path, text + "\n").map_err(|e| format!("{}: {e}", json_path.display()))?;
 
     // Figures.
-    crate::bench_methods::figure(&dir, &report["methods"])?;
-    let empty = Vec::new();
-    let accuracy = report["accuracy"].as_array().unwrap_or(&empty);
+    crate::bench_methods::figure(&dir, &report.methods)?;
     let mut position = Vec::new();
     let mut energy = Vec::new();
-    for run in accuracy {
-        let name = run["integrator"].as_str().unwrap_or("?").to_uppercase();
-        let rows = run["rows"].as_array().unwrap_or(&empty);
-        let pick = |key: &str| -> Vec<(f64, f64)> {
-            rows.iter()
-                .map(|r| (f(&r["step_ms_median"]), f(&r[key])))
+    for run in &report.accuracy {
+        let name = run.integrator.to_uppercase();
+        let pick = |error: fn(&AccuracyRow) -> f64| -> Vec<(f64, f64)> {
+            run.rows
+                .iter()
+                .map(|r| (r.step_ms_median, error(r)))
                 .collect()
         };
         position.push(Series {
             name: name.clone(),
-            points: pick("position_error_rel"),
+            points: pick(|r| r.position_error_rel),
         });
         energy.push(Series {
             name,
-            points: pick("energy_error_rel"),
+            points: pick(|r| r.energy_error_rel),
         });
     }
     bench_plot::log_log(
@@ -345,16 +419,16 @@ fn write_report(root: &Path, report: &Value) -> Result<PathBuf, String> {
             ("energy error / (m g L)", &energy),
         ],
     )?;
-    let scaling = report["scaling"].as_array().unwrap_or(&empty);
-    let by_size = |key: &str| -> Vec<(f64, f64)> {
+    let scaling = &report.scaling;
+    let by_size = |time: fn(&Step) -> f64| -> Vec<(f64, f64)> {
         scaling
             .iter()
-            .map(|r| (f(&r["n_verts"]), f(&r[key])))
+            .map(|r| (r.n_verts as f64, time(r)))
             .collect()
     };
     let memory: Vec<(f64, f64)> = scaling
         .iter()
-        .map(|r| (f(&r["n_verts"]), f(&r["peak_bytes"]) / 1e6))
+        .map(|r| (r.n_verts as f64, bytes(r.peak_bytes) / 1e6))
         .collect();
     bench_plot::log_log(
         &dir.join("scaling.png"),
@@ -366,11 +440,11 @@ fn write_report(root: &Path, report: &Value) -> Result<PathBuf, String> {
                 &[
                     Series {
                         name: "numeric factorisation".into(),
-                        points: by_size("numeric_factor_ms"),
+                        points: by_size(|r| r.numeric_factor_ms),
                     },
                     Series {
                         name: "step".into(),
-                        points: by_size("step_ms_median"),
+                        points: by_size(|r| r.step_ms_median),
                     },
                 ],
             ),
@@ -390,35 +464,38 @@ fn write_report(root: &Path, report: &Value) -> Result<PathBuf, String> {
     Ok(md_path)
 }
 
-fn markdown(r: &Value) -> String {
-    let empty = Vec::new();
+fn markdown(r: &Report) -> String {
     let mut md = String::new();
-    let m = &r["machine"];
+    let m = &r.machine;
     let _ = writeln!(md, "# Benchmark report\n");
     let _ = writeln!(
         md,
         "Generated by `cargo xtask bench-report{}` ({} mode); do not edit by hand. \
          Raw numbers: [`bench-report/report.json`](bench-report/report.json). \
          How to read it and what was found: [performance.md](../design/performance.md).\n",
-        if r["mode"] == "quick" { " --quick" } else { "" },
-        r["mode"].as_str().unwrap_or("?")
+        if r.mode == "quick" { " --quick" } else { "" },
+        r.mode
     );
     let _ = writeln!(md, "| | |\n| --- | --- |");
-    let _ = writeln!(md, "| CPU | {} |", m["cpu"].as_str().unwrap_or("?"));
-    let _ = writeln!(md, "| logical cores | {} |", m["logical_cores"]);
-    let _ = writeln!(md, "| memory | {:.1} GiB |", f(&m["memory_gib"]));
-    let _ = writeln!(md, "| commit | `{}` |", r["commit"].as_str().unwrap_or("?"));
-    let _ = writeln!(md, "| date | {} |", r["date"].as_str().unwrap_or("?"));
+    let _ = writeln!(md, "| CPU | {} |", m.cpu);
+    let _ = writeln!(md, "| logical cores | {} |", m.logical_cores);
+    let _ = writeln!(
+        md,
+        "| memory | {:.1} GiB |",
+        m.memory_gib.unwrap_or(f64::NAN)
+    );
+    let _ = writeln!(md, "| commit | `{}` |", r.commit);
+    let _ = writeln!(md, "| date | {} |", r.date);
     let _ = writeln!(
         md,
         "| CPU pressure before / after | `{}` / `{}` |",
-        m["cpu_pressure"].as_str().unwrap_or("n/a"),
-        r["machine_after"]["cpu_pressure"].as_str().unwrap_or("n/a")
+        m.cpu_pressure.as_deref().unwrap_or("n/a"),
+        r.machine_after.cpu_pressure.as_deref().unwrap_or("n/a")
     );
     let _ = writeln!(
         md,
         "| wall time of the report | {:.0} s |\n",
-        f(&r["wall_seconds"])
+        r.wall_seconds
     );
     let _ = writeln!(
         md,
@@ -429,7 +506,7 @@ fn markdown(r: &Value) -> String {
     );
 
     let _ = writeln!(md, "## Overhead of each damping model\n");
-    let overhead = r["overhead"].as_array().unwrap_or(&empty);
+    let overhead = &r.overhead;
     if let Some(first) = overhead.first() {
         let _ = writeln!(
             md,
@@ -437,7 +514,7 @@ fn markdown(r: &Value) -> String {
              undamped beam after 5 steps); the models' steps are interleaved, {} rounds, so drift \
              in the machine's speed hits all alike. Median time per step and its ratio to `none` \
              of the same integrator, same run.\n",
-            first["n_verts"], first["iters"], first["rounds"]
+            first.n_verts, first.iters, first.rounds
         );
     }
     let _ = writeln!(
@@ -446,21 +523,17 @@ fn markdown(r: &Value) -> String {
     );
     let _ = writeln!(md, "| --- | --- | --- | --- | --- |");
     for run in overhead {
-        for model in run["models"].as_array().unwrap_or(&empty) {
+        for model in &run.models {
             let _ = writeln!(
                 md,
                 "| {} | {} | {:.2} | {:.2} | {:.3} |",
-                run["integrator"].as_str().unwrap_or("?"),
-                model["model"].as_str().unwrap_or("?"),
-                f(&model["median_ms"]),
-                f(&model["min_ms"]),
-                f(&model["ratio_to_none"])
+                run.integrator, model.model, model.median_ms, model.min_ms, model.ratio_to_none
             );
         }
     }
 
     let _ = writeln!(md, "\n## Speed against accuracy\n");
-    let accuracy = r["accuracy"].as_array().unwrap_or(&empty);
+    let accuracy = &r.accuracy;
     if let Some(first) = accuracy.first() {
         let _ = writeln!(
             md,
@@ -469,12 +542,12 @@ fn markdown(r: &Value) -> String {
              iterations). Position error: the largest vertex distance to the reference divided by \
              the body's diagonal (1.04 m). Energy error: |E - E_ref| (kinetic + elastic + \
              gravitational) divided by m g L, the total weight times the diagonal ({:.1} J).\n",
-            first["n_verts"],
-            first["steps"],
-            first["dt"],
-            first["time"],
-            f(&first["reference_tolerance"]),
-            f(&first["energy_scale_joule"])
+            first.n_verts,
+            first.steps,
+            json_text(first.dt),
+            json_text(first.time),
+            first.reference_tolerance,
+            first.energy_scale_joule
         );
     }
     let _ = writeln!(
@@ -483,20 +556,16 @@ fn markdown(r: &Value) -> String {
     );
     let _ = writeln!(md, "| --- | --- | --- | --- | --- |");
     for run in accuracy {
-        for row in run["rows"].as_array().unwrap_or(&empty) {
+        for row in &run.rows {
             let _ = writeln!(
                 md,
                 "| {} | {} | {:.2e} | {:.2e} | {:.2} |{}",
-                run["integrator"].as_str().unwrap_or("?"),
-                row["iters"],
-                f(&row["position_error_rel"]),
-                f(&row["energy_error_rel"]),
-                f(&row["step_ms_median"]),
-                if row["diverged"] == true {
-                    " diverged"
-                } else {
-                    ""
-                }
+                run.integrator,
+                row.iters,
+                row.position_error_rel,
+                row.energy_error_rel,
+                row.step_ms_median,
+                if row.diverged { " diverged" } else { "" }
             );
         }
     }
@@ -504,9 +573,7 @@ fn markdown(r: &Value) -> String {
         let _ = writeln!(
             md,
             "\nReference ({}): {:.1} iterations per step on average, {} steps not converged.",
-            run["integrator"].as_str().unwrap_or("?"),
-            f(&run["reference_mean_iterations"]),
-            run["reference_unconverged_steps"]
+            run.integrator, run.reference_mean_iterations, run.reference_unconverged_steps
         );
     }
     let _ = writeln!(
@@ -516,10 +583,10 @@ fn markdown(r: &Value) -> String {
          each curve's points are the iteration counts 1, 2, 3, 5, 10, 20, 50 from left to right.\n"
     );
 
-    md.push_str(&crate::bench_methods::markdown(&r["methods"]));
-    md.push_str(&crate::bench_contact::markdown(&r["contact"]));
+    md.push_str(&crate::bench_methods::markdown(&r.methods));
+    md.push_str(&crate::bench_contact::markdown(&r.contact));
     let _ = writeln!(md, "## Scaling\n");
-    let scaling = r["scaling"].as_array().unwrap_or(&empty);
+    let scaling = &r.scaling;
     let _ = writeln!(
         md,
         "Backward Euler, no damping, 10 iterations, 1 thread; each size in its own process. \
@@ -535,22 +602,22 @@ fn markdown(r: &Value) -> String {
         let _ = writeln!(
             md,
             "| {} | {} | {:.2} | {:.0} | {:.1} | {:.1} | {:.1} / {:.1} | {:.0} |",
-            row["n_verts"],
-            row["n_tets"],
-            f(&row["nnz_L_factor"]) / 1e6,
-            f(&row["symbolic_ms"]),
-            f(&row["numeric_factor_ms"]),
-            f(&row["step_ms_median"]),
-            f(&row["local_ms_median"]),
-            f(&row["global_ms_median"]),
-            f(&row["peak_bytes"]) / 1e6
+            row.n_verts,
+            row.n_tets,
+            row.nnz_l_factor as f64 / 1e6,
+            row.symbolic_ms,
+            row.numeric_factor_ms,
+            row.step_ms_median,
+            row.local_ms_median,
+            row.global_ms_median,
+            bytes(row.peak_bytes) / 1e6
         );
     }
-    let fit = |key: &str, scale: f64| {
+    let fit = |y: fn(&Step) -> f64, scale: f64| {
         fitted_exponent(
             &scaling
                 .iter()
-                .map(|r| (f(&r["n_verts"]), f(&r[key]) * scale))
+                .map(|r| (r.n_verts as f64, y(r) * scale))
                 .collect::<Vec<_>>(),
         )
     };
@@ -559,22 +626,22 @@ fn markdown(r: &Value) -> String {
         md,
         "\nFitted exponents p of `y ~ n^p` (least squares in log-log over all sizes): \
          numeric factorisation {}, step {}, nnz(L) {}, peak memory {}.\n",
-        show(fit("numeric_factor_ms", 1.0)),
-        show(fit("step_ms_median", 1.0)),
-        show(fit("nnz_L_factor", 1.0)),
-        show(fit("peak_bytes", 1.0))
+        show(fit(|r| r.numeric_factor_ms, 1.0)),
+        show(fit(|r| r.step_ms_median, 1.0)),
+        show(fit(|r| r.nnz_l_factor as f64, 1.0)),
+        show(fit(|r| bytes(r.peak_bytes), 1.0))
     );
     let _ = writeln!(md, "![scaling](bench-report/scaling.png)\n");
 
     let _ = writeln!(md, "## Parallel speed-up of the local step\n");
-    let speedup = r["local_speedup"].as_array().unwrap_or(&empty);
+    let speedup = &r.local_speedup;
     if let Some(first) = speedup.first() {
         let _ = writeln!(
             md,
             "{} tets, median of 20 local steps (every constraint projected once, caches warm) \
              per run; 1 and 2 threads run alternately in separate processes. A speed-up above \
              2.05 flags the report as noisy (limits section below).\n",
-            first["one"]["n_tets"]
+            first.one.n_tets
         );
     }
     let _ = writeln!(md, "| pair | 1 thread [ms] | 2 threads [ms] | speed-up |");
@@ -584,14 +651,14 @@ fn markdown(r: &Value) -> String {
             md,
             "| {} | {:.2} | {:.2} | {:.2} |",
             i + 1,
-            f(&pair["one"]["local_ms_median"]),
-            f(&pair["two"]["local_ms_median"]),
-            f(&pair["speedup"])
+            pair.one.local_ms_median,
+            pair.two.local_ms_median,
+            pair.speedup
         );
     }
-    if !r["limits"].is_null() {
+    if !r.limits.is_null() {
         let _ = writeln!(md);
-        md.push_str(&crate::bench_limits::markdown(&r["limits"]));
+        md.push_str(&crate::bench_limits::markdown(&r.limits));
     }
     md
 }
@@ -608,5 +675,24 @@ mod tests {
             .collect();
         assert!((fitted_exponent(&points).unwrap() - 1.5).abs() < 1e-12);
         assert_eq!(fitted_exponent(&points[..1]), None);
+    }
+
+    /// The stored report reads into the typed schema and writes back
+    /// byte for byte (the file is written through `Value`, keys sorted),
+    /// and renders.
+    #[test]
+    fn the_stored_report_round_trips_through_the_schema() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .parent()
+            .expect("xtask lives inside the workspace");
+        let path = root.join("docs/reports/bench-report/report.json");
+        let text = std::fs::read_to_string(&path).expect("the stored report");
+        let report: Report = serde_json::from_str(&text).expect("a report");
+        let value = serde_json::to_value(&report).expect("a value");
+        assert_eq!(
+            serde_json::to_string_pretty(&value).expect("JSON") + "\n",
+            text
+        );
+        assert!(markdown(&report).starts_with("# Benchmark report"));
     }
 }

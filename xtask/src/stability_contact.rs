@@ -23,6 +23,7 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
+use pd_integrators::registry;
 use pd_io::scene::{Scene, Syntax};
 use pd_solver::SolverError;
 
@@ -31,7 +32,6 @@ const HEIGHTS: [f64; 3] = [0.01, 1.0, 100.0];
 const STIFFNESS: [f64; 3] = [1e3, 1e6, 1e9];
 const FRICTION: [f64; 3] = [0.0, 0.5, 10.0];
 const DT: [f64; 3] = [1e-4, 1e-2, 0.1];
-const INTEGRATORS: [&str; 3] = ["backward-euler", "implicit-midpoint", "bdf2"];
 const DAMPING: [&str; 2] = ["none", "laplacian"];
 const BODIES: [&str; 3] = ["drop", "stack", "stack-self"];
 /// How far behind the floor a vertex may end a step, m (the thickness is
@@ -63,7 +63,7 @@ fn cases() -> Vec<Case> {
             for &stiffness in &STIFFNESS {
                 for &friction in &FRICTION {
                     for &dt in &DT {
-                        for integrator in 0..INTEGRATORS.len() {
+                        for integrator in 0..registry::entries().len() {
                             for damping in 0..DAMPING.len() {
                                 cases.push(Case {
                                     body,
@@ -120,7 +120,9 @@ fn scene_text(case: &Case) -> String {
          integrator = \"{}\"\niterations = 20\nthreads = 1\n\n[damping]\n{damping}\n\n\
          [[collider]]\nshape = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 1.0, 0.0]\n\
          friction = {:?}\n\n[contact]\nthickness = 0.001\n{contact}\n{bodies}",
-        case.dt, INTEGRATORS[case.integrator], case.friction
+        case.dt,
+        registry::entries()[case.integrator].name,
+        case.friction
     )
 }
 
@@ -256,6 +258,7 @@ fn axis<T: std::fmt::Debug>(
 
 fn report(cases: &[Case], results: &[(usize, Ending)], seconds: f64, threads: usize) -> String {
     let mut out = String::new();
+    let integrators = registry::names();
     let completed = results
         .iter()
         .filter(|(_, e)| matches!(e, Ending::Completed { .. }))
@@ -283,7 +286,7 @@ fn report(cases: &[Case], results: &[(usize, Ending)], seconds: f64, threads: us
          second one resting on the floor with `bodies = true` (stack), and the same with \
          `self = true` as well (stack-self); drop height {HEIGHTS:?} m; \
          tet-strain stiffness {STIFFNESS:?} Pa; friction (floor and between bodies) \
-         {FRICTION:?}; time step {DT:?} s; {INTEGRATORS:?}; damping {DAMPING:?} (Laplacian \
+         {FRICTION:?}; time step {DT:?} s; {integrators:?}; damping {DAMPING:?} (Laplacian \
          0.01 s); 1000 kg/m^3, 20 iterations, thickness 1 mm.\n\n\
          **{completed} completed** ({resting} with contacts active at the end), **{stopped} \
          stopped by the divergence error**, **{} bugs**. \"Deepest left\" is the last step's \
@@ -330,7 +333,7 @@ fn report(cases: &[Case], results: &[(usize, Ending)], seconds: f64, threads: us
     axis(
         &mut out,
         "integrator",
-        &INTEGRATORS,
+        &integrators,
         |c| c.integrator,
         cases,
         results,

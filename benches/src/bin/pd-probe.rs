@@ -26,12 +26,15 @@
 use std::process::ExitCode;
 use std::time::Instant;
 
+use pd_benches::schema::{
+    Accuracy, AccuracyRow, Bandwidth, CacheScaling, Overhead, OverheadModel, Phases, Step,
+};
 use pd_benches::{Beam, Clamp, Options, Sheet, damping_models, peak_memory_bytes};
 use pd_damping::registry::UNDAMPED;
-use pd_io::recorder::median;
+use pd_io::stats::median;
 use pd_mesh::Point;
 use pd_solver::Simulation;
-use serde_json::{Value, json};
+use serde_json::Value;
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -114,13 +117,15 @@ impl ProbeOptions for Options<'_> {
     }
 }
 
-/// `value` with `n_triangles` added for a cloth run (beam and mesh runs
-/// keep their output as it was).
-fn with_triangles(mut value: Value, sim: &Simulation, cloth: bool) -> Value {
-    if cloth {
-        value["n_triangles"] = json!(sim.model().bodies()[0].mesh.triangles().len());
-    }
-    value
+/// The number of triangles of a cloth run, `None` for a beam or mesh run
+/// (whose output has no `n_triangles`).
+fn triangles(sim: &Simulation, cloth: bool) -> Option<usize> {
+    cloth.then(|| sim.model().bodies()[0].mesh.triangles().len())
+}
+
+/// A probe's typed output as the JSON value printed.
+fn output(value: &impl serde::Serialize) -> Result<Value, String> {
+    serde_json::to_value(value).map_err(|e| e.to_string())
 }
 
 /// Every option some probe reads: anything else is a typo.
@@ -232,14 +237,14 @@ fn bandwidth(options: &Options<'_>) -> Result<Value, String> {
         checksum += std::hint::black_box(total);
         best = best.min(t.elapsed().as_secs_f64());
     }
-    Ok(json!({
-        "bytes": len * 8,
-        "reps": reps,
-        "threads": threads,
-        "best_seconds": best,
-        "bytes_per_second": (len * 8) as f64 / best,
-        "checksum": checksum,
-    }))
+    output(&Bandwidth {
+        bytes: len * 8,
+        reps,
+        threads,
+        best_seconds: best,
+        bytes_per_second: (len * 8) as f64 / best,
+        checksum,
+    })
 }
 
 /// How a plain read loop over a working set of `--mib` MiB (default 16)
@@ -283,14 +288,14 @@ fn cache_scaling(options: &Options<'_>) -> Result<Value, String> {
         best[1] = best[1].min(t.elapsed().as_secs_f64());
     }
     let bytes = (len * 8 * reps) as f64;
-    Ok(json!({
-        "mib": mib,
-        "reps": reps,
-        "bytes_per_second_1_thread": bytes / best[0],
-        "bytes_per_second_2_threads": bytes / best[1],
-        "speedup": best[0] / best[1],
-        "checksum": checksum,
-    }))
+    output(&CacheScaling {
+        mib,
+        reps,
+        bytes_per_second_1_thread: bytes / best[0],
+        bytes_per_second_2_threads: bytes / best[1],
+        speedup: best[0] / best[1],
+        checksum,
+    })
 }
 
 /// The sum of `data` in eight independent sums, so that the adds never
@@ -368,35 +373,35 @@ fn step(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     let local_bytes = n_tets
         * (std::mem::size_of::<pd_constraints::TetStrain>() + 9 * std::mem::size_of::<f64>())
         + n_verts * std::mem::size_of::<Point>();
-    let value = json!({
-        "n_verts": n_verts,
-        "n_tets": n_tets,
-        "local_bytes": local_bytes,
-        "n_free": sim.num_free_vertices(),
-        "nnz_L_factor": sim.factor_len(),
-        "nnz_L_exact": sim.factor_nnz(),
-        "symbolic_ms": ms(setup.analysis_seconds),
-        "factor_ms": ms(setup.analysis_seconds + setup.factor_seconds),
-        "numeric_factor_ms": ms(setup.factor_seconds),
-        "step_ms_median": pick(|s| s.total_seconds),
-        "local_ms_median": pick(|s| s.local_seconds),
-        "global_ms_median": pick(|s| s.global_seconds),
-        "solve_ms_median": median(&solves),
-        "solve_ms_min": solves.iter().copied().fold(f64::INFINITY, f64::min),
-        "rhs_and_solve_ms_median": median(&rhs_and_solves),
-        "steps": steps,
-        "iters": beam.iterations,
-        "threads": beam.threads,
-        "model": model,
-        "integrator": integrator,
-        "centroid": [centroid.x, centroid.y, centroid.z],
-        "min_y": min_y,
-        "kinetic_energy": sim.energies().kinetic,
-        "peak_bytes": peak_memory_bytes(),
-        "setup_peak_bytes": setup_peak_bytes,
-        "state_hash": state_hash(sim.state()),
-    });
-    Ok(with_triangles(value, &sim, sheet.is_some()))
+    output(&Step {
+        n_verts,
+        n_tets,
+        n_triangles: triangles(&sim, sheet.is_some()),
+        local_bytes,
+        n_free: sim.num_free_vertices(),
+        nnz_l_factor: sim.factor_len(),
+        nnz_l_exact: sim.factor_nnz(),
+        symbolic_ms: ms(setup.analysis_seconds),
+        factor_ms: ms(setup.analysis_seconds + setup.factor_seconds),
+        numeric_factor_ms: ms(setup.factor_seconds),
+        step_ms_median: pick(|s| s.total_seconds),
+        local_ms_median: pick(|s| s.local_seconds),
+        global_ms_median: pick(|s| s.global_seconds),
+        solve_ms_median: median(&solves),
+        solve_ms_min: solves.iter().copied().fold(f64::INFINITY, f64::min),
+        rhs_and_solve_ms_median: median(&rhs_and_solves),
+        steps,
+        iters: beam.iterations,
+        threads: beam.threads,
+        model: model.into(),
+        integrator: integrator.into(),
+        centroid: [centroid.x, centroid.y, centroid.z],
+        min_y,
+        kinetic_energy: sim.energies().kinetic,
+        peak_bytes: peak_memory_bytes(),
+        setup_peak_bytes,
+        state_hash: state_hash(sim.state()),
+    })
 }
 
 /// FNV-1a over the bits of every position and velocity, as hex: two runs
@@ -431,27 +436,25 @@ fn overhead(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
         }
     }
     let none = median(&samples[0]);
-    let models: Vec<Value> = models
+    let models: Vec<OverheadModel> = models
         .iter()
-        .zip(&samples)
-        .map(|(name, s)| {
-            json!({
-                "model": name,
-                "median_ms": median(s),
-                "ratio_to_none": median(s) / none,
-                "min_ms": s.iter().copied().fold(f64::INFINITY, f64::min),
-                "samples_ms": s,
-            })
+        .zip(samples)
+        .map(|(name, s)| OverheadModel {
+            model: (*name).into(),
+            median_ms: median(&s),
+            ratio_to_none: median(&s) / none,
+            min_ms: s.iter().copied().fold(f64::INFINITY, f64::min),
+            samples_ms: s,
         })
         .collect();
-    Ok(json!({
-        "integrator": integrator,
-        "n_verts": sims[0].model().num_vertices(),
-        "iters": beam.iterations,
-        "threads": beam.threads,
-        "rounds": rounds,
-        "models": models,
-    }))
+    output(&Overhead {
+        integrator: integrator.into(),
+        n_verts: sims[0].model().num_vertices(),
+        iters: beam.iterations,
+        threads: beam.threads,
+        rounds,
+        models,
+    })
 }
 
 /// The phases alone, each repeated `reps` times: local step, global solve
@@ -508,21 +511,21 @@ fn phases(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
     let factor = time(factor_reps, &mut || {
         sim.profile_factorise().map_err(|e| e.to_string())
     })?;
-    let value = json!({
-        "n_verts": sim.model().num_vertices(),
-        "n_tets": sim.model().bodies()[0].mesh.tets().len(),
-        "threads": beam.threads,
-        "model": model,
-        "evict_mib": evict_mib,
-        "idle_us": idle_us,
-        "local_ms_median": local,
-        "local_part_ns_per_tet_min": parts,
-        "global_solve_ms_median": global,
-        "numeric_factor_ms_median": factor,
-        "nnz_L_factor": sim.factor_len(),
-        "peak_bytes": peak_memory_bytes(),
-    });
-    Ok(with_triangles(value, &sim, sheet.is_some()))
+    output(&Phases {
+        n_verts: sim.model().num_vertices(),
+        n_tets: sim.model().bodies()[0].mesh.tets().len(),
+        n_triangles: triangles(&sim, sheet.is_some()),
+        threads: beam.threads,
+        model: model.into(),
+        evict_mib,
+        idle_us,
+        local_ms_median: local,
+        local_part_ns_per_tet_min: parts,
+        global_solve_ms_median: global,
+        numeric_factor_ms_median: factor,
+        nnz_l_factor: sim.factor_len(),
+        peak_bytes: peak_memory_bytes(),
+    })
 }
 
 /// With `--parts P` (diagnostic): the first constraint block
@@ -625,28 +628,28 @@ fn accuracy(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
             }
             Err(_) => (f64::NAN, f64::NAN, f64::NAN, true),
         };
-        rows.push(json!({
-            "iters": iterations,
-            "position_error_rel": error,
-            "energy_error_rel": energy_error,
-            "step_ms_median": step_ms,
-            "diverged": diverged,
-        }));
+        rows.push(AccuracyRow {
+            iters: iterations,
+            position_error_rel: error,
+            energy_error_rel: energy_error,
+            step_ms_median: step_ms,
+            diverged,
+        });
     }
-    Ok(json!({
-        "integrator": integrator,
-        "model": model,
-        "n_verts": reference.model().num_vertices(),
-        "time": time,
-        "dt": beam.dt,
-        "steps": steps,
-        "reference_tolerance": reference_tolerance,
-        "reference_unconverged_steps": unconverged,
-        "reference_mean_iterations": mean_reference_iterations,
-        "reference_seconds": reference_seconds,
-        "energy_scale_joule": energy_scale,
-        "rows": rows,
-    }))
+    output(&Accuracy {
+        integrator: integrator.into(),
+        model: model.into(),
+        n_verts: reference.model().num_vertices(),
+        time,
+        dt: beam.dt,
+        steps,
+        reference_tolerance,
+        reference_unconverged_steps: unconverged,
+        reference_mean_iterations: mean_reference_iterations,
+        reference_seconds,
+        energy_scale_joule: energy_scale,
+        rows,
+    })
 }
 
 /// Error against cost per step for every iteration method

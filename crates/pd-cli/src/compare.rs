@@ -9,12 +9,13 @@
 //! variant sets the model of every body, in place of a body's own
 //! `damping`.
 
-use pd_io::recorder::median;
+use pd_io::stats::median;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use pd_damping::registry;
-use pd_io::scene::{DampingSpec, FrameFormat, IntegratorKind, Scene};
+use pd_integrators::registry as integrator_registry;
+use pd_io::scene::{DampingSpec, FrameFormat, Scene};
 use pd_viz::plot::Plot;
 use serde_json::json;
 use tracing::{info, warn};
@@ -37,6 +38,14 @@ pub(crate) fn damping_help() -> String {
         "Damping models, comma separated, each for every body (in place of a body's own \
          damping), by preset: {}",
         presets.join("; ")
+    )
+}
+
+/// The help of `--integrator`: every integrator of the registry.
+pub(crate) fn integrator_help() -> String {
+    format!(
+        "Integrators, comma separated ({})",
+        integrator_registry::names().join(", ")
     )
 }
 
@@ -209,14 +218,14 @@ fn variants(
         variants.push((name.clone(), with_damping(&loaded.scene, spec)));
     }
     for name in integrators {
-        let kind = IntegratorKind::parse(name).ok_or_else(|| {
+        let entry = integrator_registry::by_name(name).ok_or_else(|| {
             Failure::Input(format!(
                 "--integrator: unknown integrator {name:?}; expected one of: {}",
-                IntegratorKind::ALL.map(IntegratorKind::name).join(", ")
+                integrator_registry::names().join(", ")
             ))
         })?;
         let mut scene = loaded.scene.clone();
-        scene.integrator = kind;
+        scene.integrator = entry.kind;
         variants.push((name.clone(), scene));
     }
     if variants.is_empty() && ratios.is_empty() {

@@ -113,9 +113,7 @@ enum Command {
             help = compare::damping_help()
         )]
         damping: Vec<String>,
-        /// Integrators, comma separated (backward-euler, implicit-midpoint,
-        /// bdf2).
-        #[arg(long, value_delimiter = ',')]
+        #[arg(long, value_delimiter = ',', help = compare::integrator_help())]
         integrator: Vec<String>,
         /// Damping ratios of the lowest elastic mode, comma separated
         /// (0.01,0.05,0.2): the scene's model if it takes a ratio

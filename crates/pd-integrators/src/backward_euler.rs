@@ -14,6 +14,9 @@ use crate::{Integrator, Point, StepCoefficients, StepTargets};
 pub struct BackwardEuler;
 
 impl BackwardEuler {
+    /// The name scenes, the command line and the registry use.
+    pub const NAME: &'static str = "backward-euler";
+
     /// A new backward Euler integrator.
     pub fn new() -> Self {
         Self
@@ -22,7 +25,7 @@ impl BackwardEuler {
 
 impl Integrator for BackwardEuler {
     fn name(&self) -> &'static str {
-        "backward-euler"
+        Self::NAME
     }
 
     fn coefficients(&self, h: f64) -> StepCoefficients {

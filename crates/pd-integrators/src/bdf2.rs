@@ -30,6 +30,9 @@ pub struct Bdf2 {
 }
 
 impl Bdf2 {
+    /// The name scenes, the command line and the registry use.
+    pub const NAME: &'static str = "bdf2";
+
     /// A new BDF-2 integrator without history.
     pub fn new() -> Self {
         Self::default()
@@ -53,7 +56,7 @@ impl Bdf2 {
 
 impl Integrator for Bdf2 {
     fn name(&self) -> &'static str {
-        "bdf2"
+        Self::NAME
     }
 
     fn coefficients(&self, h: f64) -> StepCoefficients {

@@ -17,6 +17,9 @@ use crate::{Integrator, Point, StepCoefficients, StepTargets};
 pub struct ImplicitMidpoint;
 
 impl ImplicitMidpoint {
+    /// The name scenes, the command line and the registry use.
+    pub const NAME: &'static str = "implicit-midpoint";
+
     /// A new implicit midpoint integrator.
     pub fn new() -> Self {
         Self
@@ -25,7 +28,7 @@ impl ImplicitMidpoint {
 
 impl Integrator for ImplicitMidpoint {
     fn name(&self) -> &'static str {
-        "implicit-midpoint"
+        Self::NAME
     }
 
     fn coefficients(&self, h: f64) -> StepCoefficients {

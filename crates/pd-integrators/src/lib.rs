@@ -37,6 +37,7 @@
 mod backward_euler;
 mod bdf2;
 mod implicit_midpoint;
+pub mod registry;
 
 pub use backward_euler::BackwardEuler;
 pub use bdf2::Bdf2;
@@ -100,7 +101,8 @@ impl StepTargets {
 /// updates the history, then `filter_velocities(...)`, which runs any
 /// explicit velocity filter and keeps the history consistent with it.
 pub trait Integrator: std::fmt::Debug + Send + Sync {
-    /// Name as scenes spell it (`backward-euler`).
+    /// Name as scenes spell it (`backward-euler`): the type's `NAME`, the
+    /// name of its [`registry`] entry.
     fn name(&self) -> &'static str;
 
     /// Coefficients of the coming step of length `h` (s). They may change

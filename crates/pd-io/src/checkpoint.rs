@@ -72,12 +72,9 @@ impl SceneText {
     /// The 64-bit FNV-1a hash of the text, as `fnv1a64:` and 16 hex digits.
     /// It detects accidental edits and damage, not deliberate tampering.
     pub fn hash(&self) -> String {
-        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-        for byte in self.text.bytes() {
-            h ^= u64::from(byte);
-            h = h.wrapping_mul(0x0000_0100_0000_01b3);
-        }
-        format!("fnv1a64:{h:016x}")
+        let mut hash = crate::hash::Fnv1a::new();
+        hash.write_bytes(self.text.as_bytes());
+        format!("fnv1a64:{:016x}", hash.finish())
     }
 }
 

@@ -40,6 +40,7 @@ use pd_mesh::Point;
 use crate::frames::{Cells, write_obj, write_vtk};
 use crate::ply::write_ply;
 use crate::scene::{FrameFormat, OutputSpec, Scene};
+use crate::stats::median;
 use crate::strain::StrainMeasure;
 use crate::vtu::{PvdEntry, write_pvd, write_vtu};
 use crate::{Error, Result};
@@ -367,23 +368,6 @@ fn create(path: &Path) -> Result<BufWriter<File>> {
         .map_err(|e| Error::io(path, e))
 }
 
-/// The median of `values` (the mean of the two middle ones for an even
-/// count); NaN for none. Used for the step-time medians of `summary.json`,
-/// `pd compare` and the benchmarks.
-pub fn median(values: &[f64]) -> f64 {
-    if values.is_empty() {
-        return f64::NAN;
-    }
-    let mut sorted = values.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    let mid = sorted.len() / 2;
-    if sorted.len() % 2 == 1 {
-        sorted[mid]
-    } else {
-        0.5 * (sorted[mid - 1] + sorted[mid])
-    }
-}
-
 fn json_number(value: f64) -> serde_json::Value {
     serde_json::Number::from_f64(value).map_or(serde_json::Value::Null, serde_json::Value::Number)
 }
@@ -405,16 +389,4 @@ fn damping_coefficients(sim: &Simulation) -> serde_json::Value {
             .collect();
     }
     json
-}
-
-#[cfg(test)]
-mod median_tests {
-    use super::median;
-
-    #[test]
-    fn median_of_odd_and_even_counts() {
-        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median(&[4.0, 1.0, 2.0, 3.0]), 2.5);
-        assert!(median(&[]).is_nan());
-    }
 }

@@ -106,7 +106,8 @@ fn selection(
             let name = args.get(i + 1).map_or("", String::as_str);
             let kind = IntegratorKind::parse(name).ok_or_else(|| {
                 format!(
-                    "--integrator: expected one of backward-euler, implicit-midpoint, bdf2, got \"{name}\""
+                    "--integrator: expected one of {}, got \"{name}\"",
+                    pd_integrators::registry::names().join(", ")
                 )
             })?;
             Ok((

@@ -5,49 +5,11 @@
 use std::path::PathBuf;
 
 use pd_damping::registry::DampingSpec;
-use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
 use pd_mesh::{Point, VertexSelection};
 use pd_solver::Settings;
 
-/// Integrators a scene can name.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[non_exhaustive]
-pub enum IntegratorKind {
-    /// `backward-euler`.
-    BackwardEuler,
-    /// `implicit-midpoint`.
-    ImplicitMidpoint,
-    /// `bdf2`.
-    Bdf2,
-}
-
-impl IntegratorKind {
-    /// Every integrator, in the order scenes list them.
-    pub const ALL: [IntegratorKind; 3] = [Self::BackwardEuler, Self::ImplicitMidpoint, Self::Bdf2];
-
-    /// The name scenes use.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::BackwardEuler => "backward-euler",
-            Self::ImplicitMidpoint => "implicit-midpoint",
-            Self::Bdf2 => "bdf2",
-        }
-    }
-
-    /// The integrator a scene name stands for.
-    pub fn parse(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|k| k.name() == name)
-    }
-
-    /// A fresh integrator of this kind.
-    pub fn create(self) -> Box<dyn Integrator> {
-        match self {
-            Self::BackwardEuler => Box::new(BackwardEuler),
-            Self::ImplicitMidpoint => Box::new(ImplicitMidpoint),
-            Self::Bdf2 => Box::new(Bdf2::new()),
-        }
-    }
-}
+/// Integrators a scene can name: the key of `pd_integrators::registry`.
+pub use pd_integrators::registry::IntegratorKind;
 
 /// Where a body's mesh comes from.
 #[derive(Debug, Clone, PartialEq)]

@@ -155,7 +155,7 @@ impl Validator<'_> {
                 "simulation.integrator",
                 format!(
                     "unknown integrator \"{name}\"; expected one of: {}",
-                    IntegratorKind::ALL.map(IntegratorKind::name).join(", ")
+                    pd_integrators::registry::names().join(", ")
                 ),
             )
         })
