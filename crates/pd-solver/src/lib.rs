@@ -35,6 +35,7 @@
 
 mod checkpoint;
 mod components;
+#[cfg(feature = "contact")]
 pub mod contact;
 mod energy;
 mod global;

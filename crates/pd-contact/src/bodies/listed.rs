@@ -6,10 +6,10 @@
 
 use pd_mesh::Point;
 
-use super::super::candidates::{Surface, apart};
-use super::super::end_plane::surely_beyond;
-use super::super::grid::{cell_index, cell_size, query_end};
 use super::{BodyContact, Pair, inside, project_onto};
+use crate::candidates::{Surface, apart};
+use crate::end_plane::surely_beyond;
+use crate::grid::{cell_index, cell_size, query_end};
 
 /// What a candidate entry's start plane tells of its crossings in every
 /// iteration of a step (docs/design/contact.md, "Detection and the broad phase"). When the vertex
@@ -248,7 +248,7 @@ impl BodyContact {
     ///
     /// Why it is the same. (1) The segment boxes and the coverage test are
     /// the expressions of [`BodyContact::sweep_boxes`] and
-    /// [`super::super::candidates::Candidates::covers`], fused in one pass
+    /// [`crate::candidates::Candidates::covers`], fused in one pass
     /// (the coverage of the step's start `x_n` is checked once per step and
     /// at each build: `start_covered`); a candidate's box is built from the
     /// segment boxes on demand with the expressions of `sweep_boxes`, so it

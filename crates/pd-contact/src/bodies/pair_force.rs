@@ -5,8 +5,8 @@
 
 use pd_mesh::Point;
 
-use super::super::forces::coulomb;
 use super::{BodyContact, Pair};
+use crate::collider_force::coulomb;
 
 impl BodyContact {
     /// [`BodyContact::compliance`] with the contact counts (`shared`) of
@@ -45,7 +45,7 @@ impl BodyContact {
 
     /// Every pair's force as it is into `rhs` at the free vertices
     /// (`free_index`): `f` at the vertex, `-w_i f` at the triangle's.
-    pub(in super::super) fn add_forces(&self, free_index: &[usize], rhs: &mut [Point]) {
+    pub(crate) fn add_forces(&self, free_index: &[usize], rhs: &mut [Point]) {
         for (v, pair) in self.pairs.iter().enumerate() {
             let Some(pair) = pair else { continue };
             let tri = self.faces[pair.face].vertices;
