@@ -26,6 +26,14 @@
 //! vertex and the triangle on one body: only the admission of candidates
 //! differs ([`BodyContact::admits`]), which leaves out the vertex's rest
 //! neighbours (`neighbourhood.rs`).
+//!
+//! This file holds the state, the hooks the contact state calls (start of
+//! step, detection, force update, projection, velocity filter) and the
+//! per-iteration grid's swept test; the rest of `impl BodyContact` is by
+//! topic in `bodies/`: `counts.rs` (the contact counts and the paired
+//! vertices), `listed.rs` (detection against the candidate lists and its
+//! fast path), `live.rs` (the step's live candidate entries for that fast
+//! path) and `pair_force.rs` (a pair's Uzawa step and compliance).
 
 use pd_mesh::Point;
 

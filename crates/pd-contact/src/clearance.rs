@@ -3,8 +3,7 @@
 //! and the broad phase"), with the verdict of
 //! [`crate::ColliderShape::misses`] bit for bit, and the collider
 //! pass of an iteration with body contact
-//! ([`ContactState::detect_bodies`]); a file of its own to keep `mod.rs`
-//! within the size rule.
+//! ([`ContactState::detect_bodies`]).
 //!
 //! Why it is the same. At the step's start each free vertex without a
 //! contact gets its clearance: the least, over the colliders, of the plane

@@ -109,10 +109,7 @@ fn selection(
                     "--integrator: expected one of backward-euler, implicit-midpoint, bdf2, got \"{name}\""
                 )
             })?;
-            Ok((
-                vec![kind],
-                root.join(format!("docs/reports/{stem}-{name}.md")),
-            ))
+            Ok((vec![kind], root.join(format!("docs/reports/{stem}-{name}.md"))))
         }
     }
 }

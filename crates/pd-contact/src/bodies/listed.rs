@@ -1,8 +1,10 @@
-//! Detection against the per-step candidate lists (`candidates.rs`):
-//! building them for [`BodyContact`], the listed counterpart of
-//! [`BodyContact::first_hit`] and its fast path without the grid's
-//! arithmetic (docs/design/contact.md, "Contact's own cost"); a file of its own
-//! to keep `bodies.rs` within the size rule.
+//! The part of [`BodyContact`] that detects pairs against the per-step
+//! candidate lists (`candidates.rs`): building them, the listed
+//! counterpart of [`BodyContact::first_hit`], its fast path without the
+//! grid's arithmetic (docs/design/contact.md, "Contact's own cost"), the
+//! detection over an iteration's triangle boxes it is part of
+//! ([`BodyContact::detect_with_boxes`]: against the lists, or the grid
+//! when they cannot be built), and the end-plane test of a crossing.
 
 use pd_mesh::Point;
 

@@ -1,7 +1,8 @@
-//! The Uzawa step of a body-contact pair ([`BodyContact::apply`]'s
-//! force update) and its step size's compliance, kept while the contact
-//! counts it depends on do not change (docs/design/contact.md, "Contact's own
-//! cost"); a file of its own to keep `bodies.rs` within the size rule.
+//! The part of [`BodyContact`] that computes a pair's force: the Uzawa
+//! step of a pair ([`BodyContact::apply`]'s force update), its step size's
+//! compliance, kept while the contact counts it depends on do not change
+//! (docs/design/contact.md, "Contact's own cost"), and the scatter of a
+//! pair's force into the right-hand side.
 
 use pd_mesh::Point;
 

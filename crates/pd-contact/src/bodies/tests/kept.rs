@@ -1,6 +1,6 @@
 //! Tests of the in-place pair updates and the kept counts
-//! (docs/design/contact.md, "Detection and the broad phase"), beside `bodies_tests.rs` (whose helpers they use) to
-//! keep that file within the size rule.
+//! (docs/design/contact.md, "Detection and the broad phase"), with the
+//! helpers of `bodies/tests.rs`.
 
 use super::{Lcg, Point, sheet, two_sheets};
 use crate::bodies::pair_force;
@@ -39,7 +39,7 @@ fn weighted_sum_is_the_iterator_sum_bit_for_bit() {
 }
 
 /// The counts and the list of paired vertices kept from one iteration to
-/// the next (`bodies_counts.rs`) are those of a pass over every vertex in
+/// the next (`bodies/counts.rs`) are those of a pass over every vertex in
 /// every iteration: sheets sinking onto each other over eight iterations,
 /// so that pairs appear in later iterations too, with a growing list of
 /// collider contacts, over two steps (the second starting from the
