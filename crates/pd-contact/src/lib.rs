@@ -134,9 +134,10 @@ pub struct ContactReport {
 
 impl ContactState {
     /// Contact with `settings` (validated: [`ContactSettings::validated`])
-    /// for `vertices` vertices, of which `free` (in increasing order) are
-    /// the free ones, numbered as the global step's unknowns; no contact
-    /// between surfaces until [`ContactState::set_surfaces`].
+    /// for `vertices` vertices, of which `free` lists the free ones in the
+    /// order of the global step's unknowns (the rows of the right-hand side
+    /// [`ContactState::apply`] adds to); no contact between surfaces until
+    /// [`ContactState::set_surfaces`].
     pub fn new(settings: ContactSettings, vertices: usize, free: &[usize]) -> Self {
         let mut free_index = vec![usize::MAX; vertices];
         for (f, &v) in free.iter().enumerate() {
