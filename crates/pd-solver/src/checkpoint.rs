@@ -161,7 +161,9 @@ impl Simulation {
         // Checked before it changes anything; the history goes back if not.
         #[cfg(feature = "contact")]
         let contact = match &mut self.contact {
-            Some(contact) => (contact.load(&checkpoint.contact)).map_err(|e| e.reason().to_owned()),
+            Some(contact) => contact
+                .load(&checkpoint.contact)
+                .map_err(|e| e.reason().to_owned()),
             None if !checkpoint.contact.is_empty() => {
                 Err("the checkpoint has contacts, the simulation has no contact".into())
             }
