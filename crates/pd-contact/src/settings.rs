@@ -130,3 +130,56 @@ impl BodyContactSettings {
         Ok(self)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plane(normal: Point) -> Collider {
+        Collider {
+            shape: ColliderShape::Plane {
+                point: Point::zeros(),
+                normal,
+            },
+            friction: 0.5,
+            restitution: 0.0,
+        }
+    }
+
+    /// What the solver reports as an invalid model: the setting named, in
+    /// the reason's text.
+    #[test]
+    fn invalid_settings_name_the_setting() {
+        let reason = |s: ContactSettings| s.validated().unwrap_err().reason().to_owned();
+        let thickness = ContactSettings {
+            colliders: Vec::new(),
+            thickness: -1.0,
+        };
+        assert_eq!(
+            reason(thickness),
+            "contact.thickness: must be finite and >= 0"
+        );
+        let zero_normal = ContactSettings {
+            colliders: vec![plane(Point::y()), plane(Point::zeros())],
+            thickness: 0.0,
+        };
+        assert_eq!(reason(zero_normal), "collider[1].normal: zero vector");
+        let friction = BodyContactSettings { friction: f64::NAN };
+        let error = friction.validated().unwrap_err();
+        assert!(matches!(error, ContactError::InvalidSettings { .. }));
+        assert_eq!(error.reason(), "contact.friction: must be finite and >= 0");
+    }
+
+    #[test]
+    fn plane_normals_come_out_unit() {
+        let settings = ContactSettings {
+            colliders: vec![plane(Point::new(0.0, 3.0, 4.0))],
+            thickness: 0.01,
+        };
+        let settings = settings.validated().unwrap();
+        let ColliderShape::Plane { normal, .. } = settings.colliders[0].shape else {
+            panic!("a plane stays a plane");
+        };
+        assert_eq!(normal, Point::new(0.0, 0.6, 0.8));
+    }
+}

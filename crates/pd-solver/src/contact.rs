@@ -141,3 +141,27 @@ impl Simulation {
         self.contact.as_ref().map(ContactState::settings)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Contact's errors read as the solver's own, with the same reason.
+    #[test]
+    fn contact_errors_keep_their_reason() {
+        let settings = ContactError::InvalidSettings {
+            reason: "contact.thickness: must be finite and >= 0".into(),
+        };
+        assert_eq!(
+            SolverError::from(settings).to_string(),
+            "invalid model: contact.thickness: must be finite and >= 0"
+        );
+        let checkpoint = ContactError::InvalidCheckpoint {
+            reason: "contact with a collider: a non-finite value".into(),
+        };
+        assert_eq!(
+            SolverError::from(checkpoint).to_string(),
+            "invalid state: contact with a collider: a non-finite value"
+        );
+    }
+}
