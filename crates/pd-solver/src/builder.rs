@@ -5,6 +5,7 @@ use pd_damping::{Damping, NoDamping};
 use pd_integrators::{BackwardEuler, Integrator};
 use pd_mesh::Point;
 
+#[cfg(feature = "contact")]
 use crate::contact::{BodyContactSettings, ContactSettings, SurfacePairs};
 use crate::{Model, PositionSolver, Predictor, Settings, Simulation, SolverError, SolverSpec};
 
@@ -52,7 +53,9 @@ pub struct SimulationBuilder {
     settings: Settings,
     solver: SolverChoice,
     predictor: Option<Predictor>,
+    #[cfg(feature = "contact")]
     contact: Option<ContactSettings>,
+    #[cfg(feature = "contact")]
     body_contact: Option<(BodyContactSettings, Option<SurfacePairs>)>,
 }
 
@@ -77,7 +80,9 @@ impl Simulation {
             settings: Settings::default(),
             solver: SolverChoice::Default,
             predictor: None,
+            #[cfg(feature = "contact")]
             contact: None,
+            #[cfg(feature = "contact")]
             body_contact: None,
         }
     }
@@ -159,18 +164,21 @@ impl SimulationBuilder {
     }
 
     /// Contact with static colliders.
+    #[cfg(feature = "contact")]
     pub fn contact(mut self, settings: ContactSettings) -> Self {
         self.contact = Some(settings);
         self
     }
 
     /// Contact between the bodies (every pair of distinct bodies).
+    #[cfg(feature = "contact")]
     pub fn body_contact(mut self, settings: BodyContactSettings) -> Self {
         self.body_contact = Some((settings, None));
         self
     }
 
     /// Contact between bodies, within each body (self-contact), or both.
+    #[cfg(feature = "contact")]
     pub fn surface_contact(mut self, settings: BodyContactSettings, pairs: SurfacePairs) -> Self {
         self.body_contact = Some((settings, Some(pairs)));
         self
@@ -192,13 +200,16 @@ impl SimulationBuilder {
         if let Some(predictor) = self.predictor {
             sim.set_predictor(predictor);
         }
-        if let Some(contact) = self.contact {
-            sim.set_contact(contact)?;
-        }
-        match self.body_contact {
-            Some((settings, Some(pairs))) => sim.set_surface_contact(settings, pairs)?,
-            Some((settings, None)) => sim.set_body_contact(settings)?,
-            None => {}
+        #[cfg(feature = "contact")]
+        {
+            if let Some(contact) = self.contact {
+                sim.set_contact(contact)?;
+            }
+            match self.body_contact {
+                Some((settings, Some(pairs))) => sim.set_surface_contact(settings, pairs)?,
+                Some((settings, None)) => sim.set_body_contact(settings)?,
+                None => {}
+            }
         }
         sim.check_position_solver()?;
         Ok(sim)

@@ -33,6 +33,7 @@ pub struct Checkpoint {
     pub energy_scale: f64,
     /// The contacts active at the end of the step, with their
     /// warm-started forces (empty without contact).
+    #[cfg(feature = "contact")]
     pub contact: crate::contact::ContactCheckpoint,
     /// The last step's correction of the extrapolated predictor (empty
     /// without it, step/predictor.rs).
@@ -83,6 +84,7 @@ impl Simulation {
             history: self.integrator.history(),
             energy_reference: self.divergence.reference,
             energy_scale: self.divergence.scale,
+            #[cfg(feature = "contact")]
             contact: self
                 .contact
                 .as_ref()
@@ -157,13 +159,17 @@ impl Simulation {
             return Err(invalid(reason.to_string()));
         }
         // Checked before it changes anything; the history goes back if not.
+        #[cfg(feature = "contact")]
         let contact = match &mut self.contact {
-            Some(contact) => contact.load(&checkpoint.contact),
+            Some(contact) => contact
+                .load(&checkpoint.contact)
+                .map_err(|e| e.reason().to_owned()),
             None if !checkpoint.contact.is_empty() => {
                 Err("the checkpoint has contacts, the simulation has no contact".into())
             }
             None => Ok(()),
         };
+        #[cfg(feature = "contact")]
         if let Err(reason) = contact {
             self.integrator
                 .restore_history(&before, n)

@@ -36,6 +36,7 @@
 mod builder;
 mod checkpoint;
 mod components;
+#[cfg(feature = "contact")]
 pub mod contact;
 mod energy;
 mod global;

@@ -144,6 +144,7 @@ pub struct Simulation {
     /// recording was asked for ([`Simulation::record_objective`]).
     pub(crate) objective_trace: Option<Vec<f64>>,
     /// Contact with colliders, when a scene asks for it (docs/design/contact.md).
+    #[cfg(feature = "contact")]
     pub(crate) contact: Option<crate::contact::ContactState>,
     /// Where each step starts, and the last step's correction (step/predictor.rs).
     pub(crate) predictor: crate::step::Predictor,
@@ -244,6 +245,7 @@ impl Simulation {
             setup,
             scratch: Scratch::new(0, 0, 0, 0),
             objective_trace: None,
+            #[cfg(feature = "contact")]
             contact: None,
             predictor: crate::step::Predictor::Inertial,
             predictor_state: crate::step::PredictorState::default(),
@@ -568,5 +570,19 @@ impl Simulation {
             .zip(&self.state.velocities)
             .map(|((m, x), v)| x.cross(&(v * *m)))
             .sum()
+    }
+}
+
+impl Simulation {
+    /// Whether contact is on.
+    #[cfg(feature = "contact")]
+    pub(crate) fn has_contact(&self) -> bool {
+        self.contact.is_some()
+    }
+
+    /// Whether contact is on: never without the `contact` feature.
+    #[cfg(not(feature = "contact"))]
+    pub(crate) fn has_contact(&self) -> bool {
+        false
     }
 }

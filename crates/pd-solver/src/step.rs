@@ -221,6 +221,7 @@ impl Simulation {
         {
             *dx = if fixed { Point::zeros() } else { *target };
         }
+        #[cfg(feature = "contact")]
         if let Some(contact) = &mut self.contact {
             let g = (h, c.gamma, self.settings.gravity);
             contact.begin_step(x_n, v_n, &s.targets.anchor_displacement, g);
@@ -248,6 +249,7 @@ impl Simulation {
             buffers: &mut self.scratch.iteration,
             stats,
             trace: self.objective_trace.as_mut(),
+            #[cfg(feature = "contact")]
             contact: self.contact.as_mut(),
             predicted: self.scratch.predicted,
             start_objective: None,
@@ -270,6 +272,7 @@ impl Simulation {
         for ((x, x0), dx) in s.iterate.iter_mut().zip(x_n).zip(&s.iteration.displacement) {
             *x = x0 + dx;
         }
+        #[cfg(feature = "contact")]
         if let Some(contact) = &mut self.contact {
             let measured = contact.report(&s.iterate);
             (stats.contacts, stats.penetration) = (measured.contacts, measured.penetration);
@@ -295,11 +298,13 @@ impl Simulation {
         // history follows it (docs/design/integrators.md).
         let damping = &mut self.damping;
         let iterate = &s.iterate;
+        #[cfg(feature = "contact")]
         let contact = self.contact.as_ref();
         let mut report = DampingReport::default();
         self.integrator
             .filter_velocities(h, &mut s.velocities, &mut |velocities| {
                 report = damping.end_step(&context, iterate, velocities);
+                #[cfg(feature = "contact")]
                 if let Some(contact) = contact {
                     contact.filter_velocities(velocities);
                 }

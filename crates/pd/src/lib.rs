@@ -8,8 +8,10 @@
 //! own: [`mesh`] (geometry), [`linalg`] (sparse Cholesky, SIMD dispatch),
 //! [`constraints`] (the PD energy terms), [`integrators`], [`damping`] (each
 //! damping model a trait implementation), [`solver`] (the model and the
-//! time step; contact in [`solver::contact`]) and, with the default
-//! `scenes` feature, [`io`] (scene files, mesh readers, frame writers).
+//! time step; contact in [`solver::contact`], from pd-contact) and, with
+//! the default `scenes` feature, [`io`] (scene files, mesh readers, frame
+//! writers). A program that needs no contact depends on `pd-solver` with
+//! `default-features = false, features = ["metis"]` and compiles none of it.
 //!
 //! A clamped beam with Laplacian damping:
 //!

@@ -171,7 +171,7 @@ fn stiffness(arguments: &Arguments<'_>) -> Result<f64, DampingError> {
         Some(_) => Err(DampingError::Conflict {
             parameter: "ratio",
             reason: "is turned into a stiffness from the scene's elastic modes \
-                     (pd_solver::modes), which were not computed for this spec"
+                     (pd_modes), which were not computed for this spec"
                 .into(),
         }),
     }

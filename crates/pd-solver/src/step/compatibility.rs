@@ -37,6 +37,7 @@ impl Simulation {
     /// the method cannot run and what to use instead. Nothing is changed.
     pub fn check_position_solver(&self) -> Result<(), SolverError> {
         self.position_solver.check_settings()?;
+        #[cfg(feature = "contact")]
         if self.contact.is_some() {
             self.check_solver_handles_contact()?;
         }

@@ -212,6 +212,7 @@ pub struct StepProblem<'a> {
     pub(crate) buffers: &'a mut IterationBuffers,
     pub(crate) stats: &'a mut StepStats,
     pub(crate) trace: Option<&'a mut Vec<f64>>,
+    #[cfg(feature = "contact")]
     pub(crate) contact: Option<&'a mut crate::contact::ContactState>,
     /// Whether the displacement starts from a predicted point rather than
     /// the inertial target (step/predictor.rs): every method but Newton
@@ -307,6 +308,7 @@ impl StepProblem<'_> {
 
         self.rhs_from_projections();
         let b = &mut *self.buffers;
+        #[cfg(feature = "contact")]
         if let Some(contact) = self.contact.as_deref_mut() {
             contact.apply(x_n, self.masses, &b.displacement, &mut b.rhs);
         }

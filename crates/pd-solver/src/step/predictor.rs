@@ -165,7 +165,7 @@ impl Simulation {
         self.scratch.predicted = false;
         let state = &self.predictor_state;
         if self.predictor == Predictor::Inertial
-            || self.contact.is_some()
+            || self.has_contact()
             || state.correction.len() != self.state.positions.len()
             || key.map(f64::to_bits) != state.key.map(f64::to_bits)
         {

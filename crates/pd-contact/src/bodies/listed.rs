@@ -1,15 +1,17 @@
-//! Detection against the per-step candidate lists (`candidates.rs`):
-//! building them for [`BodyContact`], the listed counterpart of
-//! [`BodyContact::first_hit`] and its fast path without the grid's
-//! arithmetic (docs/design/contact.md, "Contact's own cost"); a file of its own
-//! to keep `bodies.rs` within the size rule.
+//! The part of [`BodyContact`] that detects pairs against the per-step
+//! candidate lists (`candidates.rs`): building them, the listed
+//! counterpart of [`BodyContact::first_hit`], its fast path without the
+//! grid's arithmetic (docs/design/contact.md, "Contact's own cost"), the
+//! detection over an iteration's triangle boxes it is part of
+//! ([`BodyContact::detect_with_boxes`]: against the lists, or the grid
+//! when they cannot be built), and the end-plane test of a crossing.
 
 use pd_mesh::Point;
 
-use super::super::candidates::{Surface, apart};
-use super::super::end_plane::surely_beyond;
-use super::super::grid::{cell_index, cell_size, query_end};
 use super::{BodyContact, Pair, inside, project_onto};
+use crate::candidates::{Surface, apart};
+use crate::end_plane::surely_beyond;
+use crate::grid::{cell_index, cell_size, query_end};
 
 /// What a candidate entry's start plane tells of its crossings in every
 /// iteration of a step (docs/design/contact.md, "Detection and the broad phase"). When the vertex
@@ -248,7 +250,7 @@ impl BodyContact {
     ///
     /// Why it is the same. (1) The segment boxes and the coverage test are
     /// the expressions of [`BodyContact::sweep_boxes`] and
-    /// [`super::super::candidates::Candidates::covers`], fused in one pass
+    /// [`crate::candidates::Candidates::covers`], fused in one pass
     /// (the coverage of the step's start `x_n` is checked once per step and
     /// at each build: `start_covered`); a candidate's box is built from the
     /// segment boxes on demand with the expressions of `sweep_boxes`, so it

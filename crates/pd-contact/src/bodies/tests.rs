@@ -1,9 +1,9 @@
 //! The per-step candidate lists (`candidates.rs`) against the
 //! per-iteration grid: the same pair for every vertex, bit for bit.
 
-use super::super::clearance::largest_motion;
-use super::super::grid::cell_size;
 use super::*;
+use crate::clearance::largest_motion;
+use crate::grid::cell_size;
 
 /// A square sheet of `n x n` vertices, spacing 0.1 m, at height `y`,
 /// shifted by `shift` in x and z; its triangles numbered from `first`.
@@ -425,7 +425,7 @@ fn listed_counts_and_pair_updates_are_a_pass_over_every_vertex() {
                         reference.update_force(&pair, &r, settings.1 / compliance, thickness);
                     updated += 1;
                 }
-                forces::add_pair_force(
+                pair_force::add_pair_force(
                     &free_index,
                     &mut expected,
                     v,
@@ -504,5 +504,4 @@ fn push_every_other_pair(pairs: &mut [Option<Pair>], parity: usize) {
     }
 }
 
-#[path = "bodies_tests_kept.rs"]
 mod kept;

@@ -1,10 +1,9 @@
 //! A per-step bound that lets the per-iteration collider test skip the
 //! vertices far from every plane collider (docs/design/contact.md, "Detection
 //! and the broad phase"), with the verdict of
-//! [`super::geometry::ColliderShape::misses`] bit for bit, and the collider
+//! [`crate::ColliderShape::misses`] bit for bit, and the collider
 //! pass of an iteration with body contact
-//! ([`ContactState::detect_bodies`]); a file of its own to keep `mod.rs`
-//! within the size rule.
+//! ([`ContactState::detect_bodies`]).
 //!
 //! Why it is the same. At the step's start each free vertex without a
 //! contact gets its clearance: the least, over the colliders, of the plane
@@ -27,7 +26,7 @@
 
 use pd_mesh::Point;
 
-use super::{ColliderShape, ContactSettings, ContactState, Slot};
+use crate::{ColliderShape, ContactSettings, ContactState, Slot};
 
 /// Relative slack for rounding (see the module's header).
 const ROUNDING: f64 = 1e-12;
@@ -259,7 +258,7 @@ impl ContactState {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::contact::Collider;
+    use crate::Collider;
 
     /// A skipped vertex is one the full test misses, over random planes,
     /// start points near them and motions up to and past the bound (the

@@ -22,7 +22,7 @@
 
 use pd_mesh::Point;
 
-use super::grid::Grid;
+use crate::grid::Grid;
 
 /// Per vertex, the sorted triangles of its own body it never pairs with.
 #[derive(Debug, Clone, Default)]

@@ -26,13 +26,21 @@
 //! vertex and the triangle on one body: only the admission of candidates
 //! differs ([`BodyContact::admits`]), which leaves out the vertex's rest
 //! neighbours (`neighbourhood.rs`).
+//!
+//! This file holds the state, the hooks the contact state calls (start of
+//! step, detection, force update, projection, velocity filter) and the
+//! per-iteration grid's swept test; the rest of `impl BodyContact` is by
+//! topic in `bodies/`: `counts.rs` (the contact counts and the paired
+//! vertices), `listed.rs` (detection against the candidate lists and its
+//! fast path), `live.rs` (the step's live candidate entries for that fast
+//! path) and `pair_force.rs` (a pair's Uzawa step and compliance).
 
 use pd_mesh::Point;
 
-use super::SurfacePairs;
-use super::candidates::Candidates;
-use super::grid::Grid;
-use super::neighbourhood::RestNeighbourhood;
+use crate::SurfacePairs;
+use crate::candidates::Candidates;
+use crate::grid::Grid;
+use crate::neighbourhood::RestNeighbourhood;
 
 /// Barycentric slack of the inside test (a vertex on a shared edge or
 /// corner belongs to either triangle; the first in triangle order wins).
@@ -40,7 +48,7 @@ const INSIDE_SLACK: f64 = 1e-9;
 
 /// One surface triangle of a body.
 #[derive(Debug, Clone, Copy)]
-pub(super) struct Face {
+pub(crate) struct Face {
     vertices: [usize; 3],
     body: usize,
     /// Cloth: either side is outside (the side the vertex comes from).
@@ -106,19 +114,19 @@ pub(crate) struct BodyContact {
     /// The vertices with a pair after this iteration's detection, in order.
     paired: Vec<usize>,
     /// Per vertex, its pair's shared compliance and the counts it was taken
-    /// with (`bodies_forces.rs`); cleared with the pairs' weights.
+    /// with (`bodies/pair_force.rs`); cleared with the pairs' weights.
     compliances: Vec<Option<([u32; 4], f64)>>,
     /// Each triangle's vertices (for the candidate lists).
     triangles: Vec<[usize; 3]>,
     /// Per candidate-list entry, what its start plane
     /// ([`BodyContact::start_plane`], from `x_n`) tells of every crossing
     /// in the step ([`listed::StartHit`]), filled with the live entries
-    /// (`bodies_live.rs`); valid while `start_planes_fresh` (cleared at a
+    /// (`bodies/live.rs`); valid while `start_planes_fresh` (cleared at a
     /// step's start and by a build).
     start_hits: Vec<listed::StartHit>,
     start_planes_fresh: bool,
     /// The counts and `paired` are those of the current pairs and
-    /// collider contacts (`bodies_counts.rs`): false at a step's start and
+    /// collider contacts (`bodies/counts.rs`): false at a step's start and
     /// after a restore.
     counted: bool,
     /// Per vertex, whether its collider contact is in `count`.
@@ -133,10 +141,15 @@ pub(crate) struct BodyContact {
     live_vertices: Vec<usize>,
 }
 
-/// A body's surface for [`BodyContact::new`]: its triangles in global
-/// vertex numbers and whether it is a cloth (two-sided).
-pub(crate) struct BodySurface {
+/// A body's surface for [`crate::ContactState::set_surfaces`]: its
+/// triangles in global vertex numbers and whether it is a cloth
+/// (two-sided).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BodySurface {
+    /// The triangles, in global vertex numbers (a solid's outward side is
+    /// the one its triangles' normals point to).
     pub triangles: Vec<[usize; 3]>,
+    /// A cloth: either side of a triangle is outside.
     pub two_sided: bool,
 }
 
@@ -219,7 +232,7 @@ impl BodyContact {
     /// Replaces the pairs by saved ones (checked by the caller): what
     /// [`BodyContact::begin_step`] needs of them, the triangle, the normal's
     /// side and the force.
-    pub fn load(&mut self, saved: &[super::saved::SavedContact]) {
+    pub fn load(&mut self, saved: &[crate::SavedContact]) {
         self.pairs.iter_mut().for_each(|p| *p = None);
         self.compliances.iter_mut().for_each(|c| *c = None);
         self.candidates.valid = false;
@@ -428,13 +441,14 @@ impl BodyContact {
                 let compliance = h * h * self.shared_compliance(v, &tri, &weights);
                 if compliance > 0.0 {
                     let x = |i: usize| x_n[i] + dx[i];
-                    let r = x(v) - forces::weighted([x(tri[0]), x(tri[1]), x(tri[2])], &weights);
+                    let r =
+                        x(v) - pair_force::weighted([x(tri[0]), x(tri[1]), x(tri[2])], &weights);
                     if let Some(pair) = &self.pairs[v] {
                         force = self.update_force(pair, &r, omega / compliance, thickness);
                     }
                 }
             }
-            forces::add_pair_force(free_index, rhs, v, &tri, (&weights, force));
+            pair_force::add_pair_force(free_index, rhs, v, &tri, (&weights, force));
             if let Some(p) = &mut self.pairs[v] {
                 p.force = force;
             }
@@ -564,16 +578,11 @@ fn project_onto(t: &[Point; 3], p: &Point) -> Option<([f64; 3], Point, f64)> {
     Some(([1.0 - w1 - w2, w1, w2], normal, distance))
 }
 
-#[path = "bodies_counts.rs"]
 mod counts;
-#[path = "bodies_forces.rs"]
-mod forces;
-#[path = "bodies_listed.rs"]
 mod listed;
-#[path = "bodies_live.rs"]
 mod live;
+mod pair_force;
 #[cfg(test)]
-#[path = "bodies_tests.rs"]
 mod tests;
 
 fn inside(w: &[f64; 3]) -> bool {

@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use pd_mesh::Point;
 
-use super::geometry::Hit;
+use crate::geometry::Hit;
 
 /// A static triangle surface (m), as a collider.
 #[derive(Clone)]
@@ -44,7 +44,7 @@ impl PartialEq for TriangleSurface {
 impl TriangleSurface {
     /// A surface of `triangles` (indices into `vertices`, counter-clockwise
     /// seen from outside). Checked and indexed by
-    /// [`super::ContactSettings::validated`].
+    /// [`crate::ContactSettings::validated`].
     pub fn new(vertices: Vec<Point>, triangles: Vec<[usize; 3]>) -> Self {
         Self {
             vertices,
@@ -64,7 +64,7 @@ impl TriangleSurface {
     }
 
     /// Checks the surface and builds its query structure (once; a clone
-    /// shares it). [`super::ContactSettings::validated`] calls it.
+    /// shares it). [`crate::ContactSettings::validated`] calls it.
     ///
     /// # Errors
     /// Why the surface cannot be a collider (no triangles, an index out of

@@ -1,12 +1,12 @@
 //! The forces of collider contacts: one projected Uzawa step
-//! ([`update_force`]) and the frozen-force mode of
-//! [`crate::Simulation::freeze_contact_forces`], a measurement aid
-//! (docs/design/contact.md, "Contact's own cost"); a file of its own to keep
-//! `mod.rs` within the size rule.
+//! ([`update_force`]), the projection onto Coulomb's cone that the pairs
+//! between surfaces share ([`coulomb`]), and the frozen-force mode of
+//! [`ContactState::freeze_forces`], a measurement aid
+//! (docs/design/contact.md, "Contact's own cost").
 
 use pd_mesh::Point;
 
-use super::{Collider, ContactState, Slot};
+use crate::{Collider, ContactState, Slot};
 
 impl ContactState {
     /// With frozen forces: every contact's force, as it is, into `rhs` (one
@@ -49,7 +49,7 @@ pub(super) fn coulomb(trial: &Point, n: &Point, friction: f64) -> Point {
     n * normal_force + tangential
 }
 
-impl crate::Simulation {
+impl ContactState {
     /// A measurement aid (docs/design/contact.md, "Contact's own cost"): with
     /// `frozen`, from the next step on every contact keeps its current
     /// force (N times `c1 c2`, the global step's right-hand-side units),
@@ -61,15 +61,8 @@ impl crate::Simulation {
     /// load exactly, so it drifts (0.3 mm in 10 steps on the stacked cubes
     /// of `benches/examples/contact_case.rs`). Freeze after a step, not
     /// after a restore (a restore leaves pairs to be re-anchored by the
-    /// next step's start). Without `frozen`, contact runs again. Returns
-    /// `false` (and does nothing) if contact is off.
-    pub fn freeze_contact_forces(&mut self, frozen: bool) -> bool {
-        match &mut self.contact {
-            Some(contact) => {
-                contact.frozen = frozen;
-                true
-            }
-            None => false,
-        }
+    /// next step's start). Without `frozen`, contact runs again.
+    pub fn freeze_forces(&mut self, frozen: bool) {
+        self.frozen = frozen;
     }
 }

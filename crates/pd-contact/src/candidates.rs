@@ -25,7 +25,7 @@
 
 use pd_mesh::Point;
 
-use super::grid::{Grid, cell_index, cell_size};
+use crate::grid::{Grid, cell_index, cell_size};
 
 /// The candidate lists, kept from step to step while they cover the
 /// iterates.
@@ -46,7 +46,7 @@ pub(super) struct Candidates {
     /// inflation.
     pub last_motion: f64,
     /// The largest magnitude of a surface vertex's stored bound, m (what
-    /// [`super::bodies::BodyContact`]'s fast detection checks its cell
+    /// [`crate::bodies::BodyContact`]'s fast detection checks its cell
     /// arithmetic against).
     pub magnitude: f64,
     /// Whether every surface vertex's step start `x_n` lies in its stored

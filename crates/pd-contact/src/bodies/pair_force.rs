@@ -1,12 +1,13 @@
-//! The Uzawa step of a body-contact pair ([`BodyContact::apply`]'s
-//! force update) and its step size's compliance, kept while the contact
-//! counts it depends on do not change (docs/design/contact.md, "Contact's own
-//! cost"); a file of its own to keep `bodies.rs` within the size rule.
+//! The part of [`BodyContact`] that computes a pair's force: the Uzawa
+//! step of a pair ([`BodyContact::apply`]'s force update), its step size's
+//! compliance, kept while the contact counts it depends on do not change
+//! (docs/design/contact.md, "Contact's own cost"), and the scatter of a
+//! pair's force into the right-hand side.
 
 use pd_mesh::Point;
 
-use super::super::forces::coulomb;
 use super::{BodyContact, Pair};
+use crate::collider_force::coulomb;
 
 impl BodyContact {
     /// [`BodyContact::compliance`] with the contact counts (`shared`) of
@@ -45,7 +46,7 @@ impl BodyContact {
 
     /// Every pair's force as it is into `rhs` at the free vertices
     /// (`free_index`): `f` at the vertex, `-w_i f` at the triangle's.
-    pub(in super::super) fn add_forces(&self, free_index: &[usize], rhs: &mut [Point]) {
+    pub(crate) fn add_forces(&self, free_index: &[usize], rhs: &mut [Point]) {
         for (v, pair) in self.pairs.iter().enumerate() {
             let Some(pair) = pair else { continue };
             let tri = self.faces[pair.face].vertices;

@@ -1,8 +1,8 @@
-//! The step's live candidate entries of body contact (docs/design/contact.md,
-//! "Detection and the broad phase"): each listed entry's start plane and start verdict,
-//! taken once per step, and the entries that can give a pair, compacted
-//! vertex by vertex for the fast detection of `bodies_listed.rs`; a file
-//! of its own to keep that one within the size rule.
+//! The part of [`BodyContact`] that prepares a step's fast detection: the
+//! live candidate entries (docs/design/contact.md, "Detection and the
+//! broad phase"), each listed entry's start plane and start verdict, taken
+//! once per step, and the entries that can give a pair, compacted vertex
+//! by vertex for the fast detection of `bodies/listed.rs`.
 
 use pd_mesh::Point;
 

@@ -1,8 +1,9 @@
-//! The contact counts of [`BodyContact::detect`] (the number of contacts
-//! each vertex takes part in, which shares the Uzawa steps) and the list
-//! of paired vertices, kept from one iteration to the next within a step
-//! (docs/design/contact.md, "Detection and the broad phase"); a file of its own to keep
-//! `bodies.rs` within the size rule.
+//! The part of [`BodyContact`] that counts contacts: the contact counts of
+//! [`BodyContact::detect`] (the number of contacts each vertex takes part
+//! in, which shares the Uzawa steps) and the list of paired vertices, kept
+//! from one iteration to the next within a step (docs/design/contact.md,
+//! "Detection and the broad phase"), and the order in which the pairs are
+//! visited ([`BodyContact::pair_slots`]).
 //!
 //! Why it is the same as a pass over every vertex. Within a step, contacts
 //! are only added: a pair is made only for a vertex without one (by

@@ -1,10 +1,10 @@
 //! Tests of the in-place pair updates and the kept counts
-//! (docs/design/contact.md, "Detection and the broad phase"), beside `bodies_tests.rs` (whose helpers they use) to
-//! keep that file within the size rule.
+//! (docs/design/contact.md, "Detection and the broad phase"), with the
+//! helpers of `bodies/tests.rs`.
 
-use super::super::super::clearance::largest_motion;
-use super::super::forces;
 use super::{Lcg, Point, sheet, two_sheets};
+use crate::bodies::pair_force;
+use crate::clearance::largest_motion;
 
 /// The inline weighted sum of the pair updates is the iterator sum bit for
 /// bit, signed zeros included (a sum without the leading `0 +` gives `-0`
@@ -23,7 +23,7 @@ fn weighted_sum_is_the_iterator_sum_bit_for_bit() {
                 ];
                 let weights = [w, 1.0 - w, values[(a + 3) % values.len()]];
                 let iterator = (0..3).map(|k| p[k] * weights[k]).sum::<Point>();
-                let inline = forces::weighted(p, &weights);
+                let inline = pair_force::weighted(p, &weights);
                 for k in 0..3 {
                     assert_eq!(
                         inline[k].to_bits(),
@@ -39,7 +39,7 @@ fn weighted_sum_is_the_iterator_sum_bit_for_bit() {
 }
 
 /// The counts and the list of paired vertices kept from one iteration to
-/// the next (`bodies_counts.rs`) are those of a pass over every vertex in
+/// the next (`bodies/counts.rs`) are those of a pass over every vertex in
 /// every iteration: sheets sinking onto each other over eight iterations,
 /// so that pairs appear in later iterations too, with a growing list of
 /// collider contacts, over two steps (the second starting from the

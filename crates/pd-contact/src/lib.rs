@@ -1,5 +1,17 @@
-//! Contact with static colliders, with Coulomb friction and restitution,
-//! keeping the prefactored global matrix (docs/design/contact.md).
+//! Contact for Projective Dynamics, keeping the prefactored global matrix
+//! (docs/design/contact.md): static colliders (plane, sphere, box, and
+//! triangle mesh with the `mesh-collider` feature, through parry3d-f64),
+//! contact between bodies and self-contact, with Coulomb friction and
+//! restitution. It knows nothing of the simulation that drives it: the
+//! solver (pd-solver, behind its `contact` feature) holds a
+//! [`ContactState`] and calls its hooks at fixed points of a step:
+//! [`ContactState::begin_step`] once the step's targets are known,
+//! [`ContactState::apply`] in every local-global iteration between the
+//! right-hand side and the solve, [`ContactState::report`] and
+//! [`ContactState::project`] on the iterations' result, and
+//! [`ContactState::filter_velocities`] inside the integrator's velocity
+//! filter; [`ContactState::save`] and [`ContactState::load`] carry the
+//! warm-started forces through checkpoints.
 //!
 //! Each contact vertex carries a force `r` in the global step's right-hand
 //! side (units of `A dx`, i.e. `c1 c2` times newtons). After every global
@@ -17,28 +29,34 @@
 //! previous step. Detection is continuous: the segment from `x_n` to the
 //! current iterate is tested against every collider. After the iterations,
 //! what they left behind a contact plane is projected onto it, and the
-//! normal velocity of every contact is clamped to `[0, bounce]`.
+//! normal velocity of every contact is clamped to `[0, bounce]`. Contact
+//! between bodies and self-contact are vertex-triangle pairs in the same
+//! framework (`bodies.rs`).
 
 mod bodies;
 mod candidates;
+mod checkpoint;
 mod clearance;
+mod collider_force;
 mod end_plane;
-mod forces;
+mod error;
 mod geometry;
 mod grid;
 mod mesh;
 mod neighbourhood;
-mod saved;
+mod settings;
 mod surface;
 
+pub use bodies::BodySurface;
+pub use checkpoint::{ContactCheckpoint, SavedContact};
+pub use error::ContactError;
 pub use geometry::ColliderShape;
 pub use mesh::TriangleSurface;
-pub use saved::{ContactCheckpoint, SavedContact};
+pub use settings::{BodyContactSettings, Collider, ContactSettings, unit_vector};
 pub use surface::SurfacePairs;
 
 use pd_mesh::Point;
 
-use crate::SolverError;
 use geometry::Hit;
 
 /// Over-relaxation of the Uzawa step `rho = RELAXATION m / h^2`. With
@@ -46,117 +64,6 @@ use geometry::Hit;
 /// `A^-1`) lie in `(0, 1]`, so any value in `(0, 2)` converges; 1.5 was the
 /// best of 0.5, 1, 1.5 and 1.9 on the contact tests (docs/design/contact.md).
 const RELAXATION: f64 = 1.5;
-
-/// A static collider: a shape, a Coulomb friction coefficient and a
-/// coefficient of restitution.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Collider {
-    /// The shape, in world coordinates (m).
-    pub shape: ColliderShape,
-    /// Coulomb coefficient (>= 0; the same for sticking and sliding).
-    pub friction: f64,
-    /// Coefficient of restitution, in `[0, 1]`: the ratio of the normal
-    /// speed leaving the collider to the speed hitting it.
-    pub restitution: f64,
-}
-
-/// `v` scaled to unit length, `None` for the zero vector. A finite `v`
-/// whose length overflows or underflows (entries of 1e300 or 1e-320) is
-/// scaled by its largest entry first; any other `v` is divided by its
-/// length, as `v / |v|`.
-pub fn unit_vector(v: Point) -> Option<Point> {
-    let largest = v.amax();
-    if largest == 0.0 {
-        return None;
-    }
-    let length = v.norm();
-    Some(if length.is_normal() {
-        v / length
-    } else {
-        (v / largest).normalize()
-    })
-}
-
-impl Collider {
-    /// The collider's velocity at `p`, m/s (zero: colliders are static, but
-    /// friction and restitution are written relative to it).
-    fn velocity(&self, _p: &Point) -> Point {
-        Point::zeros()
-    }
-}
-
-/// Contact settings of a simulation.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct ContactSettings {
-    /// The static colliders.
-    pub colliders: Vec<Collider>,
-    /// Contact offset, m (>= 0): vertices are kept this far outside every
-    /// collider.
-    pub thickness: f64,
-}
-
-impl ContactSettings {
-    /// Checks every value; normalises plane normals.
-    ///
-    /// # Errors
-    /// A non-finite value, a zero normal, a non-positive radius, a box with
-    /// `min > max`, a negative friction, a restitution outside `[0, 1]` or
-    /// a negative thickness, naming the collider (`collider[2].normal`).
-    pub fn validated(mut self) -> Result<Self, SolverError> {
-        let bad = |field: String, reason: &str| SolverError::InvalidModel {
-            reason: format!("{field}: {reason}"),
-        };
-        if !(self.thickness.is_finite() && self.thickness >= 0.0) {
-            return Err(bad("contact.thickness".into(), "must be finite and >= 0"));
-        }
-        for (i, c) in self.colliders.iter_mut().enumerate() {
-            let field = |name: &str| format!("collider[{i}].{name}");
-            if !(c.friction.is_finite() && c.friction >= 0.0) {
-                return Err(bad(field("friction"), "must be finite and >= 0"));
-            }
-            if !(0.0..=1.0).contains(&c.restitution) {
-                return Err(bad(field("restitution"), "must be in [0, 1]"));
-            }
-            match &mut c.shape {
-                ColliderShape::Plane { point, normal } => {
-                    if !point.iter().chain(normal.iter()).all(|v| v.is_finite()) {
-                        return Err(bad(field("normal"), "point and normal must be finite"));
-                    }
-                    *normal =
-                        unit_vector(*normal).ok_or_else(|| bad(field("normal"), "zero vector"))?;
-                }
-                ColliderShape::Sphere { center, radius } => {
-                    if !(radius.is_finite() && *radius > 0.0) {
-                        return Err(bad(field("radius"), "must be finite and > 0"));
-                    }
-                    if !center.iter().all(|v| v.is_finite()) {
-                        return Err(bad(field("center"), "must be finite"));
-                    }
-                }
-                ColliderShape::Box { min, max } => {
-                    if !min.iter().chain(max.iter()).all(|v| v.is_finite()) {
-                        return Err(bad(field("min"), "min and max must be finite"));
-                    }
-                    if (0..3).any(|a| min[a] > max[a]) {
-                        return Err(bad(field("max"), "min > max"));
-                    }
-                }
-                ColliderShape::Mesh(surface) => {
-                    surface.prepare().map_err(|e| bad(field("file"), &e))?;
-                }
-            }
-        }
-        Ok(self)
-    }
-}
-
-/// Contact between bodies (`contact.bodies = true`): vertices of each body
-/// against the surface triangles of every other body (docs/design/contact.md).
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct BodyContactSettings {
-    /// Coulomb coefficient between bodies (>= 0; default 0).
-    pub friction: f64,
-}
 
 /// One vertex's contact during a step.
 #[derive(Debug, Clone, Copy)]
@@ -177,7 +84,7 @@ struct Slot {
 }
 
 impl Slot {
-    pub(super) fn active(&self) -> bool {
+    pub(crate) fn active(&self) -> bool {
         self.force.dot(&self.hit.normal) > 0.0
     }
 
@@ -188,9 +95,10 @@ impl Slot {
 }
 
 /// The contact state of a simulation: settings, per-vertex contacts, and
-/// the step's copies of what detection needs.
+/// the step's copies of what detection needs. The solver calls its hooks
+/// (the crate's documentation says where in a step).
 #[derive(Debug)]
-pub(crate) struct ContactState {
+pub struct ContactState {
     settings: ContactSettings,
     slots: Vec<Option<Slot>>,
     /// Free-vertex index of each vertex (`usize::MAX` for fixed ones).
@@ -207,8 +115,8 @@ pub(crate) struct ContactState {
     /// With bodies: the free vertices holding a collider contact after this
     /// iteration's detection (`detect_bodies`), in increasing order.
     occupied: Vec<usize>,
-    /// Forces frozen ([`crate::Simulation::freeze_contact_forces`]): the
-    /// contacts' forces are added as they are, and nothing else runs.
+    /// Forces frozen ([`ContactState::freeze_forces`]): the contacts'
+    /// forces are added as they are, and nothing else runs.
     frozen: bool,
     /// The step's collider clearances (`clearance.rs`).
     clearance: clearance::Clearance,
@@ -216,12 +124,20 @@ pub(crate) struct ContactState {
 
 /// What the contacts of a finished step measured.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub(crate) struct ContactReport {
+pub struct ContactReport {
+    /// The active contacts (with colliders and between surfaces).
     pub contacts: usize,
+    /// The deepest penetration of a free vertex into a thickened collider
+    /// or pair, m (0 if none).
     pub penetration: f64,
 }
 
 impl ContactState {
+    /// Contact with `settings` (validated: [`ContactSettings::validated`])
+    /// for `vertices` vertices, of which `free` lists the free ones in the
+    /// order of the global step's unknowns (the rows of the right-hand side
+    /// [`ContactState::apply`] adds to); no contact between surfaces until
+    /// [`ContactState::set_surfaces`].
     pub fn new(settings: ContactSettings, vertices: usize, free: &[usize]) -> Self {
         let mut free_index = vec![usize::MAX; vertices];
         for (f, &v) in free.iter().enumerate() {
@@ -362,7 +278,7 @@ impl ContactState {
                     rho /= f64::from(bodies.count[v].max(1));
                 }
                 let collider = &self.settings.colliders[slot.collider];
-                slot.force = forces::update_force(slot, collider, &x, rho, h);
+                slot.force = collider_force::update_force(slot, collider, &x, rho, h);
             }
             rhs[f] += slot.force;
         }
@@ -542,61 +458,5 @@ impl ContactState {
             contacts,
             penetration,
         }
-    }
-}
-
-impl crate::Simulation {
-    /// Turns on contact with `settings`' colliders (replacing any earlier
-    /// contact settings). A simulation without it runs no contact code.
-    ///
-    /// # Errors
-    /// An invalid value ([`ContactSettings::validated`]).
-    pub fn set_contact(&mut self, settings: ContactSettings) -> Result<(), SolverError> {
-        self.check_solver_handles_contact()?;
-        let settings = settings.validated()?;
-        self.contact = Some(ContactState::new(
-            settings,
-            self.state.positions.len(),
-            self.global.free(),
-        ));
-        Ok(())
-    }
-
-    /// Turns on contact between bodies: every vertex of a body's surface
-    /// against the surface triangles (tet boundary faces; cloth triangles,
-    /// two-sided) of every other body, with the thickness of the contact
-    /// settings (contact with no collider and zero thickness is turned on
-    /// if [`Simulation::set_contact`](crate::Simulation::set_contact) was
-    /// not called). Call it after `set_contact`, which replaces it.
-    ///
-    /// # Errors
-    /// A negative or non-finite friction (`contact.friction`), or a
-    /// position solver that cannot run with contact.
-    pub fn set_body_contact(&mut self, settings: BodyContactSettings) -> Result<(), SolverError> {
-        let between = SurfacePairs {
-            between_bodies: true,
-            self_contact: false,
-        };
-        self.set_surface_contact(settings, between)
-    }
-
-    /// `Unsupported` if the position solver cannot run with colliders
-    /// ([`crate::PositionSolver::handles_contact`]).
-    pub(crate) fn check_solver_handles_contact(&self) -> Result<(), SolverError> {
-        if self.position_solver.handles_contact() {
-            return Ok(());
-        }
-        Err(SolverError::Unsupported {
-            what: format!(
-                "the {} position solver with colliders: contact forces are not part of the step \
-                 objective it judges iterates by; use local-global (docs/design/contact.md)",
-                self.position_solver.name()
-            ),
-        })
-    }
-
-    /// The contact settings, if contact is on.
-    pub fn contact(&self) -> Option<&ContactSettings> {
-        self.contact.as_ref().map(ContactState::settings)
     }
 }

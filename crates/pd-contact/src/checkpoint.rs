@@ -4,9 +4,9 @@
 
 use pd_mesh::Point;
 
-use super::ContactState;
-use super::bodies::Pair;
-use super::geometry::Hit;
+use crate::bodies::Pair;
+use crate::geometry::Hit;
+use crate::{ContactError, ContactState, Slot};
 
 /// One contact active at the end of a step.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -49,9 +49,9 @@ fn saved(vertex: usize, other: usize, force: &Point, normal: &Point) -> SavedCon
 
 impl ContactState {
     /// The contacts that the next step keeps (the active ones).
-    pub(crate) fn save(&self) -> ContactCheckpoint {
+    pub fn save(&self) -> ContactCheckpoint {
         let colliders = (self.slots.iter().enumerate())
-            .filter_map(|(v, s)| s.filter(super::Slot::active).map(|s| (v, s)))
+            .filter_map(|(v, s)| s.filter(Slot::active).map(|s| (v, s)))
             .map(|(v, s)| saved(v, s.collider, &s.force, &s.hit.normal))
             .collect();
         let pairs = self.bodies.as_ref().map_or_else(Vec::new, |b| {
@@ -69,18 +69,19 @@ impl ContactState {
     /// A vertex, collider or triangle out of range, a non-finite value, or
     /// contacts between bodies for a simulation without them; the state is
     /// then unchanged.
-    pub(crate) fn load(&mut self, saved: &ContactCheckpoint) -> Result<(), String> {
+    pub fn load(&mut self, saved: &ContactCheckpoint) -> Result<(), ContactError> {
         let n = self.slots.len();
         let faces = self.bodies.as_ref().map_or(0, |b| b.faces());
         let check = |what: &str, c: &SavedContact, others: usize| {
+            let invalid = |reason| Err(ContactError::InvalidCheckpoint { reason });
             if c.vertex >= n || c.other >= others {
-                return Err(format!(
+                return invalid(format!(
                     "contact {what}: vertex {} or index {} out of range",
                     c.vertex, c.other
                 ));
             }
             if !c.force.iter().chain(&c.normal).all(|x| x.is_finite()) {
-                return Err(format!("contact {what}: a non-finite value"));
+                return invalid(format!("contact {what}: a non-finite value"));
             }
             Ok(())
         };
@@ -93,7 +94,7 @@ impl ContactState {
         }
         self.slots.iter_mut().for_each(|s| *s = None);
         for c in &saved.colliders {
-            self.slots[c.vertex] = Some(super::Slot {
+            self.slots[c.vertex] = Some(Slot {
                 collider: c.other,
                 hit: Hit {
                     t: 0.0,

@@ -32,7 +32,7 @@ pub enum ColliderShape {
     /// A triangle surface, one-sided (its outside is where the normals of
     /// counter-clockwise triangles point); needs the `mesh-collider`
     /// feature.
-    Mesh(super::mesh::TriangleSurface),
+    Mesh(crate::TriangleSurface),
 }
 
 /// Where a vertex meets a collider: the contact point on the thickened
