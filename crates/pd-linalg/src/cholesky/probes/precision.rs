@@ -15,9 +15,9 @@
 //! residual in f64), then the same for stiffer matrices (three
 //! corrections).
 
+use super::calibration::fastest;
 use crate::Point;
 use crate::cholesky::SymbolicFactor;
-use super::calibration::fastest;
 use crate::fixtures::{armadillo, laplacian_factor, laplacian_values};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::LltRef;
