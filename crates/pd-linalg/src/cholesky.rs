@@ -83,7 +83,7 @@ const DISSECTION_LEAF: usize = 64;
 /// (old indices in pivot order), none for small systems: the geometric
 /// dissection below and, with the `metis` feature, METIS's multilevel nested
 /// dissection. [`SymbolicFactor::analyse`] weighs them against AMD by
-/// [`solve_cost`]: the geometric split suits regular box meshes, METIS and AMD
+/// `solve_cost`: the geometric split suits regular box meshes, METIS and AMD
 /// irregular ones (docs/design/performance.md). Deterministic: METIS runs with its
 /// fixed default seed.
 pub fn dissection_candidates(
@@ -337,7 +337,7 @@ impl SymbolicFactor {
     /// Orders and analyses the pattern; allocates scratch for numeric
     /// factorisations and 3-column solves. The ordering is AMD or one of the
     /// `candidates` (elimination orders, old indices in pivot order),
-    /// whichever has the lowest [`solve_cost`] (ties keep the earlier, AMD
+    /// whichever has the lowest `solve_cost` (ties keep the earlier, AMD
     /// first): one symbolic analysis per candidate, deterministic.
     pub fn analyse(
         pattern: impl Into<Arc<LowerPattern>>,

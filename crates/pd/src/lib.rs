@@ -8,8 +8,8 @@
 //! own: [`mesh`] (geometry), [`linalg`] (sparse Cholesky, SIMD dispatch),
 //! [`constraints`] (the PD energy terms), [`integrators`], [`damping`] (each
 //! damping model a trait implementation), [`solver`] (the model and the
-//! time step; contact in [`solver::contact`], from pd-contact) and, with
-//! the default `scenes` feature, [`io`] (scene files, mesh readers, frame
+//! time step), [`contact`] (colliders, contact between and within bodies),
+//! [`modes`] (modal analysis) and, with the default `scenes` feature, [`io`] (scene files, mesh readers, frame
 //! writers). A program that needs no contact depends on `pd-solver` with
 //! `default-features = false, features = ["metis"]` and compiles none of it.
 //!
@@ -36,12 +36,14 @@
 //! ```
 
 pub use pd_constraints as constraints;
+pub use pd_contact as contact;
 pub use pd_damping as damping;
 pub use pd_integrators as integrators;
 #[cfg(feature = "scenes")]
 pub use pd_io as io;
 pub use pd_linalg as linalg;
 pub use pd_mesh as mesh;
+pub use pd_modes as modes;
 pub use pd_solver as solver;
 
 /// What most programs need, in one `use pd::prelude::*;`.
