@@ -248,8 +248,22 @@ pub fn write_checkpoint(path: &Path, file: &CheckpointFile) -> Result<()> {
 /// not match, an unknown syntax, or states of mismatched lengths.
 pub fn read_checkpoint(path: &Path) -> Result<CheckpointFile> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let mut deserializer = serde_json::Deserializer::from_str(&text);
-    let raw: Raw = serde_path_to_error::deserialize(&mut deserializer).map_err(|err| {
+    let raw = parse_raw(path, &text)?;
+    let field = |field: &str, message: String| Error::Field {
+        path: path.to_path_buf(),
+        field: field.into(),
+        message,
+    };
+    let scene = checked_scene(&raw, field)?;
+    check_state(&raw, field)?;
+    Ok(into_file(raw, scene))
+}
+
+/// The checkpoint's JSON image; a type or value error names its field, a
+/// syntax error its line.
+fn parse_raw(path: &Path, text: &str) -> Result<Raw> {
+    let mut deserializer = serde_json::Deserializer::from_str(text);
+    serde_path_to_error::deserialize(&mut deserializer).map_err(|err| {
         let field = err.path().to_string();
         let inner = err.into_inner();
         if inner.classify() == serde_json::error::Category::Data && field != "." {
@@ -265,12 +279,12 @@ pub fn read_checkpoint(path: &Path) -> Result<CheckpointFile> {
                 message: inner.to_string(),
             }
         }
-    })?;
-    let field = |field: &str, message: String| Error::Field {
-        path: path.to_path_buf(),
-        field: field.into(),
-        message,
-    };
+    })
+}
+
+/// The format and version, and the embedded scene text, whose syntax must
+/// be known and whose hash must match.
+fn checked_scene(raw: &Raw, field: impl Fn(&str, String) -> Error) -> Result<SceneText> {
     if raw.format != FORMAT {
         return Err(field(
             "format",
@@ -294,9 +308,9 @@ pub fn read_checkpoint(path: &Path) -> Result<CheckpointFile> {
         }
     };
     let scene = SceneText {
-        source: raw.scene.source,
+        source: raw.scene.source.clone(),
         syntax,
-        text: raw.scene.text,
+        text: raw.scene.text.clone(),
     };
     if scene.hash() != raw.scene.hash {
         return Err(field(
@@ -308,6 +322,11 @@ pub fn read_checkpoint(path: &Path) -> Result<CheckpointFile> {
             ),
         ));
     }
+    Ok(scene)
+}
+
+/// The run's counters and the state's lengths.
+fn check_state(raw: &Raw, field: impl Fn(&str, String) -> Error) -> Result<()> {
     if raw.steps_requested < raw.steps {
         return Err(field(
             "steps_requested",
@@ -358,7 +377,12 @@ pub fn read_checkpoint(path: &Path) -> Result<CheckpointFile> {
             ));
         }
     }
-    Ok(CheckpointFile {
+    Ok(())
+}
+
+/// The checked image as the solver's checkpoint and the run's settings.
+fn into_file(raw: Raw, scene: SceneText) -> CheckpointFile {
+    CheckpointFile {
         scene,
         steps_requested: raw.steps_requested,
         threads: raw.threads,
@@ -392,7 +416,7 @@ pub fn read_checkpoint(path: &Path) -> Result<CheckpointFile> {
                 .unwrap_or_default(),
             solver: raw.solver,
         },
-    })
+    }
 }
 
 #[cfg(test)]
