@@ -1,7 +1,7 @@
 //! The run recorder: what a run writes into its output folder.
 //!
 //! - `metrics.csv`: one row per step (row 0 is the initial state) with
-//!   `step,time,kinetic,elastic,gravity,total,px,py,pz,jx,jy,jz,iterations,step_ms,local_ms,global_ms,residual,contacts,penetration`
+//!   `step,time,kinetic,elastic,gravity,total,px,py,pz,jx,jy,jz,iterations,step_ms,local_ms,global_ms,residual,estimated_error,contacts,penetration`
 //!   (energies in J, linear momentum in kg m/s, angular momentum about the
 //!   origin in kg m^2/s, times in ms), the format of [`MetricsRow`], which
 //!   also reads it back;
