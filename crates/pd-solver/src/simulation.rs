@@ -31,7 +31,8 @@ pub struct State {
 pub struct StepStats {
     /// Local-global iterations run.
     pub iterations: usize,
-    /// Whether the tolerance was met (always `false` with tolerance 0).
+    /// Whether the tolerance (or the accuracy target) was met (always
+    /// `false` with neither).
     pub converged: bool,
     /// The step's final relative residual: the last local-global change
     /// `|G(x) - x|_M / |G(x) - x_n|_M` (docs/design/solver.md; 0 for a step that

@@ -58,8 +58,10 @@ impl<'a> StepProblem<'a> {
     /// `|G(x) - x|_M / |G(x) - x_n|_M` of one local-global map `G` from `x`
     /// (given squared, kg m^2: `change_squared`, `displacement_squared`), in
     /// [`crate::StepStats::relative_change`], and whether it meets the
-    /// tolerance (always `false` with tolerance 0); feeds the step's error
-    /// estimate (step/estimate.rs). Unlike
+    /// tolerance (always `false` with tolerance 0) or, with
+    /// [`crate::Settings::accuracy`], whether the step's estimated relative
+    /// error is at most it; feeds the step's error estimate
+    /// (step/estimate.rs). Unlike
     /// [`StepProblem::converged`], it records the residual without a
     /// tolerance too.
     pub fn record_residual(&mut self, change_squared: f64, displacement_squared: f64) -> bool {
@@ -74,6 +76,14 @@ impl<'a> StepProblem<'a> {
         let tolerance = self.settings.tolerance;
         if tolerance > 0.0 && change_squared <= tolerance.powi(2) * displacement_squared {
             self.stats.converged = true;
+        }
+        let accuracy = self.settings.accuracy;
+        if accuracy > 0.0 {
+            // Only with a target: one more sum over the free vertices.
+            let distance = self.distance_from_inertial_target();
+            if self.estimate.relative(distance) <= accuracy {
+                self.stats.converged = true;
+            }
         }
         self.stats.converged
     }
