@@ -136,7 +136,7 @@ fn scenes() -> [Scene; 2] {
 /// about 2.4 for ratios above 0.5, and the margin to 4 covers the steps
 /// where the ratios fall (measured largest: 1.75 on the beam, 0.97 on the
 /// strip). The test can fail: the truth is far from zero (asserted), and
-/// Anderson's estimate, which reads its accelerated ratios, reports below
+/// Anderson's estimate, whose ratios are mostly its accelerated rate, reports below
 /// half on most beam steps (the measured test below).
 #[test]
 fn the_estimate_is_within_half_and_four_times_the_true_error() {

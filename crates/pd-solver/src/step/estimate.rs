@@ -37,7 +37,8 @@
 //! iterate from its last point, whose error that rate bounds). For Anderson, L-BFGS and
 //! Newton the iterates are not a contraction; their residual ratios are
 //! the method's own convergence (superlinear near the end for Newton), so
-//! the rule reads the last changes against the previous ones: when they
+//! the rule reads the last changes against the previous ones (Anderson:
+//! every ratio of the step, the first being plain PD's): when they
 //! fall fast, `rho / (1 - rho)` is small and the estimate is about the next
 //! change; when they stall or rise (a rejected extrapolation, a restart),
 //! the cap makes it large. A step with a single iteration has no ratio and
@@ -67,6 +68,10 @@ pub(crate) struct ErrorEstimate {
     next: usize,
     /// A method's own contraction estimate (0: none).
     known: f64,
+    /// The largest ratio of the whole step (NaN: none yet).
+    largest: f64,
+    /// Whether the rate reads every ratio of the step, not the last few.
+    whole_step: bool,
 }
 
 impl Default for ErrorEstimate {
@@ -76,6 +81,8 @@ impl Default for ErrorEstimate {
             ratios: [f64::NAN; RATIOS],
             next: 0,
             known: 0.0,
+            largest: f64::NAN,
+            whole_step: false,
         }
     }
 }
@@ -85,10 +92,19 @@ impl ErrorEstimate {
     pub fn record(&mut self, change_squared: f64) {
         let change = change_squared.sqrt();
         if self.last > 0.0 && change.is_finite() {
-            self.ratios[self.next] = change / self.last;
+            let ratio = change / self.last;
+            self.ratios[self.next] = ratio;
+            self.largest = self.largest.max(ratio);
             self.next = (self.next + 1) % RATIOS;
         }
         self.last = change;
+    }
+
+    /// Makes the rate read every ratio of the step, not only the last
+    /// [`RATIOS`] (Anderson: its first ratios are plain PD's, its later
+    /// ones its accelerated rate).
+    pub fn look_back_over_step(&mut self) {
+        self.whole_step = true;
     }
 
     /// Takes a method's own estimate `rho` of the local-global map's
@@ -109,6 +125,7 @@ impl ErrorEstimate {
             .iter()
             .copied()
             .chain((self.known > 0.0).then_some(self.known))
+            .chain(self.whole_step.then_some(self.largest))
             .filter(|r| !r.is_nan())
             .reduce(f64::max);
         largest.map_or(MAX_RHO, |r| r.sqrt().min(MAX_RHO))
