@@ -12,7 +12,7 @@ use pd_io::checkpoint::{
 use pd_io::recorder::{Outcome, Recorder};
 use pd_io::scene::{Scene, Syntax};
 use pd_solver::{Simulation, SolverError};
-use tracing::{debug, info};
+use tracing::{debug, info, warn};
 
 use crate::Failure;
 
@@ -307,6 +307,8 @@ fn execute(
     let median_step_ms = recorder.median_step_ms();
     let frames = recorder.frames();
     let dir = recorder.dir().to_path_buf();
+    // Logged once, after the run; `summary.json` carries the same text.
+    let warnings = recorder.warnings(sim);
     let summary = recorder
         .finish(scene, sim, &outcome)
         .map_err(|e| Failure::Output(e.to_string()))?;
@@ -327,5 +329,8 @@ fn execute(
             .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
         dir.display()
     );
+    for warning in &warnings {
+        warn!("{warning}");
+    }
     failure.map_or(Ok(()), Err)
 }

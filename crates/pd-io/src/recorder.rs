@@ -1,7 +1,7 @@
 //! The run recorder: what a run writes into its output folder.
 //!
 //! - `metrics.csv`: one row per step (row 0 is the initial state) with
-//!   `step,time,kinetic,elastic,gravity,total,px,py,pz,jx,jy,jz,iterations,step_ms,local_ms,global_ms,residual,contacts,penetration`
+//!   `step,time,kinetic,elastic,gravity,total,px,py,pz,jx,jy,jz,iterations,step_ms,local_ms,global_ms,residual,estimated_error,contacts,penetration`
 //!   (energies in J, linear momentum in kg m/s, angular momentum about the
 //!   origin in kg m^2/s, times in ms), the format of [`MetricsRow`], which
 //!   also reads it back;
@@ -11,7 +11,10 @@
 //!   steps (frame 0 is the initial state), and with `.vtu` frames the series
 //!   `frames.pvd` (rewritten atomically after each frame) that ParaView
 //!   opens as an animation;
-//! - `summary.json`: sizes, timings (medians), and how the run ended;
+//! - `summary.json`: sizes, timings (medians), how the run ended, its
+//!   `"accuracy"` (the steps' estimated errors, the energy created where
+//!   the setting should only dissipate; `recorder/accuracy.rs`) and
+//!   `"warnings"` (what to change when either is too large);
 //! - `final_state.json`: the last state, an initial-state file another scene
 //!   can start from (`initial_state = ".../final_state.json"`).
 //!
@@ -24,9 +27,11 @@
 //! rewritten. The scene is built before that, so a scene that fails to
 //! build leaves the folder as it was.
 
+mod accuracy;
 mod metrics;
 mod resume;
 
+pub use accuracy::AccuracyWatch;
 pub use metrics::MetricsRow;
 
 use std::fs::File;
@@ -126,6 +131,8 @@ pub struct Recorder {
     strain_values: Vec<f64>,
     /// The `.vtu` frames written so far, for `frames.pvd`.
     pvd: Vec<PvdEntry>,
+    /// The `"accuracy"` of `summary.json`, row by row.
+    accuracy: AccuracyWatch,
 }
 
 impl Recorder {
@@ -187,6 +194,7 @@ impl Recorder {
             strain,
             strain_values: Vec::new(),
             pvd: Vec::new(),
+            accuracy: AccuracyWatch::default(),
         };
         recorder.write_rows(sim, None)?;
         if recorder.output.frame_every() > 0 {
@@ -214,6 +222,12 @@ impl Recorder {
     /// Median wall time of a step so far, ms (NaN before the first step).
     pub fn median_step_ms(&self) -> f64 {
         median(&self.step_ms)
+    }
+
+    /// The run's accuracy warnings so far (`summary.json`'s `"warnings"`):
+    /// each names the measured figure and what to change.
+    pub fn warnings(&self, sim: &Simulation) -> Vec<String> {
+        self.accuracy.warnings(sim)
     }
 
     /// Number of frames written.
@@ -268,6 +282,8 @@ impl Recorder {
             "median_local_ms": json_number(median(&self.local_ms)),
             "median_global_ms": json_number(median(&self.global_ms)),
             "frames": self.frames,
+            "accuracy": self.accuracy.summary(sim),
+            "warnings": self.accuracy.warnings(sim),
         });
         let state = sim.state();
         crate::state::write_state(
@@ -282,8 +298,9 @@ impl Recorder {
     }
 
     fn write_rows(&mut self, sim: &Simulation, stats: Option<&StepStats>) -> Result<()> {
-        MetricsRow::of(sim, stats)
-            .write(&mut self.metrics)
+        let row = MetricsRow::of(sim, stats);
+        self.accuracy.observe(&row);
+        row.write(&mut self.metrics)
             .and_then(|()| self.metrics.flush())
             .map_err(|err| Error::io(&self.metrics_path, err))?;
         if let Some((file, path)) = &mut self.probes {

@@ -682,3 +682,44 @@ fn malformed_json_shows_no_placeholder_field() {
         .to_string();
     assert!(!shown.contains(" ?: "), "{shown}");
 }
+
+#[test]
+fn accuracy_outside_zero_to_one() {
+    for bad in ["0.0", "-0.01", "1.0", "2.5", "nan", "inf"] {
+        expect_field_error(
+            parse(&edit("tolerance = 0.0", &format!("accuracy = {bad}"))),
+            "simulation.accuracy",
+            &["(0, 1)"],
+        );
+    }
+}
+
+#[test]
+fn accuracy_with_a_tolerance() {
+    expect_field_error(
+        parse(&edit(
+            "tolerance = 0.0",
+            "tolerance = 0.001\naccuracy = 0.01",
+        )),
+        "simulation.accuracy",
+        &["simulation.tolerance", "0.001"],
+    );
+}
+
+#[test]
+fn accuracy_makes_iterations_a_cap() {
+    // Without `iterations`, the cap is 10000; with it, the scene's.
+    let without = edit("iterations = 10\ntolerance = 0.0", "accuracy = 0.01");
+    let scene = parse(&without).unwrap();
+    assert_eq!(scene.settings.accuracy, 0.01);
+    assert_eq!(scene.settings.iterations, 10_000);
+    let with = parse(&edit("tolerance = 0.0", "accuracy = 0.01")).unwrap();
+    assert_eq!(with.settings.iterations, 10);
+    // `tolerance = 0` is no tolerance, and no conflict; without accuracy
+    // the settings are today's.
+    let zero = parse(&edit("tolerance = 0.0", "tolerance = 0.0\naccuracy = 0.01")).unwrap();
+    assert_eq!(zero.settings.accuracy, 0.01);
+    let plain = parse(&edit("tolerance = 0.0", "tolerance = 0.0")).unwrap();
+    assert_eq!(plain.settings.accuracy, 0.0);
+    assert_eq!(plain.settings.iterations, 10);
+}

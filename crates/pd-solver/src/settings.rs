@@ -10,13 +10,20 @@ use crate::SolverError;
 pub struct Settings {
     /// Time step h in s, > 0.
     pub dt: f64,
-    /// Local-global iterations per step (the maximum when `tolerance > 0`), >= 1.
+    /// Local-global iterations per step (the maximum when `tolerance` or
+    /// `accuracy` is set), >= 1.
     pub iterations: usize,
     /// Relative stopping tolerance, >= 0; 0 always runs `iterations`. The
     /// step stops once `|x_{k+1} - x_k|_M <= tolerance |x_{k+1} - x_n|_M`.
     /// Because the objective's gradient after a local step is
     /// `A (x_k - x_{k+1})`, this bounds the residual of the step's equations.
     pub tolerance: f64,
+    /// Target of the step's estimated relative error
+    /// ([`crate::StepStats::estimated_error`]), in `(0, 1)`; 0 (the
+    /// default) for none. With a target, `iterations` is the cap and each
+    /// step stops once its estimate is at most this (docs/design/solver.md,
+    /// "How far from converged"). Not together with `tolerance`.
+    pub accuracy: f64,
     /// Uniform gravitational acceleration in m/s^2.
     pub gravity: Point,
     /// Threads for the local step and the right-hand side, at most
@@ -35,6 +42,7 @@ impl Default for Settings {
             dt: 0.01,
             iterations: 10,
             tolerance: 0.0,
+            accuracy: 0.0,
             gravity: Point::new(0.0, -9.81, 0.0),
             threads: 0,
             divergence_energy_factor: 1e3,
@@ -67,6 +75,24 @@ impl Settings {
             return bad(
                 "tolerance",
                 format!("must be finite and >= 0, got {}", self.tolerance),
+            );
+        }
+        if !(self.accuracy == 0.0 || (self.accuracy > 0.0 && self.accuracy < 1.0)) {
+            return bad(
+                "accuracy",
+                format!(
+                    "must be in (0, 1) (a relative error), got {}",
+                    self.accuracy
+                ),
+            );
+        }
+        if self.accuracy > 0.0 && self.tolerance > 0.0 {
+            return bad(
+                "accuracy",
+                format!(
+                    "cannot be combined with tolerance ({}): accuracy is the stopping rule",
+                    self.tolerance
+                ),
             );
         }
         if !self.gravity.iter().all(|g| g.is_finite()) {

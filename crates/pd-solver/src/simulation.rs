@@ -31,12 +31,21 @@ pub struct State {
 pub struct StepStats {
     /// Local-global iterations run.
     pub iterations: usize,
-    /// Whether the tolerance was met (always `false` with tolerance 0).
+    /// Whether the tolerance (or the accuracy target) was met (always
+    /// `false` with neither).
     pub converged: bool,
     /// The step's final relative residual: the last local-global change
     /// `|G(x) - x|_M / |G(x) - x_n|_M` (docs/design/solver.md; 0 for a step that
     /// does not move; NaN before the first iteration).
     pub relative_change: f64,
+    /// The step's estimated relative error: the estimated distance from the
+    /// positions the step returns to the exact minimiser of its objective,
+    /// over the distance from the inertial prediction `y` to them, in the
+    /// mass norm (the fraction of the step's correction left undone; 0 for
+    /// a step that does not move). A posteriori, from the contraction of
+    /// the iteration's successive changes (docs/design/solver.md, "How far
+    /// from converged"); it only reads the iterates.
+    pub estimated_error: f64,
     /// Step-objective evaluations the iteration method made (each one
     /// projection pass; the merit checks of `anderson`, the line search of
     /// `newton`; 0 for local-global without an objective trace).

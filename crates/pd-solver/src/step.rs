@@ -16,6 +16,7 @@ pub(crate) mod anderson;
 pub(crate) mod chebyshev;
 pub(crate) mod compatibility;
 pub(crate) mod divergence;
+pub(crate) mod estimate;
 pub(crate) mod fitted;
 pub(crate) mod iteration;
 #[cfg(feature = "krylov-probe")]
@@ -253,11 +254,15 @@ impl Simulation {
             contact: self.contact.as_mut(),
             predicted: self.scratch.predicted,
             start_objective: None,
+            estimate: estimate::ErrorEstimate::default(),
         };
         if problem.predicted {
             predictor::keep_the_better_start(&mut problem, &mut self.scratch.predicted_start);
         }
-        self.position_solver.find_positions(&mut problem)
+        self.position_solver.find_positions(&mut problem)?;
+        let distance = problem.distance_from_inertial_target();
+        problem.stats.estimated_error = problem.estimate.relative(distance);
+        Ok(())
     }
 
     /// Phase 4: new positions and velocities, the damping model's end of

@@ -94,6 +94,10 @@ metrics_columns! {
     /// The step's final relative residual `|G(x) - x|_M / |G(x) - x_n|_M`
     /// (docs/design/solver.md; 0 in row 0).
     residual: f64 => "{}",
+    /// The step's estimated relative error: the estimated fraction of the
+    /// step's correction `y -> x*` left undone, in the mass norm
+    /// (docs/design/solver.md, "How far from converged"; 0 in row 0).
+    estimated_error: f64 => "{}",
     /// Contacts active at the end of the step (0 without colliders).
     contacts: usize => "{}",
     /// Deepest penetration into a collider thickened by the contact thickness, m.
@@ -136,6 +140,7 @@ impl MetricsRow {
             local_ms,
             global_ms,
             residual: stats.map_or(0.0, |s| s.relative_change),
+            estimated_error: stats.map_or(0.0, |s| s.estimated_error),
             contacts: stats.map_or(0, |s| s.contacts),
             penetration: stats.map_or(0.0, |s| s.penetration),
         }
@@ -241,6 +246,7 @@ mod tests {
             iterations: 10,
             step_ms: 1.23456,
             residual: 3.7e-7,
+            estimated_error: 0.0123,
             ..MetricsRow::default()
         };
         let mut text = Vec::new();
@@ -251,7 +257,7 @@ mod tests {
             text.lines().next(),
             Some(
                 "step,time,kinetic,elastic,gravity,total,px,py,pz,jx,jy,jz,iterations,\
-                 step_ms,local_ms,global_ms,residual,contacts,penetration"
+                 step_ms,local_ms,global_ms,residual,estimated_error,contacts,penetration"
             )
         );
         let back = MetricsRow::parse_all(&text, Path::new("metrics.csv")).unwrap();
@@ -275,14 +281,14 @@ mod tests {
         assert_eq!(error(&format!("{header}\n")), "metrics.csv: no rows");
         assert!(error("step,time\n0,0\n").starts_with("metrics.csv:1: expected the header"));
         let short = format!("{header}\n0,0,0\n");
-        assert_eq!(error(&short), "metrics.csv:2: expected 19 numbers");
-        let long = format!("{header}\n{}\n", ["0"; 20].join(","));
-        assert_eq!(error(&long), "metrics.csv:2: expected 19 numbers");
+        assert_eq!(error(&short), "metrics.csv:2: expected 20 numbers");
+        let long = format!("{header}\n{}\n", ["0"; 21].join(","));
+        assert_eq!(error(&long), "metrics.csv:2: expected 20 numbers");
         let word = format!(
             "{header}\n{}\nzero{}\n",
-            ["0"; 19].join(","),
-            ",0".repeat(18)
+            ["0"; 20].join(","),
+            ",0".repeat(19)
         );
-        assert_eq!(error(&word), "metrics.csv:3: expected 19 numbers");
+        assert_eq!(error(&word), "metrics.csv:3: expected 20 numbers");
     }
 }

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use pd_solver::Simulation;
 
-use super::{MetricsRow, Recorder, Topology};
+use super::{AccuracyWatch, MetricsRow, Recorder, Topology};
 use crate::atomic::write_atomically;
 use crate::frames::remove_frames_from;
 use crate::scene::{FrameFormat, Scene};
@@ -19,7 +19,8 @@ impl Recorder {
     /// `sim.steps()`: drops the rows of `metrics.csv` and `probes.csv` and
     /// the frames written after that step (a run may have gone on past its
     /// last checkpoint before it stopped), and appends from there. The
-    /// medians in `summary.json` then cover the earlier steps' timings too.
+    /// medians in `summary.json` then cover the earlier steps' timings too,
+    /// and its `"accuracy"` the earlier steps' rows.
     ///
     /// # Errors
     /// [`Error::Content`] naming the file if it has fewer rows than the
@@ -84,6 +85,7 @@ impl Recorder {
             local_ms,
             global_ms,
             frames,
+            accuracy: AccuracyWatch::of_rows(&rows),
         })
     }
 }

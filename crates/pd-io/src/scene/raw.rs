@@ -37,6 +37,7 @@ pub(super) struct Simulation {
     pub(super) integrator: Option<String>,
     pub(super) iterations: Option<usize>,
     pub(super) tolerance: Option<f64>,
+    pub(super) accuracy: Option<f64>,
     pub(super) threads: Option<usize>,
     pub(super) divergence_energy_factor: Option<f64>,
 }

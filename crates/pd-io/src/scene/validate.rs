@@ -114,6 +114,33 @@ impl Validator<'_> {
         })
     }
 
+    /// The iteration cap of a scene with `accuracy` and no `iterations`.
+    const ACCURACY_ITERATIONS: usize = 10_000;
+
+    /// `simulation.accuracy`: in (0, 1), and not with a tolerance (0 when
+    /// not given).
+    fn accuracy(&self, s: &raw::Simulation) -> Result<f64> {
+        let Some(accuracy) = s.accuracy else {
+            return Ok(0.0);
+        };
+        if !(accuracy > 0.0 && accuracy < 1.0) {
+            return Err(self.error(
+                "simulation.accuracy",
+                format!("must be a relative error in (0, 1), e.g. 0.01, got {accuracy}"),
+            ));
+        }
+        if let Some(tolerance) = s.tolerance.filter(|&t| t != 0.0) {
+            return Err(self.error(
+                "simulation.accuracy",
+                format!(
+                    "cannot be combined with simulation.tolerance ({tolerance}): each is a \
+                     stopping rule; keep one"
+                ),
+            ));
+        }
+        Ok(accuracy)
+    }
+
     fn settings(&self, s: &raw::Simulation) -> Result<Settings> {
         let defaults = Settings::default();
         Ok(Settings {
@@ -121,9 +148,12 @@ impl Validator<'_> {
             iterations: match s.iterations {
                 Some(0) => return Err(self.error("simulation.iterations", "must be at least 1")),
                 Some(k) => k,
+                // With an accuracy target, `iterations` is only the cap.
+                None if s.accuracy.is_some() => Self::ACCURACY_ITERATIONS,
                 None => defaults.iterations,
             },
             tolerance: self.non_negative("simulation.tolerance", s.tolerance.unwrap_or(0.0))?,
+            accuracy: self.accuracy(s)?,
             gravity: match s.gravity {
                 Some(g) => self.vector("simulation.gravity", g)?,
                 None => defaults.gravity,

@@ -205,6 +205,7 @@ impl PositionSolver for Anderson {
 
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {
         self.size(step.displacement().len(), step.local_chunks());
+        step.estimate.look_back_over_step();
         step.record_objective();
         // The first iteration judges no trial, so its start needs only its
         // projections (kept from the predictor's safeguard when it ran);

@@ -246,6 +246,9 @@ impl PositionSolver for Chebyshev {
                 let rho = self.ritz.estimate().unwrap_or(ratio_max);
                 self.estimated = Some(rho.min(MAX_RHO));
             }
+            if let Some(rho) = self.spectral_radius() {
+                step.estimate.note_contraction(rho);
+            }
             if auto && self.ritz.full() {
                 windows = self.close_window(windows, restarted, &mut omega);
             }

@@ -226,6 +226,9 @@ pub struct StepProblem<'a> {
     /// step need not project the start again; see
     /// [`StepProblem::take_start_projections`]).
     pub(crate) start_objective: Option<f64>,
+    /// The step's error estimate, fed by [`StepProblem::record_residual`]
+    /// (step/estimate.rs).
+    pub(crate) estimate: super::estimate::ErrorEstimate,
 }
 
 impl StepProblem<'_> {

@@ -35,6 +35,20 @@ impl<'a> StepProblem<'a> {
         &mut self.buffers.displacement
     }
 
+    /// `|x - y|_M` (m kg^(1/2)): how far the current displacement lies
+    /// from the inertial target `y`, over the free vertices, summed in
+    /// order (the denominator of the relative error, step/estimate.rs).
+    pub(crate) fn distance_from_inertial_target(&self) -> f64 {
+        let dx = &self.buffers.displacement;
+        let dy = &self.targets.inertial_displacement;
+        self.global
+            .free()
+            .iter()
+            .map(|&v| self.masses[v] * (dx[v] - dy[v]).norm_squared())
+            .sum::<f64>()
+            .sqrt()
+    }
+
     /// The lumped vertex masses, kg.
     pub fn masses(&self) -> &'a [f64] {
         self.masses
@@ -44,10 +58,14 @@ impl<'a> StepProblem<'a> {
     /// `|G(x) - x|_M / |G(x) - x_n|_M` of one local-global map `G` from `x`
     /// (given squared, kg m^2: `change_squared`, `displacement_squared`), in
     /// [`crate::StepStats::relative_change`], and whether it meets the
-    /// tolerance (always `false` with tolerance 0). Unlike
+    /// tolerance (always `false` with tolerance 0) or, with
+    /// [`crate::Settings::accuracy`], whether the step's estimated relative
+    /// error is at most it; feeds the step's error estimate
+    /// (step/estimate.rs). Unlike
     /// [`StepProblem::converged`], it records the residual without a
     /// tolerance too.
     pub fn record_residual(&mut self, change_squared: f64, displacement_squared: f64) -> bool {
+        self.estimate.record(change_squared);
         let ratio = (change_squared / displacement_squared).sqrt();
         // 0/0: a step that does not move at all has converged.
         self.stats.relative_change = if ratio.is_nan() && change_squared == 0.0 {
@@ -58,6 +76,14 @@ impl<'a> StepProblem<'a> {
         let tolerance = self.settings.tolerance;
         if tolerance > 0.0 && change_squared <= tolerance.powi(2) * displacement_squared {
             self.stats.converged = true;
+        }
+        let accuracy = self.settings.accuracy;
+        if accuracy > 0.0 {
+            // Only with a target: one more sum over the free vertices.
+            let distance = self.distance_from_inertial_target();
+            if self.estimate.relative(distance) <= accuracy {
+                self.stats.converged = true;
+            }
         }
         self.stats.converged
     }

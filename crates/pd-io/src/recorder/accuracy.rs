@@ -1,0 +1,141 @@
+//! The `"accuracy"` object and the `"warnings"` of `summary.json`: how far a
+//! run's steps were from converged and whether it created energy where it
+//! should only dissipate, gathered row by row from what `metrics.csv`
+//! holds (so that `pd resume` rebuilds it from the kept rows).
+//!
+//! Definitions (docs/guide/03-accuracy-and-solvers.md):
+//!
+//! - each step's `estimated_error` (`StepStats::estimated_error`): the
+//!   estimated fraction of the step's correction `y -> x*` left undone;
+//! - `energy_created_j`: the largest rise of the total energy (kinetic +
+//!   elastic + gravitational) above its running minimum,
+//!   `max_n (E_n - min_(m <= n) E_m)`, J. Gravity is the only external
+//!   force, and its work is already in the total as potential energy, so
+//!   in a setting that should only dissipate (backward Euler or BDF-2 with
+//!   any damping, implicit midpoint with a damping model) the total never
+//!   rises, and any rise is energy the steps created. `null` in other
+//!   settings (undamped implicit midpoint conserves energy: its rises are
+//!   round-off and exchange, not creation).
+
+use pd_solver::Simulation;
+use serde_json::{Value, json};
+
+use super::{MetricsRow, median};
+
+/// The median estimated error above which a run is warned about.
+pub const ERROR_WARNING: f64 = 0.1;
+
+/// The energy created, as a fraction of the run's largest kinetic plus
+/// elastic energy, above which a run is warned about.
+pub const ENERGY_WARNING: f64 = 0.01;
+
+/// What the rows so far say about the run's accuracy.
+#[derive(Debug, Clone, Default)]
+pub struct AccuracyWatch {
+    /// Each step's estimated error (row 0, the initial state, excluded).
+    errors: Vec<f64>,
+    /// Each step's iterations.
+    iterations: Vec<f64>,
+    /// The running minimum of the total energy, J (NaN before row 0).
+    minimum: Option<f64>,
+    /// The largest rise of the total above its running minimum so far, J.
+    created: f64,
+    /// The largest kinetic plus elastic energy so far, J.
+    largest: f64,
+}
+
+impl AccuracyWatch {
+    /// Takes one row of `metrics.csv` (row 0 first).
+    pub fn observe(&mut self, row: &MetricsRow) {
+        if row.step > 0 {
+            self.errors.push(row.estimated_error);
+            self.iterations.push(row.iterations as f64);
+        }
+        let minimum = self.minimum.map_or(row.total, |m| m.min(row.total));
+        self.minimum = Some(minimum);
+        self.created = self.created.max(row.total - minimum);
+        self.largest = self.largest.max(row.kinetic + row.elastic);
+    }
+
+    /// The watch of the rows kept by a resumed run.
+    pub fn of_rows(rows: &[MetricsRow]) -> Self {
+        let mut watch = Self::default();
+        for row in rows {
+            watch.observe(row);
+        }
+        watch
+    }
+
+    /// Whether `sim`'s integrator and damping should only dissipate.
+    fn dissipative(sim: &Simulation) -> bool {
+        match sim.integrator_name() {
+            "backward-euler" | "bdf2" => true,
+            "implicit-midpoint" => sim.damping_name() != "none",
+            _ => false,
+        }
+    }
+
+    /// The energy created (J) in a setting that should only dissipate.
+    fn energy_created(&self, sim: &Simulation) -> Option<f64> {
+        (Self::dissipative(sim) && self.minimum.is_some()).then_some(self.created)
+    }
+
+    /// The warnings of the run, each a sentence that names the measured
+    /// figure and what to change; empty when none applies.
+    pub fn warnings(&self, sim: &Simulation) -> Vec<String> {
+        let mut warnings = Vec::new();
+        let target = sim.settings().accuracy;
+        let remedy = if target > 0.0 {
+            format!(
+                "raise `iterations` in [simulation] (the cap, now {}, of `accuracy = {target}`) \
+                 or use a faster [solver] method (chebyshev, lbfgs)",
+                sim.settings().iterations
+            )
+        } else {
+            "set `accuracy = 0.01` in [simulation] (each step then iterates until its \
+             estimated error is 1%), or use a faster [solver] method (chebyshev, lbfgs)"
+                .to_string()
+        };
+        let error = median(&self.errors);
+        if error > ERROR_WARNING {
+            warnings.push(format!(
+                "steps are far from converged: the median step leaves an estimated {:.0}% of its \
+                 correction undone (estimated error {error:.3}, largest {:.3}, {} {} iterations \
+                 a step); {remedy}",
+                error * 100.0,
+                self.errors.iter().copied().fold(0.0, f64::max),
+                median(&self.iterations),
+                sim.position_solver_name(),
+            ));
+        }
+        if let Some(created) = self.energy_created(sim)
+            && created > ENERGY_WARNING * self.largest
+        {
+            warnings.push(format!(
+                "the run created {created:.3e} J of energy ({:.1}% of its largest kinetic plus \
+                 elastic energy, {:.3e} J) where {} with damping `{}` should only dissipate: \
+                 the steps are not converged enough; {remedy}",
+                100.0 * created / self.largest,
+                self.largest,
+                sim.integrator_name(),
+                sim.damping_name(),
+            ));
+        }
+        warnings
+    }
+
+    /// The `"accuracy"` object of `summary.json`.
+    pub fn summary(&self, sim: &Simulation) -> Value {
+        let target = sim.settings().accuracy;
+        let number = |x: f64| if x.is_finite() { json!(x) } else { Value::Null };
+        json!({
+            "target": (target > 0.0).then_some(target),
+            "estimated_error_median": number(median(&self.errors)),
+            "estimated_error_max": number(self.errors.iter().copied().fold(f64::NAN, f64::max)),
+            "energy_created_j": self.energy_created(sim),
+            "largest_kinetic_plus_elastic_j": self.largest,
+            "method": sim.position_solver_name(),
+            "iterations_median": number(median(&self.iterations)),
+        })
+    }
+}

@@ -1,0 +1,206 @@
+//! The a-posteriori error estimate of a step (docs/design/solver.md, "How
+//! far from converged").
+//!
+//! The **relative error of a step** is `|x - x*|_M / |y - x*|_M`: the
+//! distance from the positions `x` the step returns to the exact minimiser
+//! `x*` of the step objective, over the distance from the inertial
+//! prediction `y` to it, in the mass norm (the fraction of the step's
+//! correction left undone).
+//!
+//! Every method measures, once per iteration, the local-global change
+//! `c_k = |G(x_k) - x_k|_M` ([`super::iteration::StepProblem::record_residual`]).
+//! A sequence whose error contracts by `rho` per iteration has the remaining
+//! error `c_k (rho + rho^2 + ...) = c_k rho / (1 - rho)`. The observed
+//! ratio `r = c_k / c_(k-1)` of plain PD is a mean of the modes' rates
+//! weighted by their share of the change, while the error weighs a mode of
+//! rate `l` by `1 / (1 - l)` more: the slow modes, which hold most of the
+//! error, are under-represented in `r`, and the ratios are still rising
+//! after 10 iterations (0.70 to 0.86 on the solver tests' beam, where the
+//! rate that would give the true error lay between 0.85 and 0.93). So the
+//! estimate takes
+//!
+//! `rho = sqrt(r_max)`, `r_max` the largest of the last [`RATIOS`] ratios of
+//! the step, capped at [`MAX_RHO`] (0.9999):
+//!
+//! `1 - rho ~ (1 - r_max) / 2`, twice the factor `rho / (1 - rho)` near 1 (a
+//! sequence that is already geometric is over-reported by
+//! `(1 + rho) / rho`, about 2). Its estimated distance `a = c_K rho / (1 -
+//! rho)` to `x*` becomes the relative error over the estimated `|y - x*|_M
+//! ~ |x - y|_M + a` (the iterates move from `y` towards `x*`):
+//!
+//! `estimated_error = a / (|x - y|_M + a)`, at most 1.
+//!
+//! The same rule serves every method. For local-global the ratios are the
+//! iteration's observed contraction; Chebyshev's ratios are its accelerated
+//! rate, so it adds its estimate of the local-global map's spectral radius
+//! as one more ratio (its final iterate is at least as close as the plain
+//! iterate from its last point, whose error that rate bounds). For Anderson, L-BFGS and
+//! Newton the iterates are not a contraction; their residual ratios are
+//! the method's own convergence (superlinear near the end for Newton), so
+//! the rule reads the last changes against the previous ones (Anderson:
+//! every ratio of the step, the first being plain PD's): when they
+//! fall fast, `rho / (1 - rho)` is small and the estimate is about the next
+//! change; when they stall or rise (a rejected extrapolation, a restart),
+//! the cap makes it large. A step with a single iteration has no ratio and
+//! reports with the cap, `9999 c_1`: nothing in it tells how fast the
+//! iteration converges. `tests/accuracy_estimate.rs` measures the estimate
+//! against the converged step (the figures are in docs/design/solver.md,
+//! "How far from converged").
+
+/// Ratios of successive changes the contraction estimate looks back over.
+pub(crate) const RATIOS: usize = 3;
+
+/// The largest contraction `rho` the estimate uses (`rho / (1 - rho)` =
+/// 9999): changes that do not shrink are not evidence of convergence. Not
+/// lower: stiff cloth converges at rates above 0.999 (the strip of
+/// `tests/accuracy_estimate.rs` needs about 2,000 plain iterations for 1%),
+/// and a cap at 0.99 reported such steps as converged 25 times too early.
+pub(crate) const MAX_RHO: f64 = 0.9999;
+
+/// The running estimate of one step, fed the change of every iteration.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ErrorEstimate {
+    /// The last change `c_k`, m kg^(1/2) (NaN before the first).
+    last: f64,
+    /// The last [`RATIOS`] ratios `c_k / c_{k-1}` (ring; NaN where empty).
+    ratios: [f64; RATIOS],
+    /// The next slot of `ratios`.
+    next: usize,
+    /// A method's own contraction estimate (0: none).
+    known: f64,
+    /// The largest ratio of the whole step (NaN: none yet).
+    largest: f64,
+    /// Whether the rate reads every ratio of the step, not the last few.
+    whole_step: bool,
+}
+
+impl Default for ErrorEstimate {
+    fn default() -> Self {
+        Self {
+            last: f64::NAN,
+            ratios: [f64::NAN; RATIOS],
+            next: 0,
+            known: 0.0,
+            largest: f64::NAN,
+            whole_step: false,
+        }
+    }
+}
+
+impl ErrorEstimate {
+    /// Takes the change of one iteration, `|G(x_k) - x_k|_M^2` (kg m^2).
+    pub fn record(&mut self, change_squared: f64) {
+        let change = change_squared.sqrt();
+        if self.last > 0.0 && change.is_finite() {
+            let ratio = change / self.last;
+            self.ratios[self.next] = ratio;
+            self.largest = self.largest.max(ratio);
+            self.next = (self.next + 1) % RATIOS;
+        }
+        self.last = change;
+    }
+
+    /// Makes the rate read every ratio of the step, not only the last
+    /// [`RATIOS`] (Anderson: its first ratios are plain PD's, its later
+    /// ones its accelerated rate).
+    pub fn look_back_over_step(&mut self) {
+        self.whole_step = true;
+    }
+
+    /// Takes a method's own estimate `rho` of the local-global map's
+    /// contraction (Chebyshev's spectral radius) as one more ratio, for
+    /// this step.
+    pub fn note_contraction(&mut self, rho: f64) {
+        if rho.is_finite() && rho > 0.0 {
+            self.known = self.known.max(rho);
+        }
+    }
+
+    /// The contraction the estimate uses: the square root of the largest
+    /// recent ratio (see the module's documentation), capped at
+    /// [`MAX_RHO`] (the cap without a ratio).
+    pub fn rho(&self) -> f64 {
+        let largest = self
+            .ratios
+            .iter()
+            .copied()
+            .chain((self.known > 0.0).then_some(self.known))
+            .chain(self.whole_step.then_some(self.largest))
+            .filter(|r| !r.is_nan())
+            .reduce(f64::max);
+        largest.map_or(MAX_RHO, |r| r.sqrt().min(MAX_RHO))
+    }
+
+    /// The estimated distance `|x - x*|_M` (m kg^(1/2)) to the step's
+    /// solution: `c_K rho / (1 - rho)`; 0 for a step that does not move, NaN
+    /// before the first iteration.
+    pub fn absolute(&self) -> f64 {
+        if self.last == 0.0 {
+            return 0.0;
+        }
+        let rho = self.rho();
+        self.last * rho / (1.0 - rho)
+    }
+
+    /// The relative error for a step whose result lies `distance` (m
+    /// kg^(1/2)) from the inertial prediction `y`: `a / (distance + a)`
+    /// with `a` = [`ErrorEstimate::absolute`], the estimated error over the
+    /// estimated `|y - x*|_M` (the iterates move from `y` towards `x*`, so
+    /// the distance still to go adds to the distance gone); 0 when the
+    /// estimate is 0, at most 1.
+    pub fn relative(&self, distance: f64) -> f64 {
+        let absolute = self.absolute();
+        if absolute == 0.0 {
+            0.0
+        } else {
+            absolute / (distance + absolute)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A geometric sequence of changes `c_k = r^k`: the remaining error is
+    /// `r^(K+1) / (1 - r)`, and the estimate, with `rho = sqrt(r)`, over-
+    /// reports it by `(1 + sqrt(r)) / sqrt(r)` (2.12 for `r = 0.8`), the
+    /// price of the margin for the slow modes.
+    #[test]
+    fn geometric_changes_are_over_reported_by_the_margin() {
+        let r: f64 = 0.8;
+        let mut e = ErrorEstimate::default();
+        for k in 0..10 {
+            e.record(r.powi(2 * k));
+        }
+        let exact = r.powi(10) / (1.0 - r);
+        let margin = (1.0 + r.sqrt()) / r.sqrt();
+        // The ratios are r up to round-off of the powers (a few ulps).
+        assert!((e.absolute() - margin * exact).abs() <= 1e-12 * exact);
+        let a = e.absolute();
+        assert!((e.relative(2.0) - a / (2.0 + a)).abs() <= 1e-15);
+    }
+
+    /// The largest of the recent ratios counts, an older one does not, and
+    /// growing changes hit the cap.
+    #[test]
+    fn the_largest_recent_ratio_counts_and_the_cap_holds() {
+        let mut e = ErrorEstimate::default();
+        for c in [1.0, 0.9, 0.1, 0.05, 0.025, 0.0125] {
+            e.record(f64::powi(c, 2));
+        }
+        // 0.9 is older than the last three ratios (0.5, 0.5, 0.5).
+        assert!((e.rho() - 0.5f64.sqrt()).abs() < 1e-12, "{}", e.rho());
+        e.record(1.0);
+        assert_eq!(e.rho(), MAX_RHO);
+        let mut single = ErrorEstimate::default();
+        single.record(4.0);
+        assert_eq!(single.rho(), MAX_RHO);
+        let mut still = ErrorEstimate::default();
+        still.record(0.0);
+        assert_eq!(still.absolute(), 0.0);
+        assert_eq!(still.relative(0.0), 0.0);
+        // A step that returns y unconverged: the whole correction is left.
+        assert_eq!(single.relative(0.0), 1.0);
+    }
+}
