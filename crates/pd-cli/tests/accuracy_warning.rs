@@ -38,7 +38,7 @@ fn warning_lines(output: &Output) -> Vec<String> {
         .collect()
 }
 
-/// The cloth strip of the open issue (0.3 x 0.05 m, 30 x 5 quads,
+/// The cloth strip of docs/design/solver.md (0.3 x 0.05 m, 30 x 5 quads,
 /// `triangle-strain` 1e5 N/m, `bending` 0.5 N m, 0.2 kg/m^2, clamped
 /// along x = 0) at 10 plain iterations: its steps leave nearly all of
 /// their correction undone (true relative error about 1,

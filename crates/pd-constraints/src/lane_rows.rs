@@ -272,7 +272,7 @@ pub(crate) mod test_support {
     /// The three checks below with the lanes of every SIMD width this CPU
     /// has.
     pub fn assert_all_bit_identical<C: Constraint>(constraints: &[C], q: &[Point]) {
-        crate::polar_batch::lane_sets::for_each_width(|_| {
+        pd_linalg::simd::for_each_simd_width(|_| {
             assert_bit_identical(constraints, q);
             assert_energy_bit_identical(constraints, q);
             assert_energies_bit_identical(constraints, q);

@@ -316,7 +316,7 @@ mod tests {
     /// with the lanes of every SIMD width this CPU has.
     fn assert_matches_scalar(f: &[Matrix3<f64>]) {
         #[cfg(target_arch = "x86_64")]
-        lane_sets::for_each_width(|_| assert_matches_scalar_once(f));
+        pd_linalg::simd::for_each_simd_width(|_| assert_matches_scalar_once(f));
         assert_matches_scalar_once(f);
     }
 

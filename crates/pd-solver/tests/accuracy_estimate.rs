@@ -7,10 +7,8 @@
 mod common;
 
 use common::clamped_beam;
-use pd_damping::NoDamping;
-use pd_integrators::BackwardEuler;
 use pd_mesh::{Point, generators};
-use pd_solver::{Model, Settings, Simulation, SolverMethod, SolverSpec, State};
+use pd_solver::{Model, Settings, Simulation, SolverMethod, SolverSpec, State, StepStats};
 
 const DT: f64 = 0.01;
 
@@ -36,6 +34,7 @@ fn beam() -> Model {
     clamped_beam([10, 2, 2], [1.0, 0.2, 0.2], 7, 1e6).0
 }
 
+/// Undamped backward Euler (the builder's defaults) with `method`.
 fn simulation(model: Model, method: SolverMethod, tolerance: f64, iterations: usize) -> Simulation {
     let settings = Settings {
         dt: DT,
@@ -43,19 +42,15 @@ fn simulation(model: Model, method: SolverMethod, tolerance: f64, iterations: us
         tolerance,
         ..Settings::default()
     };
-    let mut sim = Simulation::new(
-        model,
-        Box::new(BackwardEuler),
-        Box::new(NoDamping),
-        settings,
-    )
-    .unwrap();
     let spec = SolverSpec {
         method,
         ..SolverSpec::default()
     };
-    sim.set_position_solver(spec.create().unwrap());
-    sim
+    Simulation::builder(model)
+        .settings(settings)
+        .solver(spec)
+        .build()
+        .unwrap()
 }
 
 /// `|a - b|_M` over the free vertices.
@@ -69,6 +64,24 @@ fn mass_distance(sim: &Simulation, a: &[Point], b: &[Point]) -> f64 {
         .sqrt()
 }
 
+/// One step of `sim` and the same step solved to convergence by
+/// `reference` from the same state: the step's statistics and its true
+/// relative error `|x - x*|_M / |y - x*|_M`.
+fn step_against_reference(sim: &mut Simulation, reference: &mut Simulation) -> (StepStats, f64) {
+    let start: State = sim.state().clone();
+    let gravity = sim.settings().gravity;
+    // Backward Euler's inertial prediction, no damping: y = x + h v + h^2 g.
+    let y: Vec<Point> = (start.positions.iter().zip(&start.velocities))
+        .map(|(x, v)| x + v * DT + gravity * (DT * DT))
+        .collect();
+    reference.set_state(start).unwrap();
+    reference.step().unwrap();
+    let stats = sim.step().unwrap();
+    let exact = &reference.state().positions;
+    let truth = mass_distance(sim, &sim.state().positions, exact) / mass_distance(sim, &y, exact);
+    (stats, truth)
+}
+
 /// Per step: (estimated, true) relative error of `steps` steps of `method`
 /// at 10 iterations, undamped backward Euler.
 fn estimates_and_truth(
@@ -78,21 +91,10 @@ fn estimates_and_truth(
 ) -> Vec<(f64, f64)> {
     let mut sim = simulation(model(), method, 0.0, 10);
     let mut reference = simulation(model(), SolverMethod::Newton, 1e-12, 100);
-    let gravity = sim.settings().gravity;
     (0..steps)
         .map(|_| {
-            let start: State = sim.state().clone();
-            // Backward Euler's inertial prediction, no damping: y = x + h v + h^2 g.
-            let y: Vec<Point> = (start.positions.iter().zip(&start.velocities))
-                .map(|(x, v)| x + v * DT + gravity * (DT * DT))
-                .collect();
-            reference.set_state(start).unwrap();
-            reference.step().unwrap();
-            let stats = sim.step().unwrap();
-            let exact = &reference.state().positions;
-            let error = mass_distance(&sim, &sim.state().positions, exact);
-            let correction = mass_distance(&sim, &y, exact);
-            (stats.estimated_error, error / correction)
+            let (stats, truth) = step_against_reference(&mut sim, &mut reference);
+            (stats.estimated_error, truth)
         })
         .collect()
 }
@@ -211,26 +213,13 @@ fn an_accuracy_target_bounds_the_true_error() {
         accuracy: target,
         ..Settings::default()
     };
-    let mut sim = Simulation::new(
-        beam(),
-        Box::new(BackwardEuler),
-        Box::new(NoDamping),
-        settings,
-    )
-    .unwrap();
+    let mut sim = Simulation::builder(beam())
+        .settings(settings)
+        .build()
+        .unwrap();
     let mut reference = simulation(beam(), SolverMethod::Newton, 1e-12, 100);
-    let gravity = sim.settings().gravity;
     for _ in 0..10 {
-        let start: State = sim.state().clone();
-        let y: Vec<Point> = (start.positions.iter().zip(&start.velocities))
-            .map(|(x, v)| x + v * DT + gravity * (DT * DT))
-            .collect();
-        reference.set_state(start).unwrap();
-        reference.step().unwrap();
-        let stats = sim.step().unwrap();
-        let exact = &reference.state().positions;
-        let truth =
-            mass_distance(&sim, &sim.state().positions, exact) / mass_distance(&sim, &y, exact);
+        let (stats, truth) = step_against_reference(&mut sim, &mut reference);
         assert!(
             stats.converged && stats.estimated_error <= target,
             "{stats:?}"

@@ -147,14 +147,6 @@ pub(crate) fn vectorize<Op: WithLanes>(op: Op) -> Option<Op::Output> {
     dispatch(OnLanes(op))
 }
 
-/// Runs `check` once per SIMD width this CPU has (8, then 4), with
-/// [`vectorize`] limited to that width on this thread; says on stderr
-/// which widths could not be exercised here.
-#[cfg(test)]
-pub(crate) fn for_each_width(check: impl FnMut(usize)) {
-    pd_linalg::simd::for_each_simd_width(check)
-}
-
 // SAFETY (every `unsafe` block below): an `Avx512` exists only when the CPU
 // has AVX-512 F and DQ, which these intrinsics need.
 impl Lanes for Avx512 {

@@ -336,9 +336,10 @@ mod tests {
 
     use super::*;
     use crate::lane_rows::test_support::assert_all_bit_identical;
-    use crate::polar_batch::lane_sets::{WithLanes, for_each_width, vectorize};
+    use crate::polar_batch::lane_sets::{WithLanes, vectorize};
     use crate::signed_svd::test_support::uniform_sequence;
     use crate::triangle_frame::test_support::{from_singular_values, gradient, special_gradients};
+    use pd_linalg::simd::for_each_simd_width;
 
     /// Limits of every kind, `None` (the rotation form) among them.
     const LIMITS: [Option<(f64, f64)>; 5] = [
@@ -526,7 +527,7 @@ mod tests {
             }];
         for limits in kinds {
             let (constraints, q) = unit_triangles(&gradients, limits);
-            for_each_width(|width| {
+            for_each_simd_width(|width| {
                 let (lanes, regular) =
                     vectorize(Regular(&constraints, &q)).expect("this width's lanes");
                 assert_eq!(lanes, width);

@@ -17,6 +17,8 @@
 //!   settings (undamped implicit midpoint conserves energy: its rises are
 //!   round-off and exchange, not creation).
 
+use pd_damping::{Damping, NoDamping};
+use pd_integrators::registry::IntegratorKind;
 use pd_solver::Simulation;
 use serde_json::{Value, json};
 
@@ -68,11 +70,16 @@ impl AccuracyWatch {
 
     /// Whether `sim`'s integrator and damping should only dissipate.
     fn dissipative(sim: &Simulation) -> bool {
-        match sim.integrator_name() {
-            "backward-euler" | "bdf2" => true,
-            "implicit-midpoint" => sim.damping_name() != "none",
+        match IntegratorKind::parse(sim.integrator_name()) {
+            Some(IntegratorKind::BackwardEuler | IntegratorKind::Bdf2) => true,
+            Some(IntegratorKind::ImplicitMidpoint) => sim.damping_name() != NoDamping.name(),
             _ => false,
         }
+    }
+
+    /// The largest estimated error of the steps so far (NaN before a step).
+    fn largest_error(&self) -> f64 {
+        self.errors.iter().copied().fold(f64::NAN, f64::max)
     }
 
     /// The energy created (J) in a setting that should only dissipate.
@@ -103,7 +110,7 @@ impl AccuracyWatch {
                  correction undone (estimated error {error:.3}, largest {:.3}, {} {} iterations \
                  a step); {remedy}",
                 error * 100.0,
-                self.errors.iter().copied().fold(0.0, f64::max),
+                self.largest_error(),
                 median(&self.iterations),
                 sim.position_solver_name(),
             ));
@@ -131,7 +138,7 @@ impl AccuracyWatch {
         json!({
             "target": (target > 0.0).then_some(target),
             "estimated_error_median": number(median(&self.errors)),
-            "estimated_error_max": number(self.errors.iter().copied().fold(f64::NAN, f64::max)),
+            "estimated_error_max": number(self.largest_error()),
             "energy_created_j": self.energy_created(sim),
             "largest_kinetic_plus_elastic_j": self.largest,
             "method": sim.position_solver_name(),
