@@ -19,7 +19,7 @@
 
 use pd_damping::{Damping, NoDamping};
 use pd_integrators::registry::IntegratorKind;
-use pd_solver::Simulation;
+use pd_solver::{Simulation, SolverMethod};
 use serde_json::{Value, json};
 
 use super::{MetricsRow, median};
@@ -92,6 +92,13 @@ impl AccuracyWatch {
     pub fn warnings(&self, sim: &Simulation) -> Vec<String> {
         let mut warnings = Vec::new();
         let target = sim.settings().accuracy;
+        // A faster method is worth naming only to a run of plain PD; a run
+        // that already uses a method gets the iteration budget's advice.
+        let method = if sim.position_solver_name() == SolverMethod::LocalGlobal.name() {
+            "use a faster [solver] method (chebyshev, lbfgs)"
+        } else {
+            "raise `iterations` in [simulation]"
+        };
         let remedy = if target > 0.0 {
             format!(
                 "raise `iterations` in [simulation] (the cap, now {}, of `accuracy = {target}`) \
@@ -99,9 +106,10 @@ impl AccuracyWatch {
                 sim.settings().iterations
             )
         } else {
-            "set `accuracy = 0.01` in [simulation] (each step then iterates until its \
-             estimated error is 1%), or use a faster [solver] method (chebyshev, lbfgs)"
-                .to_string()
+            format!(
+                "set `accuracy = 0.01` in [simulation] (each step then iterates until its \
+                 estimated error is 1%), or {method}"
+            )
         };
         let error = median(&self.errors);
         if error > ERROR_WARNING {
