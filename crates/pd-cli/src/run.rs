@@ -11,7 +11,7 @@ use pd_io::checkpoint::{
 };
 use pd_io::recorder::{Outcome, Recorder};
 use pd_io::scene::{Scene, Syntax};
-use pd_solver::{Simulation, SolverError};
+use pd_solver::{Simulation, SolverError, SolverMethod};
 use tracing::{debug, info, warn};
 
 use crate::Failure;
@@ -107,6 +107,9 @@ pub(crate) fn build(scene: &Scene) -> Result<Simulation, Failure> {
         sim.damping_name(),
         start.elapsed().as_secs_f64() * 1e3
     );
+    if let Some(choice) = sim.method_choice() {
+        info!("{}", choice.describe());
+    }
     let d = sim.damping_matrix();
     if !d.is_zero() {
         info!(
@@ -169,7 +172,19 @@ pub(crate) fn resume(dir: &Path, quiet: bool) -> Result<(), Failure> {
         .map_err(|e| Failure::Input(format!("the scene in {}: {e}", path.display())))?;
     scene.steps = file.steps_requested;
     scene.settings.threads = file.threads;
-    let mut sim = build(&scene)?;
+    let mut sim = match &file.method {
+        // The method the run chose goes on: probing again could choose
+        // another, and the run would not continue bit for bit.
+        Some(method) if scene.choose_method => {
+            let mut chosen = scene.clone();
+            chosen.solver.method = SolverMethod::parse(method).ok_or_else(|| {
+                Failure::Input(format!("{}: unknown method {method:?}", path.display()))
+            })?;
+            chosen.choose_method = false;
+            build(&chosen)?
+        }
+        _ => build(&scene)?,
+    };
     sim.restore(&file.checkpoint)
         .map_err(|e| Failure::Input(format!("{}: {e}", path.display())))?;
     info!(
@@ -242,6 +257,9 @@ fn execute(
             threads: scene.settings.threads,
             checkpoint_every,
             checkpoint: sim.checkpoint(),
+            method: scene
+                .choose_method
+                .then(|| sim.position_solver_name().to_owned()),
         };
         write_checkpoint(&checkpoint_path, &file).map_err(|e| Failure::Output(e.to_string()))?;
         debug!("checkpoint at step {}", sim.steps());

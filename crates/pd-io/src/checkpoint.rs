@@ -31,6 +31,12 @@
 //! { "...": "...", "solver": [0.7712] }
 //! ```
 //!
+//! `contraction` (the local-global contraction the error estimate carries
+//! from step to step, docs/design/solver.md "How far from converged"),
+//! and `method`, the iteration method a run chose by measurement (a scene
+//! with `accuracy` and no `[solver] method`), which `pd resume` keeps
+//! rather than choosing again: `"method": "lbfgs"`.
+//!
 //! The scene's text is embedded (with the absolute path it was read from, so
 //! that relative mesh paths still resolve) and a 64-bit FNV-1a hash of it,
 //! which reading checks: an edited or damaged scene text is refused. Files
@@ -91,6 +97,10 @@ pub struct CheckpointFile {
     pub checkpoint_every: usize,
     /// The simulation's state.
     pub checkpoint: Checkpoint,
+    /// The iteration method the run chose by measurement (a scene with
+    /// `accuracy` and no `[solver] method`), which a resumed run keeps;
+    /// `None` when the scene names the method.
+    pub method: Option<String>,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -138,6 +148,18 @@ struct Raw {
     /// estimated `rho`), written only when there is something.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     solver: Vec<f64>,
+    /// The method chosen by measurement, written only when the run chose.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    method: Option<String>,
+    /// The contraction the error estimate carries between steps, written
+    /// only when there is one.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    contraction: f64,
+}
+
+/// Whether an optional number is absent (0).
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 /// `pd_solver::PredictorState`: the last step's correction (m per vertex)
@@ -232,6 +254,8 @@ pub fn write_checkpoint(path: &Path, file: &CheckpointFile) -> Result<()> {
             history: c.predictor.history.iter().map(|h| arrays(h)).collect(),
         }),
         solver: c.solver.clone(),
+        method: file.method.clone(),
+        contraction: c.contraction,
     };
     write_atomically(path, |w| {
         serde_json::to_writer(&mut *w, &raw)?;
@@ -387,6 +411,7 @@ fn into_file(raw: Raw, scene: SceneText) -> CheckpointFile {
         steps_requested: raw.steps_requested,
         threads: raw.threads,
         checkpoint_every: raw.checkpoint_every,
+        method: raw.method,
         checkpoint: Checkpoint {
             steps: raw.steps,
             time: raw.time,
@@ -415,6 +440,7 @@ fn into_file(raw: Raw, scene: SceneText) -> CheckpointFile {
                 })
                 .unwrap_or_default(),
             solver: raw.solver,
+            contraction: raw.contraction,
         },
     }
 }
@@ -437,6 +463,7 @@ mod tests {
             steps_requested: 7,
             threads: 1,
             checkpoint_every: 3,
+            method: Some("lbfgs".into()),
             checkpoint: Checkpoint {
                 steps: 3,
                 time: 0.03,
@@ -453,6 +480,7 @@ mod tests {
                 contact: Default::default(),
                 predictor: Default::default(),
                 solver: vec![0.7234567890123457],
+                contraction: 0.9987654321,
             },
         }
     }

@@ -122,6 +122,7 @@ fn resumes_through_a_file(table: &str, mut a: pd_solver::Simulation, tag: &str) 
         threads: 1,
         checkpoint_every: 3,
         checkpoint: saved,
+        method: None,
     };
     write_checkpoint(&path, &file).unwrap();
     let back = read_checkpoint(&path).unwrap();

@@ -42,6 +42,10 @@ pub struct Checkpoint {
     /// ([`crate::PositionSolver::carried`]: Chebyshev's estimated `rho`
     /// with `rho = "auto"`; empty for the others).
     pub solver: Vec<f64>,
+    /// The local-global contraction the next step's error estimate starts
+    /// from (0: none yet; step/estimate.rs). With an accuracy target it
+    /// decides where steps stop.
+    pub contraction: f64,
 }
 
 impl Simulation {
@@ -92,6 +96,7 @@ impl Simulation {
                 .unwrap_or_default(),
             predictor: self.predictor_state.clone(),
             solver: self.position_solver.carried(),
+            contraction: self.carried_contraction,
         }
     }
 
@@ -134,6 +139,12 @@ impl Simulation {
             if !value.is_finite() {
                 return Err(invalid(format!("{name} is not finite")));
             }
+        }
+        if !(0.0..1.0).contains(&checkpoint.contraction) {
+            return Err(invalid(format!(
+                "contraction is {}; it must be in [0, 1)",
+                checkpoint.contraction
+            )));
         }
         if checkpoint.time < 0.0 {
             return Err(invalid(format!("time is {} s, below 0", checkpoint.time)));
@@ -181,6 +192,7 @@ impl Simulation {
         self.position_solver.restore_carried(&checkpoint.solver);
         self.steps = checkpoint.steps;
         self.time = checkpoint.time;
+        self.carried_contraction = checkpoint.contraction;
         self.divergence.reference = checkpoint.energy_reference;
         self.divergence.scale = checkpoint.energy_scale;
         Ok(())

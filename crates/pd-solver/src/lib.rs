@@ -42,6 +42,7 @@ mod energy;
 mod global;
 mod lagged;
 mod local;
+mod method_choice;
 mod model;
 mod phases;
 mod projection_scatter;
@@ -53,6 +54,7 @@ mod weights;
 
 pub use builder::SimulationBuilder;
 pub use checkpoint::Checkpoint;
+pub use method_choice::{MethodChoice, PROBE_STEPS, ProbeOutcome, ProbeResult};
 pub use model::{Body, BodyId, Model};
 pub use settings::Settings;
 pub use simulation::{Energies, SetupStats, Simulation, State, StepStats};

@@ -158,6 +158,14 @@ pub struct Simulation {
     /// Where each step starts, and the last step's correction (step/predictor.rs).
     pub(crate) predictor: crate::step::Predictor,
     pub(crate) predictor_state: crate::step::PredictorState,
+    /// While [`Simulation::choose_method`] probes a method: when its steps
+    /// must stop (they have taken longer than the fastest method so far).
+    pub(crate) probe_deadline: Option<std::time::Instant>,
+    /// What the last [`Simulation::choose_method`] measured and chose.
+    pub(crate) method_choice: Option<crate::MethodChoice>,
+    /// The local-global contraction observed in earlier steps, which the
+    /// next step's error estimate starts from (step/estimate.rs; 0: none).
+    pub(crate) carried_contraction: f64,
 }
 
 impl Simulation {
@@ -258,6 +266,9 @@ impl Simulation {
             contact: None,
             predictor: crate::step::Predictor::Inertial,
             predictor_state: crate::step::PredictorState::default(),
+            probe_deadline: None,
+            method_choice: None,
+            carried_contraction: 0.0,
         };
         if !d.is_lagged() {
             sim.prepare_matrix()?;

@@ -254,14 +254,25 @@ impl Simulation {
             contact: self.contact.as_mut(),
             predicted: self.scratch.predicted,
             start_objective: None,
-            estimate: estimate::ErrorEstimate::default(),
+            estimate: estimate::ErrorEstimate::carrying(self.carried_contraction),
+            deadline: self.probe_deadline,
         };
         if problem.predicted {
             predictor::keep_the_better_start(&mut problem, &mut self.scratch.predicted_start);
         }
-        self.position_solver.find_positions(&mut problem)?;
+        if self.settings.accuracy > 0.0
+            && self.carried_contraction == 0.0
+            && self.position_solver.estimate_needs_contraction()
+            && self.local.blocks().iter().all(|b| !b.is_energy_element())
+        {
+            // Measures the contraction the method's estimate needs.
+            LocalGlobal.find_positions(&mut problem)?;
+        } else {
+            self.position_solver.find_positions(&mut problem)?;
+        }
         let distance = problem.distance_from_inertial_target();
         problem.stats.estimated_error = problem.estimate.relative(distance);
+        self.carried_contraction = problem.estimate.carry_out(self.carried_contraction);
         Ok(())
     }
 

@@ -72,6 +72,37 @@ fn models() -> Vec<Box<dyn Damping>> {
 fn steps_after_the_first_do_not_allocate() {
     every_damping_model_with_the_default_method();
     every_method_and_predictor();
+    every_method_in_accuracy_mode();
+}
+
+/// Every method stopped by an accuracy target (the estimate's sums, and
+/// L-BFGS's and Newton's first step by plain local-global, which measures
+/// the contraction their estimate needs), on 1 and 2 threads.
+fn every_method_in_accuracy_mode() {
+    let mut alive = Vec::new();
+    let mut failures = Vec::new();
+    for threads in [1, 2] {
+        for method in SolverMethod::ALL {
+            let damping = Box::new(NoDamping);
+            let mut sim = two_beams(Scheme::ImplicitMidpoint, damping, threads, 10_000, 0.01);
+            let spec = SolverSpec {
+                method,
+                ..SolverSpec::default()
+            };
+            sim.set_position_solver(spec.create().unwrap());
+            sim.run(2).unwrap();
+            let count = allocations_in(&mut sim, 8);
+            if count != 0 {
+                failures.push(format!(
+                    "{} in accuracy mode, {threads} thread(s): {count} allocations in 8 steps",
+                    method.name()
+                ));
+            }
+            alive.push(sim);
+        }
+    }
+    keep_alive(alive);
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
 /// The default method and predictor with every damping model and
@@ -89,7 +120,7 @@ fn every_damping_model_with_the_default_method() {
         for scheme in SCHEMES {
             for damping in models() {
                 let name = damping.name();
-                let mut sim = two_beams(scheme, damping, threads, 5);
+                let mut sim = two_beams(scheme, damping, threads, 5, 0.0);
                 // Two steps: BDF-2's second step uses its own coefficients
                 // (a second cached factorisation) and fills its history.
                 sim.run(2).unwrap();
@@ -114,12 +145,13 @@ fn keep_alive(simulations: Vec<Simulation>) {
 
 /// A clamped 6 x 2 x 2 beam and a free copy of it spinning beside it (so
 /// that rigid-motion code paths run too), `iterations` a step, tolerance
-/// 1e-6.
+/// 1e-6, or with `accuracy` > 0 that target instead.
 fn two_beams(
     scheme: Scheme,
     damping: Box<dyn Damping>,
     threads: usize,
     iterations: usize,
+    accuracy: f64,
 ) -> Simulation {
     let (mut model, _) = clamped_beam([6, 2, 2], [0.6, 0.2, 0.2], 9, 1e5);
     let mesh = model.bodies()[0].mesh.clone();
@@ -131,7 +163,8 @@ fn two_beams(
     let settings = Settings {
         dt: 0.01,
         iterations,
-        tolerance: 1e-6,
+        tolerance: if accuracy > 0.0 { 0.0 } else { 1e-6 },
+        accuracy,
         threads,
         ..Settings::default()
     };
@@ -196,7 +229,7 @@ fn every_method_and_predictor() {
                         // later steps accelerate from the 2nd), its Ritz
                         // window fills at the 10th and starts again, and
                         // the methods' rings wrap.
-                        let mut sim = two_beams(scheme, damping, threads, 12);
+                        let mut sim = two_beams(scheme, damping, threads, 12, 0.0);
                         let spec = SolverSpec {
                             method,
                             window: 3,

@@ -150,6 +150,11 @@ impl AccuracyWatch {
             "energy_created_j": self.energy_created(sim),
             "largest_kinetic_plus_elastic_j": self.largest,
             "method": sim.position_solver_name(),
+            // How each candidate fared when the method was chosen by
+            // measurement (null when the scene named it).
+            "method_probe": sim.method_choice().map(|choice| {
+                choice.candidates.iter().map(|c| c.describe()).collect::<Vec<_>>()
+            }),
             "iterations_median": number(median(&self.iterations)),
         })
     }

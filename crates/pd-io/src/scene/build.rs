@@ -58,10 +58,13 @@ impl Scene {
                 .map_err(|e| self.field_error("contact", e))?;
         }
         // A method that cannot run this damping (or these materials or
-        // colliders) is refused here, before a run writes anything.
-        simulation
-            .check_position_solver()
-            .map_err(|e| self.field_error("solver.method", e))?;
+        // colliders) is refused here, before a run writes anything. A
+        // method to be chosen is checked once chosen.
+        if !self.choose_method {
+            simulation
+                .check_position_solver()
+                .map_err(|e| self.field_error("solver.method", e))?;
+        }
         self.apply_initial_states(&mut simulation, &offsets)?;
         for (b, body) in self.bodies.iter().enumerate() {
             if body.initial_velocity != Point::zeros() || body.angular_velocity != Point::zeros() {
@@ -69,7 +72,29 @@ impl Scene {
                     .map_err(|e| self.field_error(format!("body[{b}].initial_velocity"), e))?;
             }
         }
+        if self.choose_method {
+            self.choose_method(&mut simulation)?;
+        }
         Ok(simulation)
+    }
+
+    /// Chooses the method for the scene's `accuracy` by measurement, from
+    /// the initial state; an error when no method can run the scene.
+    fn choose_method(&self, simulation: &mut Simulation) -> Result<()> {
+        let choice = simulation
+            .choose_method()
+            .map_err(|e| self.field_error("simulation.accuracy", e))?;
+        simulation.check_position_solver().map_err(|e| {
+            let reasons: Vec<String> = choice.candidates.iter().map(|c| c.describe()).collect();
+            self.field_error(
+                "solver.method",
+                format!(
+                    "no iteration method can run this scene for `accuracy` ({e}); \
+                     the candidates: {}",
+                    reasons.join("; ")
+                ),
+            )
+        })
     }
 
     /// Body `b`: its mesh (translated), masses, constraints and fixed

@@ -230,6 +230,11 @@ pub struct Scene {
     pub output: OutputSpec,
     /// The iteration method (`[solver]`; local-global by default).
     pub solver: pd_solver::SolverSpec,
+    /// Whether [`Scene::build`] chooses the iteration method by measurement
+    /// ([`pd_solver::Simulation::choose_method`]): the scene sets
+    /// `accuracy` and `[solver]` names no method. `solver.method` is then
+    /// only the fallback.
+    pub choose_method: bool,
     /// Where each step's iteration starts (`[solver] predictor`; inertial
     /// by default).
     pub predictor: pd_solver::Predictor,

@@ -94,8 +94,15 @@ impl Validator<'_> {
             .collect::<Result<Vec<_>>>()?;
         let output = self.output(raw.output)?;
         let predictor = self.predictor(raw.solver.as_ref())?;
+        // With an accuracy target and no method named, building measures
+        // which method reaches it fastest (and excludes those that cannot
+        // run the materials).
+        let choose_method =
+            settings.accuracy > 0.0 && raw.solver.as_ref().is_none_or(|s| s.method.is_none());
         let solver = self.solver(raw.solver)?;
-        self.check_material_method(&bodies, &solver)?;
+        if !choose_method {
+            self.check_material_method(&bodies, &solver)?;
+        }
         let (contact, body_contact, surface_pairs) =
             super::contact::validate(self.source, raw.colliders, raw.contact)?;
         Ok(Scene {
@@ -107,6 +114,7 @@ impl Validator<'_> {
             bodies,
             output,
             solver,
+            choose_method,
             predictor,
             contact,
             body_contact,

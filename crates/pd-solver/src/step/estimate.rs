@@ -72,6 +72,14 @@ pub(crate) struct ErrorEstimate {
     largest: f64,
     /// Whether the rate reads every ratio of the step, not the last few.
     whole_step: bool,
+    /// The contraction carried from earlier steps (0: none; see
+    /// [`ErrorEstimate::carrying`]).
+    carried: f64,
+    /// Whether this step's ratios are evidence of the local-global map's
+    /// contraction, to carry to the next step (not for L-BFGS and Newton).
+    carries: bool,
+    /// Ratios recorded in this step.
+    count: usize,
 }
 
 impl Default for ErrorEstimate {
@@ -83,6 +91,9 @@ impl Default for ErrorEstimate {
             known: 0.0,
             largest: f64::NAN,
             whole_step: false,
+            carried: 0.0,
+            carries: true,
+            count: 0,
         }
     }
 }
@@ -96,8 +107,46 @@ impl ErrorEstimate {
             self.ratios[self.next] = ratio;
             self.largest = self.largest.max(ratio);
             self.next = (self.next + 1) % RATIOS;
+            self.count += 1;
         }
         self.last = change;
+    }
+
+    /// The estimate of a step that starts with the contraction `carried`
+    /// observed in earlier steps ([`ErrorEstimate::carry_out`]; 0 for
+    /// none). The rate of the local-global map is a property of the
+    /// step's problem, which changes little from one step to the next,
+    /// while a step's own first ratios are dominated by its fast modes: a
+    /// step stopped after two or three iterations has seen none of the
+    /// slow rate that holds most of its error (stiff cloth: ratios of 0.1
+    /// at the second iteration where the map's rate is above 0.999).
+    pub fn carrying(carried: f64) -> Self {
+        Self {
+            carried,
+            ..Self::default()
+        }
+    }
+
+    /// The contraction to carry to the next step: the largest ratio of
+    /// this one when it recorded at least [`RATIOS`] ratios and its ratios
+    /// are the local-global map's contraction, else `previous` (what it
+    /// was given).
+    pub fn carry_out(&self, previous: f64) -> f64 {
+        if self.carries && self.count >= RATIOS && self.largest.is_finite() {
+            self.largest.min(MAX_RHO * MAX_RHO)
+        } else {
+            previous
+        }
+    }
+
+    /// Marks this step's ratios as the method's own convergence, not the
+    /// local-global map's contraction (L-BFGS, Newton): they are not
+    /// carried to the next step. The contraction carried into the step
+    /// still counts: the change `c_K = |G(x_K) - x_K|_M` these methods
+    /// record is the local-global map's at their last iterate, whose
+    /// distance to `x*` that contraction bounds by `c_K / (1 - rho)`.
+    pub fn own_convergence(&mut self) {
+        self.carries = false;
     }
 
     /// Makes the rate read every ratio of the step, not only the last
@@ -125,6 +174,7 @@ impl ErrorEstimate {
             .iter()
             .copied()
             .chain((self.known > 0.0).then_some(self.known))
+            .chain((self.carried > 0.0).then_some(self.carried))
             .chain(self.whole_step.then_some(self.largest))
             .filter(|r| !r.is_nan())
             .reduce(f64::max);

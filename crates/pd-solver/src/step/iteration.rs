@@ -73,6 +73,17 @@ pub trait PositionSolver: std::fmt::Debug + Send + Sync {
         true
     }
 
+    /// Whether the method's error estimate needs the local-global map's
+    /// contraction measured by plain iterations (step/estimate.rs): its own
+    /// ratios are its faster convergence, which says nothing of the slow
+    /// modes' error. With an accuracy target, a step of such a method
+    /// before any contraction is measured is solved by plain local-global,
+    /// which measures it (unless the model has materials plain PD cannot
+    /// run). The default says no.
+    fn estimate_needs_contraction(&self) -> bool {
+        false
+    }
+
     /// Checks the method's own parameters (the default has none to check);
     /// [`crate::Simulation::check_position_solver`] and every step call it.
     ///
@@ -229,6 +240,10 @@ pub struct StepProblem<'a> {
     /// The step's error estimate, fed by [`StepProblem::record_residual`]
     /// (step/estimate.rs).
     pub(crate) estimate: super::estimate::ErrorEstimate,
+    /// When the step must stop whatever its error (a method probed by
+    /// [`crate::Simulation::choose_method`] that has become slower than the
+    /// fastest); `None` in every ordinary step.
+    pub(crate) deadline: Option<std::time::Instant>,
 }
 
 impl StepProblem<'_> {

@@ -193,6 +193,11 @@ impl PositionSolver for Lbfgs {
         true
     }
 
+    /// Its ratios are superlinear convergence, not the map's contraction.
+    fn estimate_needs_contraction(&self) -> bool {
+        true
+    }
+
     /// Its initial Hessian is the prefactored n x n matrix.
     fn handles_lagged_damping(&self) -> bool {
         false
@@ -200,6 +205,8 @@ impl PositionSolver for Lbfgs {
 
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {
         self.prepare(step)?;
+        // Its ratios are its own convergence, not the map's contraction.
+        step.estimate.own_convergence();
         step.record_objective();
         if self.partials.len() != step.local_chunks() {
             self.partials = vec![EnergyBound::default(); step.local_chunks()];

@@ -163,6 +163,11 @@ impl PositionSolver for Newton {
         true
     }
 
+    /// Its ratios are superlinear convergence, not the map's contraction.
+    fn estimate_needs_contraction(&self) -> bool {
+        true
+    }
+
     /// Its Hessian is built on the n x n system's pattern.
     fn handles_lagged_damping(&self) -> bool {
         false
@@ -176,6 +181,8 @@ impl PositionSolver for Newton {
 
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {
         self.prepare(step)?;
+        // Its ratios are its own convergence, not the map's contraction.
+        step.estimate.own_convergence();
         step.record_objective();
         if self.partials.len() != step.local_chunks() {
             self.partials = vec![EnergyBound::default(); step.local_chunks()];

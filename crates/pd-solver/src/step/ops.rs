@@ -85,7 +85,11 @@ impl<'a> StepProblem<'a> {
                 self.stats.converged = true;
             }
         }
-        self.stats.converged
+        // A probed method past its time stops, unconverged.
+        let late = self
+            .deadline
+            .is_some_and(|d| std::time::Instant::now() >= d);
+        self.stats.converged || late
     }
 }
 
