@@ -80,23 +80,23 @@ fn cut(path: &Path, lines: usize) {
 }
 
 fn check_resume(integrator: &str, damping: &str, every: &str) {
-    check_resume_with_formats(integrator, damping, every, None);
+    check_resume_with_edits(integrator, damping, every, &[]);
 }
 
-/// `formats`: replaces the tiny scene's frame formats (vtk and obj).
-fn check_resume_with_formats(integrator: &str, damping: &str, every: &str, formats: Option<&str>) {
+/// `edits`: (old, new) replacements in the tiny scene's text.
+fn check_resume_with_edits(integrator: &str, damping: &str, every: &str, edits: &[(&str, &str)]) {
     let dir = temp_dir(&format!(
         "resume-{integrator}-{}-{every}-{}",
         damping.len(),
-        formats.map_or(0, str::len)
+        edits.iter().map(|(_, new)| new.len()).sum::<usize>()
     ));
     let scene = tiny_scene(&dir, "scene", integrator, damping);
-    if let Some(formats) = formats {
-        let text = std::fs::read_to_string(&scene).unwrap();
-        let old = "formats = [\"vtk\", \"obj\"]";
-        assert!(text.contains(old));
-        std::fs::write(&scene, text.replace(old, &format!("formats = {formats}"))).unwrap();
+    let mut text = std::fs::read_to_string(&scene).unwrap();
+    for (old, new) in edits {
+        assert!(text.contains(old), "{old}");
+        text = text.replace(old, new);
     }
+    std::fs::write(&scene, text).unwrap();
     let (whole, interrupted) = (dir.join("whole"), dir.join("interrupted"));
     pd_ok(&["run", arg(&scene), "--out", arg(&whole)]);
     pd_ok(&[
@@ -130,10 +130,20 @@ fn check_resume_with_formats(integrator: &str, damping: &str, every: &str, forma
     assert!(summary.contains("\"status\": \"completed\""), "{summary}");
     // The accuracy figures cover the steps before the checkpoint too (read
     // back from metrics.csv), as the uninterrupted run's do.
-    let (resumed, straight) = (
+    let (mut resumed, mut straight) = (
         common::json(&interrupted.join("summary.json")),
         common::json(&whole.join("summary.json")),
     );
+    // A run that chose its method by measurement reports the probe; the
+    // resumed run took the method from the checkpoint and probed nothing.
+    let chose = !straight["accuracy"]["method_probe"].is_null();
+    assert_eq!(chose, edits.iter().any(|(_, new)| new.contains("accuracy")));
+    for summary in [&mut resumed, &mut straight] {
+        summary["accuracy"]
+            .as_object_mut()
+            .unwrap()
+            .remove("method_probe");
+    }
     assert_eq!(resumed["accuracy"], straight["accuracy"]);
     assert_eq!(resumed["warnings"], straight["warnings"]);
 }
@@ -178,11 +188,28 @@ fn every_frame_format_and_the_paraview_series() {
     // The resumed run rebuilds `frames.pvd` (frame times read back from
     // metrics.csv) so that it lists every frame exactly as an
     // uninterrupted run's does.
-    check_resume_with_formats(
+    check_resume_with_edits(
         "implicit-midpoint",
         "model = \"laplacian\"\nstiffness = 0.003",
         "4",
-        Some("[\"vtk\", \"obj\", \"vtu\", \"ply\"]"),
+        &[(
+            "formats = [\"vtk\", \"obj\"]",
+            "formats = [\"vtk\", \"obj\", \"vtu\", \"ply\"]",
+        )],
+    );
+}
+
+/// With `accuracy` and no `[solver] method`, the run chooses its method by
+/// measurement; the resumed run keeps that method (from the checkpoint)
+/// and the contraction its error estimate carries, so it stops every step
+/// where the uninterrupted run did.
+#[test]
+fn accuracy_with_the_method_chosen_by_measurement() {
+    check_resume_with_edits(
+        "implicit-midpoint",
+        "model = \"laplacian\"\nstiffness = 0.003",
+        "3",
+        &[("iterations = 5", "accuracy = 0.01")],
     );
 }
 
@@ -293,7 +320,7 @@ translate = [0.03, 0.1005, 0.03]
         !checkpoint.contains("\"pairs\":[]"),
         "no contact between bodies saved"
     );
-    // Killed during step 10: as in `check_resume_with_formats`.
+    // Killed during step 10: as in `check_resume_with_edits`.
     cut(&interrupted.join("metrics.csv"), 1 + 10);
     cut(&interrupted.join("probes.csv"), 1 + 10);
     for entry in std::fs::read_dir(interrupted.join("frames")).unwrap() {

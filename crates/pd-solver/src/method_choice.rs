@@ -212,7 +212,7 @@ impl Simulation {
         let mut candidates = Vec::with_capacity(PROBE_ORDER.len());
         let mut fastest: Option<(SolverMethod, Duration)> = None;
         for method in PROBE_ORDER {
-            let outcome = self.probe(method, fastest.map(|(_, d)| d));
+            let outcome = self.probe(method, &start, fastest.map(|(_, d)| d));
             if let ProbeOutcome::Measured { seconds, .. } = outcome {
                 let elapsed = Duration::from_secs_f64(seconds);
                 if fastest.is_none_or(|(_, best)| elapsed < best) {
@@ -248,11 +248,15 @@ impl Simulation {
         Ok(())
     }
 
-    /// Runs [`PROBE_STEPS`] steps with `method` from the current state,
-    /// stopping once they take longer than `limit`; the state is left
-    /// wherever the probe ended (the caller restores it).
-    fn probe(&mut self, method: SolverMethod, limit: Option<Duration>) -> ProbeOutcome {
-        let start = self.checkpoint();
+    /// Runs [`PROBE_STEPS`] steps with `method` from `start`, stopping
+    /// once they take longer than `limit`; the state is left wherever the
+    /// probe ended (the caller restores it).
+    fn probe(
+        &mut self,
+        method: SolverMethod,
+        start: &crate::Checkpoint,
+        limit: Option<Duration>,
+    ) -> ProbeOutcome {
         if let Err(e) = self.use_method(method) {
             return ProbeOutcome::Failed {
                 reason: e.to_string(),
@@ -265,7 +269,7 @@ impl Simulation {
         }
         // The method's own carried state starts afresh, as it would in a
         // run that named it.
-        if let Err(e) = self.restore(&start) {
+        if let Err(e) = self.restore(start) {
             return ProbeOutcome::Failed {
                 reason: e.to_string(),
             };

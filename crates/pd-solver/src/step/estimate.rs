@@ -134,8 +134,19 @@ impl ErrorEstimate {
     pub fn carry_out(&self, previous: f64) -> f64 {
         if self.carries && self.count >= RATIOS && self.largest.is_finite() {
             self.largest.min(MAX_RHO * MAX_RHO)
+        } else if self.carried > 0.0 {
+            self.carried
         } else {
             previous
+        }
+    }
+
+    /// Takes the largest ratio recorded so far in this step (plain
+    /// local-global iterations run to measure it) as the carried
+    /// contraction, for the rest of the step and the next steps.
+    pub fn adopt_measured_contraction(&mut self) {
+        if self.count >= RATIOS && self.largest.is_finite() {
+            self.carried = self.carried.max(self.largest.min(MAX_RHO * MAX_RHO));
         }
     }
 
