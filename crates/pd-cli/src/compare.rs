@@ -1,4 +1,5 @@
-//! `pd compare`: one scene, several damping models or integrators.
+//! `pd compare`: one scene, several damping models, integrators, damping
+//! ratios or accuracy targets (one of these axes at a time).
 //!
 //! Damping models are named by the presets of `pd_damping::registry`: each
 //! model's main preset (named as the model) and variants such as
@@ -7,7 +8,8 @@
 //! `--ratio z1,z2,...` runs the scene's model (or Laplacian damping) with
 //! each damping ratio of its lowest elastic mode. A damping or ratio
 //! variant sets the model of every body, in place of a body's own
-//! `damping`.
+//! `damping`. `--accuracy e1,e2,...` runs the scene with each accuracy
+//! target as its stopping rule ([`with_accuracy`]).
 
 use pd_io::stats::median;
 use std::fmt::Write as _;
@@ -15,7 +17,7 @@ use std::path::{Path, PathBuf};
 
 use pd_damping::registry;
 use pd_integrators::registry as integrator_registry;
-use pd_io::scene::{DampingSpec, FrameFormat, Scene};
+use pd_io::scene::{ACCURACY_ITERATIONS, DampingSpec, FrameFormat, Scene, check_accuracy};
 use pd_viz::plot::Plot;
 use serde_json::json;
 use tracing::{info, warn};
@@ -49,6 +51,27 @@ pub(crate) fn integrator_help() -> String {
     )
 }
 
+/// The help of `--accuracy`: what a variant runs, and its iteration cap.
+pub(crate) fn accuracy_help() -> String {
+    format!(
+        "Accuracy targets, comma separated (0.1,0.01,0.001), each in (0, 1): each variant runs \
+         the scene with `accuracy = E` in [simulation], so that every step iterates until its \
+         estimated relative error is at most E, without the scene's tolerance. The iteration \
+         cap is the scene's `iterations` if the scene sets `accuracy` itself, else \
+         {ACCURACY_ITERATIONS}"
+    )
+}
+
+/// An `--accuracy` value, checked as the scene's `accuracy` is (clap names
+/// the option and the value in its error).
+pub(crate) fn accuracy_of(text: &str) -> Result<f64, String> {
+    let value = text
+        .trim()
+        .parse::<f64>()
+        .map_err(|_| "not a number: give a relative error in (0, 1), e.g. 0.01".to_string())?;
+    check_accuracy(value)
+}
+
 /// The damping model a preset name stands for.
 fn damping_of(name: &str) -> Result<DampingSpec, Failure> {
     let preset = registry::preset(name).ok_or_else(|| {
@@ -74,6 +97,8 @@ struct Row {
     angular_momentum_kept: Option<f64>,
     final_momentum: f64,
     final_angular_momentum: f64,
+    /// The `"accuracy"` object of the run's `summary.json`.
+    accuracy: serde_json::Value,
 }
 
 /// `|final| / |initial|`, or `None` when the initial value is below 0.1%
@@ -85,6 +110,11 @@ fn kept(initial: f64, last: f64, largest: f64) -> Option<f64> {
 
 fn row_of(name: &str, status: String, dir: &Path) -> Result<Row, Failure> {
     let rows = read_metrics(dir)?;
+    let path = dir.join("summary.json");
+    let unreadable = |e: &dyn std::fmt::Display| Failure::Input(format!("{}: {e}", path.display()));
+    let summary: serde_json::Value = std::fs::read_to_string(&path)
+        .map_err(|e| unreadable(&e))
+        .and_then(|text| serde_json::from_str(&text).map_err(|e| unreadable(&e)))?;
     let last = rows.len() - 1;
     let p = |i: usize| rows[i].linear_momentum().norm();
     let j = |i: usize| rows[i].angular_momentum().norm();
@@ -101,6 +131,7 @@ fn row_of(name: &str, status: String, dir: &Path) -> Result<Row, Failure> {
         angular_momentum_kept: kept(j(0), j(last), (0..=last).map(j).fold(0.0, f64::max)),
         final_momentum: p(last),
         final_angular_momentum: j(last),
+        accuracy: summary["accuracy"].clone(),
     })
 }
 
@@ -108,8 +139,28 @@ fn fmt_opt(v: Option<f64>) -> String {
     v.map_or_else(|| "n/a".into(), |v| format!("{v:.4}"))
 }
 
-/// What `pd compare` varies: damping presets, integrators, or damping
-/// ratios.
+/// The accuracy cells of a row of `comparison.md`, from the run's
+/// `summary.json` `"accuracy"`: target, method, median iterations, median
+/// and largest estimated error, energy created.
+fn accuracy_cells(accuracy: &serde_json::Value) -> String {
+    let cell = |key: &str, absent: &str, show: fn(f64) -> String| {
+        accuracy[key]
+            .as_f64()
+            .map_or_else(|| absent.to_string(), show)
+    };
+    format!(
+        "{} | {} | {} | {} | {} | {}",
+        cell("target", "none", |v| v.to_string()),
+        accuracy["method"].as_str().unwrap_or("n/a"),
+        cell("iterations_median", "n/a", |v| v.to_string()),
+        cell("estimated_error_median", "n/a", |v| format!("{v:.3e}")),
+        cell("estimated_error_max", "n/a", |v| format!("{v:.3e}")),
+        cell("energy_created_j", "n/a", |v| format!("{v:.3e}")),
+    )
+}
+
+/// What `pd compare` varies: damping presets, integrators, damping ratios
+/// or accuracy targets.
 pub(crate) struct Variants {
     /// Damping presets (`--damping`).
     pub damping: Vec<String>,
@@ -117,6 +168,8 @@ pub(crate) struct Variants {
     pub integrator: Vec<String>,
     /// Damping ratios of the lowest elastic mode (`--ratio`).
     pub ratio: Vec<f64>,
+    /// Accuracy targets (`--accuracy`).
+    pub accuracy: Vec<f64>,
 }
 
 /// `pd compare`.
@@ -126,8 +179,21 @@ pub(crate) fn compare(
     quiet: bool,
 ) -> Result<(), Failure> {
     let loaded = load_scene(options)?;
-    let mut variants = variants(&loaded, &asked.damping, &asked.integrator, &asked.ratio)?;
+    let mut variants = variants(&loaded, &asked.damping, &asked.integrator)?;
     variants.extend(ratio_variants(&loaded, &asked.ratio)?);
+    variants.extend(
+        asked
+            .accuracy
+            .iter()
+            .map(|&e| (format!("accuracy-{e}"), with_accuracy(&loaded.scene, e))),
+    );
+    check_variants(&variants)?;
+    if !asked.accuracy.is_empty() && loaded.scene.settings.tolerance > 0.0 {
+        info!(
+            "each variant's accuracy is its stopping rule, in place of the scene's tolerance ({})",
+            loaded.scene.settings.tolerance
+        );
+    }
     let per_body = loaded.scene.bodies.iter().any(|b| b.damping.is_some());
     if per_body && (!asked.damping.is_empty() || !asked.ratio.is_empty()) {
         info!("each variant's damping replaces the scene's per-body damping for every body");
@@ -172,16 +238,6 @@ fn ratio_variants(loaded: &LoadedScene, ratios: &[f64]) -> Result<Vec<(String, S
         Some(_) => loaded.scene.damping.name(),
         None => "laplacian",
     };
-    if let Some(twice) = ratios
-        .iter()
-        .enumerate()
-        .find(|(i, r)| ratios[..*i].contains(r))
-    {
-        return Err(Failure::Input(format!(
-            "--ratio {} is given twice",
-            twice.1
-        )));
-    }
     ratios
         .iter()
         .map(|&ratio| {
@@ -206,11 +262,24 @@ fn with_damping(scene: &Scene, damping: DampingSpec) -> Scene {
     scene
 }
 
+/// `scene` with the accuracy target `accuracy` as its stopping rule: no
+/// tolerance, and the scene's `iterations` as the cap if the scene sets an
+/// accuracy itself (there it is explicitly a cap), else the cap of a scene
+/// with `accuracy` and no `iterations`.
+fn with_accuracy(scene: &Scene, accuracy: f64) -> Scene {
+    let mut scene = scene.clone();
+    if scene.settings.accuracy == 0.0 {
+        scene.settings.iterations = ACCURACY_ITERATIONS;
+    }
+    scene.settings.accuracy = accuracy;
+    scene.settings.tolerance = 0.0;
+    scene
+}
+
 fn variants(
     loaded: &LoadedScene,
     damping: &[String],
     integrators: &[String],
-    ratios: &[f64],
 ) -> Result<Vec<(String, Scene)>, Failure> {
     let mut variants = Vec::new();
     for name in damping {
@@ -228,10 +297,15 @@ fn variants(
         scene.integrator = entry.kind;
         variants.push((name.clone(), scene));
     }
-    if variants.is_empty() && ratios.is_empty() {
+    Ok(variants)
+}
+
+/// Refuses a comparison of nothing, and a variant named twice.
+fn check_variants(variants: &[(String, Scene)]) -> Result<(), Failure> {
+    if variants.is_empty() {
         return Err(Failure::Input(
-            "give the variants to compare: --damping a,b,... or --integrator a,b,... or \
-             --ratio z1,z2,..."
+            "give the variants to compare, along one axis: --damping a,b,... or --integrator \
+             a,b,... or --ratio z1,z2,... or --accuracy e1,e2,..."
                 .into(),
         ));
     }
@@ -243,7 +317,7 @@ fn variants(
     {
         return Err(Failure::Input(format!("variant {name:?} is given twice")));
     }
-    Ok(variants)
+    Ok(())
 }
 
 /// Runs one variant into `dir`, with OBJ frames for the animation;
@@ -318,16 +392,19 @@ fn write_table(rows: &[(Row, PathBuf)], loaded: &LoadedScene, out: &Path) -> Res
     let mut md = String::new();
     let _ = writeln!(
         md,
-        "| variant | status | steps | median step ms | overhead vs {} | initial energy J | final energy J | momentum kept | angular momentum kept |",
+        "| variant | status | steps | median step ms | overhead vs {} | initial energy J | final energy J | momentum kept | angular momentum kept | accuracy target | method | median iterations | median estimated error | largest estimated error | energy created J |",
         rows[0].0.name
     );
-    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(
+        md,
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+    );
     let mut json_rows = Vec::new();
     for (row, _) in rows {
         let overhead = row.median_step_ms / base - 1.0;
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {:.3} | {:+.1}% | {:.6e} | {:.6e} | {} | {} |",
+            "| {} | {} | {} | {:.3} | {:+.1}% | {:.6e} | {:.6e} | {} | {} | {} |",
             row.name,
             row.status,
             row.steps,
@@ -337,6 +414,7 @@ fn write_table(rows: &[(Row, PathBuf)], loaded: &LoadedScene, out: &Path) -> Res
             row.final_energy,
             fmt_opt(row.momentum_kept),
             fmt_opt(row.angular_momentum_kept),
+            accuracy_cells(&row.accuracy),
         );
         json_rows.push(json!({
             "variant": row.name,
@@ -350,13 +428,19 @@ fn write_table(rows: &[(Row, PathBuf)], loaded: &LoadedScene, out: &Path) -> Res
             "angular_momentum_kept": row.angular_momentum_kept.and_then(finite),
             "final_momentum": finite(row.final_momentum),
             "final_angular_momentum": finite(row.final_angular_momentum),
+            "accuracy": row.accuracy,
         }));
     }
     md.push_str(
         "\nMedian wall time of a step; overhead against the first variant, measured in the same \
          command. Energy is kinetic + elastic + gravitational. *Kept* is |final| / |initial| of \
          the linear momentum and of the angular momentum about the origin (n/a when the \
-         initial value is below 0.1% of the largest in the run: nothing to keep).\n",
+         initial value is below 0.1% of the largest in the run: nothing to keep). The accuracy \
+         columns are each run's `summary.json` `accuracy`: the target (none: a fixed budget or a \
+         tolerance), the position method that ran, the median iterations of a step, the median \
+         and largest estimated relative error of a step (the fraction of its correction left \
+         undone), and the energy created where the integrator and damping should only \
+         dissipate (n/a where they need not: undamped implicit midpoint).\n",
     );
     let write = |name: &str, text: &str| {
         let path = out.join(name);

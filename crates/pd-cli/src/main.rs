@@ -9,8 +9,9 @@
 //! - `pd plot DIR` plots energies and momenta against time (PNG and SVG);
 //! - `pd modes SCENE [--count K] [--out DIR]` writes the scene's lowest
 //!   elastic modes (frequencies, damping ratios, animated shapes);
-//! - `pd compare SCENE --damping a,b,...` (or `--integrator a,b,...`) runs a
-//!   scene once per variant and compares them.
+//! - `pd compare SCENE --damping a,b,...` (or `--integrator a,b,...`,
+//!   `--ratio z1,z2,...`, `--accuracy e1,e2,...`) runs a scene once per
+//!   variant and compares them.
 //!
 //! Logs go to stderr through `tracing`, filtered by `RUST_LOG` (default
 //! `info`); `--quiet` prints nothing but errors. Exit codes: 0 success,
@@ -101,8 +102,9 @@ enum Command {
         #[arg(long, value_name = "K", default_value_t = 6)]
         count: usize,
     },
-    /// Run a scene once per damping model or integrator and compare them:
-    /// a side-by-side animation, a plot of total energy, and a table.
+    /// Run a scene once per damping model, integrator, damping ratio or
+    /// accuracy target (one of these at a time) and compare them: a
+    /// side-by-side animation, a plot of total energy, and a table.
     Compare {
         #[command(flatten)]
         scene: run::SceneOptions,
@@ -121,6 +123,16 @@ enum Command {
         /// body.
         #[arg(long, value_delimiter = ',', conflicts_with_all = ["damping", "integrator"])]
         ratio: Vec<f64>,
+        #[arg(
+            long,
+            value_delimiter = ',',
+            value_name = "E",
+            allow_negative_numbers = true,
+            value_parser = compare::accuracy_of,
+            conflicts_with_all = ["damping", "integrator", "ratio"],
+            help = compare::accuracy_help()
+        )]
+        accuracy: Vec<f64>,
     },
 }
 
@@ -213,12 +225,14 @@ fn main() -> ExitCode {
             damping,
             integrator,
             ratio,
+            accuracy,
         } => compare::compare(
             &scene,
             &compare::Variants {
                 damping,
                 integrator,
                 ratio,
+                accuracy,
             },
             quiet,
         ),

@@ -22,6 +22,24 @@ use super::spec::{
 };
 use crate::{Error, Result};
 
+/// The iteration cap of a scene with `accuracy` and no `iterations`.
+pub const ACCURACY_ITERATIONS: usize = 10_000;
+
+/// Checks an accuracy target as `simulation.accuracy` takes it: a relative
+/// error in (0, 1) (so finite); the message says what is wrong with it.
+///
+/// # Errors
+/// The value is out of (0, 1) or NaN.
+pub fn check_accuracy(accuracy: f64) -> std::result::Result<f64, String> {
+    if accuracy > 0.0 && accuracy < 1.0 {
+        Ok(accuracy)
+    } else {
+        Err(format!(
+            "must be a relative error in (0, 1), e.g. 0.01, got {accuracy}"
+        ))
+    }
+}
+
 /// Turns raw sections into validated ones, naming fields in errors.
 pub(super) struct Validator<'a> {
     pub(super) source: &'a Path,
@@ -122,21 +140,13 @@ impl Validator<'_> {
         })
     }
 
-    /// The iteration cap of a scene with `accuracy` and no `iterations`.
-    const ACCURACY_ITERATIONS: usize = 10_000;
-
     /// `simulation.accuracy`: in (0, 1), and not with a tolerance (0 when
     /// not given).
     fn accuracy(&self, s: &raw::Simulation) -> Result<f64> {
         let Some(accuracy) = s.accuracy else {
             return Ok(0.0);
         };
-        if !(accuracy > 0.0 && accuracy < 1.0) {
-            return Err(self.error(
-                "simulation.accuracy",
-                format!("must be a relative error in (0, 1), e.g. 0.01, got {accuracy}"),
-            ));
-        }
+        check_accuracy(accuracy).map_err(|e| self.error("simulation.accuracy", e))?;
         if let Some(tolerance) = s.tolerance.filter(|&t| t != 0.0) {
             return Err(self.error(
                 "simulation.accuracy",
@@ -157,7 +167,7 @@ impl Validator<'_> {
                 Some(0) => return Err(self.error("simulation.iterations", "must be at least 1")),
                 Some(k) => k,
                 // With an accuracy target, `iterations` is only the cap.
-                None if s.accuracy.is_some() => Self::ACCURACY_ITERATIONS,
+                None if s.accuracy.is_some() => ACCURACY_ITERATIONS,
                 None => defaults.iterations,
             },
             tolerance: self.non_negative("simulation.tolerance", s.tolerance.unwrap_or(0.0))?,
