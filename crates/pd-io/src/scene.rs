@@ -32,7 +32,7 @@ pub use pd_damping::registry::DampingSpec;
 pub use spec::{
     BodySpec, ConstraintSpec, FrameFormat, IntegratorKind, MassSpec, MeshSource, OutputSpec, Scene,
 };
-pub use validate::{ACCURACY_ITERATIONS, check_accuracy};
+pub use validate::{ACCURACY_ITERATIONS, DEFAULT_ACCURACY, check_accuracy};
 
 use crate::{Error, Result};
 

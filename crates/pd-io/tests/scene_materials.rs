@@ -124,11 +124,20 @@ fn mistakes_name_the_field() {
     }
 }
 
+/// Without a `[solver]` table or a budget, the default accuracy target
+/// chooses among the methods that run materials.
+#[test]
+fn a_material_scene_without_a_method_gets_one_that_runs_it() {
+    let material = "{ kind = \"stvk\", young = 1e6, poisson = 0.3 }";
+    let sim = parse(material, "").unwrap().build().unwrap();
+    let name = sim.position_solver_name();
+    assert!(name == "lbfgs" || name == "newton", "{name}");
+}
+
 #[test]
 fn pd_only_methods_are_refused_at_solver_method() {
     let material = "{ kind = \"stvk\", young = 1e6, poisson = 0.3 }";
     for (solver, name) in [
-        ("", "local-global"),
         ("[solver]\nmethod = \"local-global\"", "local-global"),
         ("[solver]\nmethod = \"anderson\"", "anderson"),
         ("[solver]\nmethod = \"chebyshev\"", "chebyshev"),

@@ -27,10 +27,39 @@ fn assert_errors(cases: &[(&str, &str)]) {
 }
 
 #[test]
-fn without_a_table_the_method_is_local_global() {
+fn without_a_table_and_with_a_budget_the_method_is_local_global() {
     let s = parse("").unwrap();
     assert_eq!(s.solver, SolverSpec::default());
+    // No budget: the default accuracy target, the method chosen by probe.
+    assert!(s.choose_method);
+    let text = scene("").replace("steps = 1\n", "steps = 1\niterations = 10\n");
+    let s = Scene::parse(&text, Syntax::Toml, Path::new("s.toml")).unwrap();
+    assert!(!s.choose_method);
+    assert_eq!(s.settings.accuracy, 0.0);
     assert_eq!(s.build().unwrap().position_solver_name(), "local-global");
+}
+
+/// A scene that sets no budget (`iterations`, `tolerance`, `accuracy`)
+/// gets the default accuracy target with the cap, and its method is
+/// chosen by measurement when it is built; a named method is kept.
+#[test]
+fn without_a_budget_the_default_accuracy_chooses_the_method() {
+    let s = parse("").unwrap();
+    assert_eq!(s.settings.accuracy, pd_io::scene::DEFAULT_ACCURACY);
+    assert_eq!(s.settings.iterations, pd_io::scene::ACCURACY_ITERATIONS);
+    let sim = s.build().unwrap();
+    let choice = sim.method_choice().expect("chosen by measurement");
+    assert_eq!(sim.position_solver_name(), choice.chosen.name());
+    assert_eq!(sim.steps(), 0);
+    let named = parse("[solver]\nmethod = \"chebyshev\"").unwrap();
+    assert!(!named.choose_method);
+    let sim = named.build().unwrap();
+    assert!(sim.method_choice().is_none());
+    assert_eq!(sim.position_solver_name(), "chebyshev");
+    // A tolerance is a budget: no accuracy, the old default cap.
+    let text = scene("").replace("steps = 1\n", "steps = 1\ntolerance = 1e-6\n");
+    let s = Scene::parse(&text, Syntax::Toml, Path::new("s.toml")).unwrap();
+    assert_eq!((s.settings.accuracy, s.settings.iterations), (0.0, 10));
 }
 
 #[test]

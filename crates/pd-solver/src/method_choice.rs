@@ -209,6 +209,29 @@ impl Simulation {
             });
         }
         let start = self.checkpoint();
+        if let Err(e) = self.restore(&start) {
+            // A state the simulation cannot return to (a non-finite
+            // energy scale, say) is not probed: the method stays plain
+            // local-global, and the first step reports the problem.
+            self.use_method(SolverMethod::LocalGlobal)?;
+            let reason = format!("not probed: {e}");
+            let candidates = PROBE_ORDER
+                .iter()
+                .map(|&method| ProbeResult {
+                    method,
+                    outcome: ProbeOutcome::Failed {
+                        reason: reason.clone(),
+                    },
+                })
+                .collect();
+            let choice = MethodChoice {
+                chosen: SolverMethod::LocalGlobal,
+                target,
+                candidates,
+            };
+            self.method_choice = Some(choice.clone());
+            return Ok(choice);
+        }
         let mut candidates = Vec::with_capacity(PROBE_ORDER.len());
         let mut fastest: Option<(SolverMethod, Duration)> = None;
         for method in PROBE_ORDER {

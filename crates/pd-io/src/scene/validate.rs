@@ -25,6 +25,13 @@ use crate::{Error, Result};
 /// The iteration cap of a scene with `accuracy` and no `iterations`.
 pub const ACCURACY_ITERATIONS: usize = 10_000;
 
+/// The accuracy target of a scene that sets none of `iterations`,
+/// `tolerance` and `accuracy` (docs/guide/03-accuracy-and-solvers.md,
+/// "Defaults"): each step within 1% of its converged answer, the method
+/// chosen for the scene. A scene that sets `iterations` runs that many, as
+/// it always did.
+pub const DEFAULT_ACCURACY: f64 = 0.01;
+
 /// Checks an accuracy target as `simulation.accuracy` takes it: a relative
 /// error in (0, 1) (so finite); the message says what is wrong with it.
 ///
@@ -144,7 +151,8 @@ impl Validator<'_> {
     /// not given).
     fn accuracy(&self, s: &raw::Simulation) -> Result<f64> {
         let Some(accuracy) = s.accuracy else {
-            return Ok(0.0);
+            let budget_given = s.iterations.is_some() || s.tolerance.is_some();
+            return Ok(if budget_given { 0.0 } else { DEFAULT_ACCURACY });
         };
         check_accuracy(accuracy).map_err(|e| self.error("simulation.accuracy", e))?;
         if let Some(tolerance) = s.tolerance.filter(|&t| t != 0.0) {
@@ -166,8 +174,9 @@ impl Validator<'_> {
             iterations: match s.iterations {
                 Some(0) => return Err(self.error("simulation.iterations", "must be at least 1")),
                 Some(k) => k,
-                // With an accuracy target, `iterations` is only the cap.
-                None if s.accuracy.is_some() => ACCURACY_ITERATIONS,
+                // With an accuracy target (the scene's, or the default
+                // when it sets no budget), `iterations` is only the cap.
+                None if s.accuracy.is_some() || s.tolerance.is_none() => ACCURACY_ITERATIONS,
                 None => defaults.iterations,
             },
             tolerance: self.non_negative("simulation.tolerance", s.tolerance.unwrap_or(0.0))?,
