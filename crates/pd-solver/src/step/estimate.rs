@@ -57,6 +57,24 @@ pub(crate) const RATIOS: usize = 3;
 /// and a cap at 0.99 reported such steps as converged 25 times too early.
 pub(crate) const MAX_RHO: f64 = 0.9999;
 
+/// A change at most this fraction of the step's displacement
+/// (`|G(x) - x|_M <= ROUNDOFF |G(x) - x_n|_M`) is round-off, not evidence
+/// of an error: the step counts as converged. A step of a rigid
+/// translation (a body in free fall) has nothing to correct, and its
+/// changes are round-off (relative 1e-16 to 1e-14 measured) that never
+/// shrink, so the contraction rule alone read them as no convergence and
+/// ran such steps to the cap. At this ratio the estimated distance, at
+/// most `9999 c`, is below `1e-8` of the step's displacement.
+pub(crate) const ROUNDOFF: f64 = 1e-12;
+
+/// Iterations without a new smallest change after which a step with an
+/// accuracy target stops, unconverged: the iteration no longer converges
+/// (frictional contact can hold the relative residual at 1e-4 for
+/// thousands of iterations), and running to the cap would only cost time.
+/// Converging iterations set a new smallest change every few iterations,
+/// even slow plain PD on stiff cloth (its changes fall steadily).
+pub(crate) const STALL: usize = 200;
+
 /// The running estimate of one step, fed the change of every iteration.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct ErrorEstimate {
@@ -80,6 +98,11 @@ pub(crate) struct ErrorEstimate {
     carries: bool,
     /// Ratios recorded in this step.
     count: usize,
+    /// Whether the last change was round-off ([`ROUNDOFF`]).
+    at_roundoff: bool,
+    /// The smallest change of the step, and the iterations since it.
+    smallest: f64,
+    since_smallest: usize,
 }
 
 impl Default for ErrorEstimate {
@@ -94,6 +117,9 @@ impl Default for ErrorEstimate {
             carried: 0.0,
             carries: true,
             count: 0,
+            at_roundoff: false,
+            smallest: f64::INFINITY,
+            since_smallest: 0,
         }
     }
 }
@@ -110,6 +136,24 @@ impl ErrorEstimate {
             self.count += 1;
         }
         self.last = change;
+        if change < self.smallest {
+            self.smallest = change;
+            self.since_smallest = 0;
+        } else {
+            self.since_smallest += 1;
+        }
+    }
+
+    /// Notes whether the last change (`change_squared`) is round-off of
+    /// the step's displacement (`displacement_squared`), [`ROUNDOFF`].
+    pub fn note_displacement(&mut self, change_squared: f64, displacement_squared: f64) {
+        self.at_roundoff = change_squared <= ROUNDOFF * ROUNDOFF * displacement_squared;
+    }
+
+    /// Whether [`STALL`] iterations have passed without a new smallest
+    /// change.
+    pub fn stalled(&self) -> bool {
+        self.since_smallest >= STALL
     }
 
     /// The estimate of a step that starts with the contraction `carried`
@@ -211,7 +255,7 @@ impl ErrorEstimate {
     /// estimate is 0, at most 1.
     pub fn relative(&self, distance: f64) -> f64 {
         let absolute = self.absolute();
-        if absolute == 0.0 {
+        if absolute == 0.0 || self.at_roundoff {
             0.0
         } else {
             absolute / (distance + absolute)

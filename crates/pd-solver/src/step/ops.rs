@@ -66,6 +66,8 @@ impl<'a> StepProblem<'a> {
     /// tolerance too.
     pub fn record_residual(&mut self, change_squared: f64, displacement_squared: f64) -> bool {
         self.estimate.record(change_squared);
+        self.estimate
+            .note_displacement(change_squared, displacement_squared);
         let ratio = (change_squared / displacement_squared).sqrt();
         // 0/0: a step that does not move at all has converged.
         self.stats.relative_change = if ratio.is_nan() && change_squared == 0.0 {
@@ -85,11 +87,13 @@ impl<'a> StepProblem<'a> {
                 self.stats.converged = true;
             }
         }
-        // A probed method past its time stops, unconverged.
+        // A probed method past its time stops, unconverged; so does an
+        // iteration that has stopped converging towards an accuracy target.
         let late = self
             .deadline
             .is_some_and(|d| std::time::Instant::now() >= d);
-        self.stats.converged || late
+        let stalled = accuracy > 0.0 && self.estimate.stalled();
+        self.stats.converged || late || stalled
     }
 }
 
