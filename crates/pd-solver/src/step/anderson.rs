@@ -31,6 +31,7 @@
 use pd_constraints::EnergyBound;
 use pd_mesh::Point;
 
+use super::estimate::Kept;
 use super::iteration::{PositionSolver, StepProblem};
 use super::ops::{difference, mass_dot};
 use super::ray::RayCheck;
@@ -237,6 +238,12 @@ impl PositionSolver for Anderson {
             let masses = step.masses();
             let change = mass_dot(masses, &self.residual[0], &self.residual[0]);
             let size = mass_dot(masses, &self.map[0], &self.map[0]);
+            if k > 0 {
+                // The map's contraction along the step (step/estimate.rs).
+                let images = [&self.map[0][..], &self.map[1]];
+                let residuals = [&self.residual[0][..], &self.residual[1]];
+                (step.estimate).note_step(masses, Kept::Images, images, residuals);
+            }
             let converged = step.record_residual(change, size);
             if converged || k + 1 == iterations {
                 if check && accelerated && !converged {

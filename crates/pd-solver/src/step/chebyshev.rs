@@ -43,6 +43,7 @@
 
 use pd_mesh::Point;
 
+use super::estimate::Kept;
 use super::iteration::{PositionSolver, StepProblem};
 use super::method::SpectralRadius;
 use super::ops::{difference, mass_dot};
@@ -71,8 +72,9 @@ pub struct Chebyshev {
     /// `x_{k-1}` and `x_k`.
     previous: Vec<Point>,
     current: Vec<Point>,
-    /// `G(x_k) - x_k`.
+    /// `G(x_k) - x_k` and `G(x_{k-1}) - x_{k-1}`.
     change: Vec<Point>,
+    change_before: Vec<Point>,
     /// The step's Krylov pairs, for `rho = "auto"`.
     ritz: RitzEstimator,
 }
@@ -88,6 +90,7 @@ impl Chebyshev {
             previous: Vec::new(),
             current: Vec::new(),
             change: Vec::new(),
+            change_before: Vec::new(),
             ritz: RitzEstimator::default(),
         }
     }
@@ -197,6 +200,7 @@ impl PositionSolver for Chebyshev {
             self.previous = vec![Point::zeros(); n];
             self.current = vec![Point::zeros(); n];
             self.change = vec![Point::zeros(); n];
+            self.change_before = vec![Point::zeros(); n];
         }
         step.record_objective();
         let auto = self.rho == SpectralRadius::Auto;
@@ -223,6 +227,7 @@ impl PositionSolver for Chebyshev {
             } else {
                 step.local_global_iteration();
             }
+            std::mem::swap(&mut self.change, &mut self.change_before);
             difference(step.displacement(), &self.current, &mut self.change);
             if auto {
                 self.ritz.solved(&step.buffers.rhs);
@@ -230,6 +235,12 @@ impl PositionSolver for Chebyshev {
             let masses = step.masses();
             let change = mass_dot(masses, &self.change, &self.change);
             let size = mass_dot(masses, step.displacement(), step.displacement());
+            if k > 0 {
+                // The map's contraction along the step (step/estimate.rs).
+                let iterates = [&self.current[..], &self.previous];
+                let residuals = [&self.change[..], &self.change_before];
+                (step.estimate).note_step(masses, Kept::Iterates, iterates, residuals);
+            }
             if step.record_residual(change, size) {
                 step.record_objective();
                 converged = true;

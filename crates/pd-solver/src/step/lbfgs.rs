@@ -33,6 +33,7 @@
 use pd_constraints::EnergyBound;
 use pd_mesh::Point;
 
+use super::estimate::Kept;
 use super::iteration::{PositionSolver, StepProblem};
 use super::materials::MaterialGradient;
 use super::ops::{difference, mass_dot};
@@ -246,6 +247,12 @@ impl PositionSolver for Lbfgs {
             let masses = step.masses();
             let change = mass_dot(masses, &self.update[0], &self.update[0]);
             let size = mass_dot(masses, step.displacement(), step.displacement());
+            if k > 0 {
+                // The map's contraction along the step (step/estimate.rs).
+                let iterates = [&self.iterate[0][..], &self.iterate[1]];
+                let residuals = [&self.update[0][..], &self.update[1]];
+                (step.estimate).note_step(masses, Kept::Iterates, iterates, residuals);
+            }
             let converged = step.record_residual(change, size);
             if converged || (k + 1 == iterations && !materials) {
                 if check && accelerated && !converged {
