@@ -2,9 +2,9 @@
 //! damping model over a matrix of extreme parameters and starting states,
 //! and writes `docs/reports/stability.md`.
 //!
-//! The rule checked for every run: it either completes sane (a finite state
-//! and finite energies, its total energy never above the divergence bound),
-//! or stops with `SolverError::Diverged`. A run that completes exploded (its
+//! The rule checked for every run: it either completes (a finite state and
+//! finite energies, its total energy never above the divergence bound), or
+//! stops with `SolverError::Diverged`. A run that completes exploded (its
 //! total energy above the solver's own divergence bound after some step
 //! that returned `Ok`: a bug in the check), a panic, a non-finite value
 //! after an `Ok` step, or another error is a bug and is listed in the
@@ -12,7 +12,15 @@
 //! counted and listed too: a stable solve restores an inverted start, so
 //! such a run is not called stable, but it is not a bug of the check (the
 //! divergence check bounds energy, and an inverted corotational element
-//! has bounded energy).
+//! has bounded energy). A completed run is "completed sane" unless it
+//! created energy where it should only dissipate, by the rule of the run
+//! summary's warning (`pd_io::recorder::AccuracyWatch::energy_created`,
+//! fed the same `metrics.csv` rows a run records): in backward Euler or
+//! BDF-2 with any damping, or implicit midpoint with a damping model, a
+//! rise of the total energy above its running minimum by more than 1% of
+//! the run's largest kinetic plus elastic energy. Such a run is counted
+//! under "energy created". Undamped implicit midpoint conserves energy
+//! rather than dissipating it, so its runs are not classified by this rule.
 //!
 //! The matrix (full / `--quick`):
 //! - stiffness (tet strain, Pa): 1e0, 1e3, 1e6, 1e9 / 1e0, 1e9;
@@ -44,6 +52,7 @@ use std::process::{Command, ExitCode};
 use std::sync::Mutex;
 
 use pd_damping::registry::{self, Preset, Value};
+use pd_io::recorder::{AccuracyWatch, ENERGY_WARNING, EnergyCreated, MetricsRow};
 use pd_io::scene::{ConstraintSpec, DampingSpec, IntegratorKind, MassSpec, Scene, Syntax};
 use pd_solver::{SolverError, State};
 
@@ -316,17 +325,57 @@ impl Case {
     }
 }
 
+/// The rule of the "energy created" heading, as the reports state it: the
+/// energy warning of a run's summary (`AccuracyWatch::energy_created`).
+pub(crate) fn energy_rule() -> String {
+    format!(
+        "A completed run is **completed sane** unless it **created energy**: in a setting \
+         that should only dissipate (backward Euler or BDF-2 with any damping, implicit \
+         midpoint with a damping model), its total energy (kinetic + elastic + \
+         gravitational) rose above its running minimum by more than {:.0}% of its largest \
+         kinetic plus elastic energy. Gravity's work is in the total as potential energy, \
+         and a fixed collider does no work, so no external work explains such a rise. This \
+         is the rule, and the code, of the energy warning of a run's `summary.json` \
+         (`energy_created_j`, `docs/guide/03-accuracy-and-solvers.md`). Undamped implicit \
+         midpoint conserves energy rather than dissipating it (its rises are exchange and \
+         round-off, not creation): its runs are not classified by this rule, and a \
+         completed one counts as completed sane.",
+        100.0 * ENERGY_WARNING
+    )
+}
+
 /// How a run ended.
 #[derive(Debug, Clone, PartialEq)]
 enum Ending {
     /// Every step ran; the state and energies are finite. `rise`: the
     /// largest `(E(t) - E(0)) / scale` over the run (0 if the energy never
-    /// rose above its start); `inverted`: elements inside out at the end.
-    Completed { rise: f64, inverted: usize },
+    /// rose above its start); `inverted`: elements inside out at the end;
+    /// `energy`: the energy the run created, as its summary's accuracy
+    /// watch measures it (`None` where the setting need not dissipate).
+    Completed {
+        rise: f64,
+        inverted: usize,
+        energy: Option<EnergyCreated>,
+    },
     /// Stopped with `SolverError::Diverged` at `step`, for `reason`.
     Diverged { step: usize, reason: String },
     /// A panic, a non-finite value after an `Ok` step, or another error.
     Bug(String),
+}
+
+impl Ending {
+    /// Whether the run completed but created energy where it should only
+    /// dissipate: the run summary's energy warning
+    /// ([`EnergyCreated::warns`]).
+    fn created_energy(&self) -> bool {
+        matches!(self, Self::Completed { energy: Some(e), .. } if e.warns())
+    }
+
+    /// Whether the run completed sane: every step ran and it created no
+    /// energy.
+    fn sane(&self) -> bool {
+        matches!(self, Self::Completed { .. }) && !self.created_energy()
+    }
 }
 
 fn finite(state: &State) -> bool {
@@ -380,26 +429,31 @@ fn run_case(case: &Case) -> Ending {
         }
         let mut rise = 0.0f64;
         let bound = sim.settings().divergence_energy_factor;
+        // The rows a run records, for the energy created (row 0: the start).
+        let mut watch = AccuracyWatch::default();
+        watch.observe(&MetricsRow::of(&sim, None));
         for _ in 0..STEPS {
             match sim.step() {
                 Ok(stats) => {
-                    let energy = sim.energies();
+                    let row = MetricsRow::of(&sim, Some(&stats));
                     if !finite(sim.state())
-                        || !energy.total().is_finite()
+                        || !row.total.is_finite()
                         || !stats.total_seconds.is_finite()
                     {
                         return Ok(Ending::Bug(format!(
-                            "non-finite output after step {}: energies {energy:?}",
-                            sim.steps()
+                            "non-finite output after step {}: energies {:?}",
+                            sim.steps(),
+                            sim.energies()
                         )));
                     }
-                    rise = rise.max((energy.total() - initial) / scale);
+                    watch.observe(&row);
+                    rise = rise.max((row.total - initial) / scale);
                     if rise > bound {
                         return Ok(Ending::Bug(format!(
                             "completed step {} exploded: total energy {:.3e} J is {rise:.3e} x \
                              the energy scale above its start, past the divergence bound {bound}",
                             sim.steps(),
-                            energy.total()
+                            row.total
                         )));
                     }
                 }
@@ -415,6 +469,7 @@ fn run_case(case: &Case) -> Ending {
         Ok(Ending::Completed {
             rise,
             inverted: inverted_elements(&sim),
+            energy: watch.energy_created(&sim),
         })
     }));
     match outcome {
@@ -511,7 +566,16 @@ impl Axes {
 #[derive(Debug, Clone, Copy, Default)]
 struct Tally {
     runs: usize,
-    completed: usize,
+    /// Completed runs that created no energy ([`Ending::sane`]).
+    sane: usize,
+    /// Completed runs that created energy ([`Ending::created_energy`]).
+    created: usize,
+    /// Completed runs the energy-created rule applies to (every run but
+    /// those of undamped implicit midpoint).
+    classified: usize,
+    /// The largest energy created among the completed runs, as a fraction
+    /// of the run's largest kinetic plus elastic energy.
+    largest_created: f64,
     /// Completed runs whose energy rose by more than `RISE_REPORTED`.
     rose: usize,
     /// The largest rise among the completed runs.
@@ -523,32 +587,68 @@ struct Tally {
 }
 
 impl Tally {
+    /// The tally of the `results` that `keep` selects.
+    fn of<'a>(
+        results: impl IntoIterator<Item = &'a (Case, Ending)>,
+        keep: impl Fn(&Case) -> bool,
+    ) -> Self {
+        let mut tally = Self::default();
+        for (case, ending) in results {
+            if keep(case) {
+                tally.add(ending);
+            }
+        }
+        tally
+    }
+
     fn add(&mut self, ending: &Ending) {
         self.runs += 1;
+        self.sane += usize::from(ending.sane());
+        self.created += usize::from(ending.created_energy());
         match ending {
-            Ending::Completed { rise, inverted } => {
-                self.completed += 1;
+            Ending::Completed {
+                rise,
+                inverted,
+                energy,
+            } => {
                 self.inverted += usize::from(*inverted > 0);
                 self.rose += usize::from(*rise > RISE_REPORTED);
                 self.largest_rise = self.largest_rise.max(*rise);
+                if let Some(energy) = energy {
+                    self.classified += 1;
+                    self.largest_created = self.largest_created.max(energy.fraction());
+                }
             }
             Ending::Diverged { .. } => self.diverged += 1,
             Ending::Bug(_) => self.bugs += 1,
         }
     }
 
-    /// `completed% (grew%)`, or `-` without runs; bugs are flagged.
+    /// The energy created as summary cells: the count and the largest
+    /// fraction in percent, or `-` where no completed run is classified.
+    fn created_cells(&self) -> String {
+        if self.classified == 0 {
+            return "- | -".into();
+        }
+        format!("{} | {:.1}", self.created, 100.0 * self.largest_created)
+    }
+
+    /// `sane% +created% (grew%)`, or `-` without runs; bugs are flagged.
     fn cell(&self) -> String {
         if self.runs == 0 {
             return "-".into();
         }
         let pct = |k: usize| 100.0 * k as f64 / self.runs as f64;
         // Truncated, not rounded: 3 failures in 2592 runs must not read 100.
-        let mut text = if self.completed == self.runs {
+        let mut text = if self.sane == self.runs {
             "100".to_string()
         } else {
-            format!("{:.1}", (pct(self.completed) * 10.0).floor() / 10.0)
+            format!("{:.1}", (pct(self.sane) * 10.0).floor() / 10.0)
         };
+        if self.created > 0 {
+            // Rounded up: 1 run in 2592 must not read 0.0.
+            write!(text, " +{:.1}", (pct(self.created) * 10.0).ceil() / 10.0).expect("infallible");
+        }
         if self.rose > 0 {
             write!(text, " ({:.1})", pct(self.rose)).expect("infallible");
         }
@@ -576,13 +676,16 @@ fn axis_table(
     writeln!(out, "|---|---|{}", "---|".repeat(labels.len())).expect("infallible");
     for integrator in IntegratorKind::ALL {
         for model in 0..presets().len() {
-            let mut tallies = vec![Tally::default(); labels.len()];
-            for (case, ending) in results {
-                if case.integrator == integrator && case.model == model {
-                    tallies[column_of(case)].add(ending);
-                }
-            }
-            let cells: Vec<String> = tallies.iter().map(Tally::cell).collect();
+            let cells: Vec<String> = (0..labels.len())
+                .map(|column| {
+                    Tally::of(results, |case| {
+                        case.integrator == integrator
+                            && case.model == model
+                            && column_of(case) == column
+                    })
+                    .cell()
+                })
+                .collect();
             writeln!(
                 out,
                 "| {} | {} |",
@@ -591,6 +694,39 @@ fn axis_table(
             )
             .expect("infallible");
         }
+    }
+}
+
+/// Writes the table `title` of the runs with the largest `figure` (a
+/// column headed `heading`, written by `format`): the first 12, then each
+/// integrator's own first 4, as the overall list is dominated by one
+/// integrator (docs/design/properties.md). Nothing without runs.
+fn largest_runs(
+    out: &mut String,
+    title: &str,
+    heading: &str,
+    mut runs: Vec<(&Case, f64)>,
+    format: impl Fn(f64) -> String,
+) {
+    if runs.is_empty() {
+        return;
+    }
+    runs.sort_by(|a, b| b.1.total_cmp(&a.1));
+    writeln!(
+        out,
+        "\n## {title}\n\n| {heading} | {} |\n|---|{}",
+        Case::COLUMNS,
+        "---|".repeat(Case::COLUMN_COUNT)
+    )
+    .expect("infallible");
+    let own = |integrator| {
+        runs.iter()
+            .filter(move |(case, _)| case.integrator == integrator)
+            .take(4)
+    };
+    let first = runs.iter().take(12);
+    for (case, figure) in first.chain(IntegratorKind::ALL.into_iter().flat_map(own)) {
+        writeln!(out, "| {} | {} |", format(*figure), case.cells()).expect("infallible");
     }
 }
 
@@ -655,29 +791,35 @@ fn run(root: &Path, quick: bool, mode: &shard::Mode) -> Result<PathBuf, String> 
         .map(|(index, ending)| (cases[index], ending))
         .collect();
 
+    let machine = crate::bench_report::machine();
     let mut out = String::new();
     writeln!(
         out,
         "# Stability at the extremes\n\n\
          Generated by `cargo xtask stability{}` ({} runs of {STEPS} steps, {seconds:.0} s on\n\
-         {threads} threads, {} build). Do not edit by hand: the matrix and the rules are in\n\
-         `xtask/src/stability.rs`; `docs/design/properties.md` explains how this relates to the tests.\n\n\
-         Every run must either complete sane (a finite state and energies, the total energy\n\
+         {threads} threads, CPU {} with {} logical cores, {} build). Do not edit by hand:\n\
+         the matrix and the rules are in `xtask/src/stability.rs`; `docs/design/properties.md`\n\
+         explains how this relates to the tests.\n\n\
+         Every run must either complete (a finite state and energies, the total energy\n\
          never above the divergence bound) or stop with the solver's divergence error\n\
          (`SolverError::Diverged`: a step fails when its total energy, kinetic + gravitational\n\
          + elastic, exceeds the initial energy by more than 1000 times the system's energy\n\
          scale, `docs/design/solver.md`). A run that completes exploded (above that bound: the check\n\
          missed it), a panic, a NaN or infinity after a step that returned `Ok`, or any other\n\
-         error is a bug, and the command fails. Runs that complete with elements still inside\n\
-         out are counted apart (\"ended inverted\"): not called stable, not a bug of the check.\n\n\
+         error is a bug, and the command fails.\n\n\
+         {}\n\n\
+         Every run is exactly one of completed sane, energy created, diverged or bug. Completed\n\
+         runs (sane or not) that end with elements still inside out are also counted apart\n\
+         (\"ended inverted\"): not called stable, not a bug of the check.\n\n\
          Matrix: stiffness {} Pa; time step {} s; density {} kg/m^3; damping\n\
          coefficient `c` {} (a rate in 1/s for ether drag, `a2` in s for Laplacian and\n\
          lagged Rayleigh, PBD factor `min(c, 1)`; `none` runs once per cell); iterations {};\n\
          starting state at rest, inverted (x mirrored: every tet inside out), compressed (x\n\
          scaled by 0.01), fast (100 m/s per vertex); bodies: {}. Gravity on.\n\n\
-         Each cell: the percentage of its runs that completed (the rest stopped with the\n\
-         divergence error), and in parentheses the percentage whose total energy rose, at some\n\
-         step, above its start by more than {RISE_REPORTED} of the energy scale (kinetic + elastic\n\
+         Each cell: the percentage of its runs that completed sane; after `+`, the percentage\n\
+         that completed but created energy (rounded up), when there are any; the rest stopped\n\
+         with the divergence error. In parentheses, the percentage whose total energy rose, at\n\
+         some step, above its start by more than {RISE_REPORTED} of the energy scale (kinetic + elastic\n\
          energy at the start, plus the work gravity does over the body's size, plus the kinetic\n\
          energy of moving the body by its size in 1 s), when there are any. The summary gives\n\
          the largest such rise in units of that scale; the divergence error fires at 1000.\n\
@@ -686,11 +828,10 @@ fn run(root: &Path, quick: bool, mode: &shard::Mode) -> Result<PathBuf, String> 
          (`docs/design/properties.md`).\n",
         if quick { " --quick" } else { "" },
         results.len(),
-        if cfg!(debug_assertions) {
-            "dev"
-        } else {
-            "release"
-        },
+        machine.cpu,
+        machine.logical_cores,
+        profile_name(),
+        energy_rule(),
         labels(&axes.stiffness).join(", "),
         labels(&axes.dt).join(", "),
         labels(&axes.density).join(", "),
@@ -716,26 +857,48 @@ fn run(root: &Path, quick: bool, mode: &shard::Mode) -> Result<PathBuf, String> 
         .iter()
         .filter(|(_, e)| matches!(e, Ending::Bug(_)))
         .collect();
-    writeln!(out, "\n## Summary\n").expect("infallible");
     writeln!(
         out,
-        "| integrator | model | runs | completed sane | energy rose > {RISE_REPORTED} x scale | largest rise (x scale) | ended inverted | diverged | bugs (incl. completed exploded) |\n|---|---|---|---|---|---|---|---|---|"
+        "\n## Summary\n\n\
+         | integrator | runs | completed sane | energy created | ended inverted | diverged | bugs |\n\
+         |---|---|---|---|---|---|---|"
+    )
+    .expect("infallible");
+    for integrator in IntegratorKind::ALL {
+        let t = Tally::of(&results, |case| case.integrator == integrator);
+        writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} | {} |",
+            integrator.name(),
+            t.runs,
+            t.sane,
+            t.created,
+            t.inverted,
+            t.diverged,
+            t.bugs
+        )
+        .expect("infallible");
+    }
+    writeln!(
+        out,
+        "\nBy damping model (\"largest created\": the largest energy created among the\n\
+         completed runs, in % of the run's largest kinetic plus elastic energy; `-` where\n\
+         the rule does not apply):\n\n\
+         | integrator | model | runs | completed sane | energy created | largest created (%) | energy rose > {RISE_REPORTED} x scale | largest rise (x scale) | ended inverted | diverged | bugs (incl. completed exploded) |\n|---|---|---|---|---|---|---|---|---|---|---|"
     )
     .expect("infallible");
     for integrator in IntegratorKind::ALL {
         for model in 0..presets().len() {
-            let mut t = Tally::default();
-            for (case, ending) in &results {
-                if case.integrator == integrator && case.model == model {
-                    t.add(ending);
-                }
-            }
+            let t = Tally::of(&results, |case| {
+                case.integrator == integrator && case.model == model
+            });
             writeln!(
                 out,
-                "| {} | {} | {} | {} | {:.3} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {:.3} | {} | {} | {} |",
                 row_label(integrator, model),
                 t.runs,
-                t.completed,
+                t.sane,
+                t.created_cells(),
                 t.rose,
                 t.largest_rise,
                 t.inverted,
@@ -758,38 +921,37 @@ fn run(root: &Path, quick: bool, mode: &shard::Mode) -> Result<PathBuf, String> 
         }
     }
 
-    let mut rises: Vec<(&Case, f64)> = results
+    let created: Vec<(&Case, f64)> = results
+        .iter()
+        .filter_map(|(case, ending)| match ending {
+            Ending::Completed {
+                energy: Some(energy),
+                ..
+            } if ending.created_energy() => Some((case, 100.0 * energy.fraction())),
+            _ => None,
+        })
+        .collect();
+    largest_runs(
+        &mut out,
+        "The runs that created the most energy",
+        "created (% of kinetic + elastic)",
+        created,
+        |x| format!("{x:.1}"),
+    );
+    let rises: Vec<(&Case, f64)> = results
         .iter()
         .filter_map(|(case, ending)| match ending {
             Ending::Completed { rise, .. } if *rise > RISE_REPORTED => Some((case, *rise)),
             _ => None,
         })
         .collect();
-    rises.sort_by(|a, b| b.1.total_cmp(&a.1));
-    if !rises.is_empty() {
-        writeln!(
-            out,
-            "\n## The largest energy rises\n\n| rise (x scale) | {} |\n|---|{}",
-            Case::COLUMNS,
-            "---|".repeat(Case::COLUMN_COUNT)
-        )
-        .expect("infallible");
-        for (case, rise) in rises.iter().take(12) {
-            writeln!(out, "| {rise:.3e} | {} |", case.cells()).expect("infallible");
-        }
-        // The overall list is dominated by one integrator; each one's own
-        // largest rises show where it gains energy (docs/design/properties.md).
-        for integrator in IntegratorKind::ALL {
-            let own: Vec<_> = rises
-                .iter()
-                .filter(|(case, _)| case.integrator == integrator)
-                .take(4)
-                .collect();
-            for (case, rise) in own {
-                writeln!(out, "| {rise:.3e} | {} |", case.cells()).expect("infallible");
-            }
-        }
-    }
+    largest_runs(
+        &mut out,
+        "The largest energy rises",
+        "rise (x scale)",
+        rises,
+        |x| format!("{x:.3e}"),
+    );
 
     let diverged: Vec<(&Case, usize, &str)> = results
         .iter()

@@ -31,7 +31,7 @@ mod accuracy;
 mod metrics;
 mod resume;
 
-pub use accuracy::AccuracyWatch;
+pub use accuracy::{AccuracyWatch, ENERGY_WARNING, EnergyCreated};
 pub use metrics::MetricsRow;
 
 use std::fs::File;

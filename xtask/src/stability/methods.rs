@@ -1,9 +1,11 @@
 //! `cargo xtask stability --only methods`: the stability map's method axis.
 //! Runs every iteration method (local-global as the baseline,
 //! anderson, chebyshev, lbfgs, newton) over a reduced stability matrix and
-//! writes `docs/reports/stability-methods.md`: for each method, how its runs ended,
-//! and every case where it diverged (or hit a bug) while plain PD with the
-//! same budget completed.
+//! writes `docs/reports/stability-methods.md`: for each method, how its runs ended
+//! (completed sane, energy created, diverged, bug: the headings of
+//! `stability.rs`), and every case where it ended worse than plain PD with
+//! the same budget (completed sane, then energy created, then diverged or
+//! a bug).
 //!
 //! Reduced matrix (the full one is ~74,000 runs per method): every
 //! integrator; damping `none`, `laplacian` and `ether-drag` (`rayleigh-lagged`
@@ -31,7 +33,7 @@ use std::time::Instant;
 use pd_io::scene::IntegratorKind;
 use pd_solver::{Predictor, SolverMethod};
 
-use super::{Body, Case, Ending, Start, presets, run_case};
+use super::{Body, Case, Ending, Start, Tally, presets, run_case};
 
 /// The damping presets of the method axis, by name.
 const MODELS: [&str; 3] = ["none", "laplacian", "ether-drag"];
@@ -75,6 +77,35 @@ fn cases(
         }
     }
     cases
+}
+
+/// How well a run ended, for comparing a method with plain PD: completed
+/// sane (2) above energy created (1) above stopped by the divergence
+/// check or a bug (0).
+fn rank(ending: &Ending) -> u8 {
+    if ending.sane() {
+        2
+    } else if ending.created_energy() {
+        1
+    } else {
+        0
+    }
+}
+
+/// How a run ended, as a report's table cell.
+fn describe(ending: &Ending) -> String {
+    match ending {
+        Ending::Diverged { step, reason } => format!("diverged at step {step}: {reason}"),
+        Ending::Bug(e) => format!("bug: {e}"),
+        Ending::Completed {
+            energy: Some(energy),
+            ..
+        } if ending.created_energy() => format!(
+            "energy created: {:.2}% of its largest kinetic plus elastic energy",
+            100.0 * energy.fraction()
+        ),
+        Ending::Completed { .. } => "completed sane".into(),
+    }
 }
 
 /// The predictor `--predictor NAME` in `args` selects (inertial without
@@ -156,36 +187,28 @@ pub(super) fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
         } else {
             cases.iter().map(run_case).collect()
         };
-        let (mut completed, mut diverged, mut bugs, mut inverted) = (0, 0, 0, 0);
+        let mut tally = Tally::default();
         for (case, (ending, plain)) in cases.iter().zip(endings.iter().zip(&baseline)) {
-            match ending {
-                Ending::Completed { inverted: i, .. } => {
-                    completed += 1;
-                    inverted += usize::from(*i > 0);
-                }
-                Ending::Diverged { .. } => diverged += 1,
-                Ending::Bug(_) => bugs += 1,
-            }
-            let plain_ok = matches!(plain, Ending::Completed { .. });
-            if plain_ok && !matches!(ending, Ending::Completed { .. }) {
+            tally.add(ending);
+            if rank(ending) < rank(plain) {
                 worse_count += 1;
-                let what = match ending {
-                    Ending::Diverged { step, reason } => {
-                        format!("diverged at step {step}: {reason}")
-                    }
-                    Ending::Bug(e) => format!("bug: {e}"),
-                    Ending::Completed { .. } => unreachable!(),
-                };
-                let _ = writeln!(worse, "| {name} | {} | {what} |", case.cells());
+                let _ = writeln!(
+                    worse,
+                    "| {name} | {} | {} | {} |",
+                    case.cells(),
+                    describe(plain),
+                    describe(ending)
+                );
             }
         }
         let _ = writeln!(
             rows,
-            "| {name} | {} | {completed} | {inverted} | {diverged} | {bugs} |",
-            cases.len()
+            "| {name} | {} | {} | {} | {} | {} | {} |",
+            tally.runs, tally.sane, tally.created, tally.inverted, tally.diverged, tally.bugs
         );
     }
     let seconds = started.elapsed().as_secs_f64();
+    let machine = crate::bench_report::machine();
     let (mut title, mut command, which) = if integrators.len() == IntegratorKind::ALL.len() {
         (String::new(), String::new(), "every integrator".to_string())
     } else {
@@ -212,13 +235,19 @@ pub(super) fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
          1e3); stiffness 1, 1e6, 1e9 Pa; dt 1e-5, 0.1 s; density 1, 1e5 kg/m^3; 10 and 200 \
          iterations; every start (rest, inverted, compressed, fast); the clamped beam and the \
          pinned cloth; 100 steps. `rayleigh-lagged` is left out: lbfgs and newton refuse it by \
-         design (docs/design/solver.md).\n\n\
-         | method | runs | completed | completed with inverted elements | stopped by the \
-         divergence check | bugs |\n|---|---|---|---|---|---|\n{rows}\n\
+         design (docs/design/solver.md). CPU {cpu} with {cores} logical cores.\n\n\
+         {rule} \"Completed with inverted elements\" counts the completed runs, sane or not, \
+         that ended with an element inside out.\n\n\
+         | method | runs | completed sane | energy created | completed with inverted elements \
+         | stopped by the divergence check | bugs |\n|---|---|---|---|---|---|---|\n{rows}\n\
          ## Where a method does worse than plain PD\n\n\
-         Cases where plain local-global PD with the same budget completed and the method did \
-         not: {worse_count}.\n",
+         Cases where the method ended worse than plain local-global PD with the same budget \
+         (completed sane, then energy created, then stopped by the divergence check or a bug): \
+         {worse_count}.\n",
         profile = super::profile_name(),
+        cpu = machine.cpu,
+        rule = super::energy_rule(),
+        cores = machine.logical_cores,
     );
     if predictor != Predictor::Inertial {
         let _ = writeln!(
@@ -232,7 +261,7 @@ pub(super) fn run(root: &Path, args: &[String]) -> Result<PathBuf, String> {
     if worse_count > 0 {
         let _ = writeln!(
             out,
-            "\n| method | {} | ending |\n|{}---|---|\n{worse}",
+            "\n| method | {} | plain PD | the method |\n|{}---|---|---|\n{worse}",
             Case::COLUMNS,
             "---|".repeat(Case::COLUMN_COUNT)
         );

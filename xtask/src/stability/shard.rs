@@ -12,6 +12,7 @@
 
 use std::path::{Path, PathBuf};
 
+use pd_io::recorder::EnergyCreated;
 use serde_json::{Value, json};
 
 use super::Ending;
@@ -73,8 +74,13 @@ impl Mode {
 
 fn ending_to_json(ending: &Ending) -> Value {
     match ending {
-        Ending::Completed { rise, inverted } => {
-            json!({ "completed": rise, "inverted": inverted })
+        Ending::Completed {
+            rise,
+            inverted,
+            energy,
+        } => {
+            let energy = energy.map(|e| json!([e.created, e.largest]));
+            json!({ "completed": rise, "inverted": inverted, "energy_created": energy })
         }
         Ending::Diverged { step, reason } => {
             json!({ "diverged": { "step": step, "reason": reason } })
@@ -85,9 +91,19 @@ fn ending_to_json(ending: &Ending) -> Value {
 
 fn ending_from_json(value: &Value) -> Option<Ending> {
     if let Some(rise) = value.get("completed") {
+        // `[created, largest]` in J, or null where the rule does not apply;
+        // a file without the field (an older xtask's) is refused.
+        let energy = match value.get("energy_created")? {
+            Value::Null => None,
+            pair => Some(EnergyCreated {
+                created: pair.get(0)?.as_f64()?,
+                largest: pair.get(1)?.as_f64()?,
+            }),
+        };
         return Some(Ending::Completed {
             rise: rise.as_f64()?,
             inverted: usize::try_from(value.get("inverted")?.as_u64()?).ok()?,
+            energy,
         });
     }
     if let Some(diverged) = value.get("diverged") {
@@ -218,6 +234,10 @@ mod tests {
             Ending::Completed {
                 rise: 0.1 + 0.2,
                 inverted: 3,
+                energy: Some(EnergyCreated {
+                    created: 0.1 + 0.7,
+                    largest: 1e-300,
+                }),
             },
             Ending::Diverged {
                 step: 7,
@@ -227,10 +247,15 @@ mod tests {
             Ending::Completed {
                 rise: 0.0,
                 inverted: 0,
+                energy: None,
             },
             Ending::Completed {
                 rise: 1e-300,
                 inverted: 0,
+                energy: Some(EnergyCreated {
+                    created: 0.0,
+                    largest: 2.5,
+                }),
             },
         ];
         let total = endings.len();

@@ -31,6 +31,37 @@ pub const ERROR_WARNING: f64 = 0.1;
 /// elastic energy, above which a run is warned about.
 pub const ENERGY_WARNING: f64 = 0.01;
 
+/// The energy a run created in a setting that should only dissipate
+/// (`energy_created_j` above), against its largest kinetic plus elastic
+/// energy: what the energy warning of `summary.json` and the stability
+/// maps' "energy created" heading both read
+/// ([`AccuracyWatch::energy_created`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EnergyCreated {
+    /// The largest rise of the total energy above its running minimum, J.
+    pub created: f64,
+    /// The run's largest kinetic plus elastic energy so far, J.
+    pub largest: f64,
+}
+
+impl EnergyCreated {
+    /// The energy created as a fraction of the largest kinetic plus
+    /// elastic energy (0 when none was created).
+    pub fn fraction(&self) -> f64 {
+        if self.created > 0.0 {
+            self.created / self.largest
+        } else {
+            0.0
+        }
+    }
+
+    /// Whether the energy created is above [`ENERGY_WARNING`] of the
+    /// largest kinetic plus elastic energy: the run is warned about.
+    pub fn warns(&self) -> bool {
+        self.created > ENERGY_WARNING * self.largest
+    }
+}
+
 /// What the rows so far say about the run's accuracy.
 #[derive(Debug, Clone, Default)]
 pub struct AccuracyWatch {
@@ -82,9 +113,15 @@ impl AccuracyWatch {
         self.errors.iter().copied().fold(f64::NAN, f64::max)
     }
 
-    /// The energy created (J) in a setting that should only dissipate.
-    fn energy_created(&self, sim: &Simulation) -> Option<f64> {
-        (Self::dissipative(sim) && self.minimum.is_some()).then_some(self.created)
+    /// The energy created in a setting that should only dissipate, with
+    /// the largest kinetic plus elastic energy it is measured against;
+    /// `None` in other settings (undamped implicit midpoint) or before
+    /// row 0. `sim`: the run the rows are of (its integrator and damping).
+    pub fn energy_created(&self, sim: &Simulation) -> Option<EnergyCreated> {
+        (Self::dissipative(sim) && self.minimum.is_some()).then_some(EnergyCreated {
+            created: self.created,
+            largest: self.largest,
+        })
     }
 
     /// The warnings of the run, each a sentence that names the measured
@@ -123,15 +160,16 @@ impl AccuracyWatch {
                 sim.position_solver_name(),
             ));
         }
-        if let Some(created) = self.energy_created(sim)
-            && created > ENERGY_WARNING * self.largest
+        if let Some(energy) = self.energy_created(sim)
+            && energy.warns()
         {
             warnings.push(format!(
-                "the run created {created:.3e} J of energy ({:.1}% of its largest kinetic plus \
+                "the run created {:.3e} J of energy ({:.1}% of its largest kinetic plus \
                  elastic energy, {:.3e} J) where {} with damping `{}` should only dissipate: \
                  the steps are not converged enough; {remedy}",
-                100.0 * created / self.largest,
-                self.largest,
+                energy.created,
+                100.0 * energy.fraction(),
+                energy.largest,
                 sim.integrator_name(),
                 sim.damping_name(),
             ));
@@ -147,7 +185,7 @@ impl AccuracyWatch {
             "target": (target > 0.0).then_some(target),
             "estimated_error_median": number(median(&self.errors)),
             "estimated_error_max": number(self.largest_error()),
-            "energy_created_j": self.energy_created(sim),
+            "energy_created_j": self.energy_created(sim).map(|e| e.created),
             "largest_kinetic_plus_elastic_j": self.largest,
             "method": sim.position_solver_name(),
             // How each candidate fared when the method was chosen by
