@@ -53,17 +53,6 @@ fn simulation(model: Model, method: SolverMethod, tolerance: f64, iterations: us
         .unwrap()
 }
 
-/// `|a - b|_M` over the free vertices.
-fn mass_distance(sim: &Simulation, a: &[Point], b: &[Point]) -> f64 {
-    let model = sim.model();
-    (model.masses().iter().zip(model.fixed()))
-        .zip(a.iter().zip(b))
-        .filter(|((_, fixed), _)| !**fixed)
-        .map(|((m, _), (a, b))| m * (a - b).norm_squared())
-        .sum::<f64>()
-        .sqrt()
-}
-
 /// One step of `sim` and the same step solved to convergence by
 /// `reference` from the same state: the step's statistics and its true
 /// relative error `|x - x*|_M / |y - x*|_M`.
@@ -78,7 +67,8 @@ fn step_against_reference(sim: &mut Simulation, reference: &mut Simulation) -> (
     reference.step().unwrap();
     let stats = sim.step().unwrap();
     let exact = &reference.state().positions;
-    let truth = mass_distance(sim, &sim.state().positions, exact) / mass_distance(sim, &y, exact);
+    let model = sim.model();
+    let truth = model.mass_distance(&sim.state().positions, exact) / model.mass_distance(&y, exact);
     (stats, truth)
 }
 
