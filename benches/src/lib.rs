@@ -21,6 +21,7 @@ use pd_integrators::registry as integrators;
 use pd_mesh::{Mesh, Point};
 use pd_solver::{Model, Settings, Simulation};
 
+pub mod accuracy_target;
 pub mod contact;
 pub mod methods;
 mod options;

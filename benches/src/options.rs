@@ -69,12 +69,16 @@ impl<'a> Options<'a> {
         }
     }
 
-    /// The comma-separated counts after `name`, or `default` without
-    /// `name`.
+    /// The comma-separated values (counts, numbers) after `name`, or
+    /// `default` without `name`.
     ///
     /// # Errors
     /// An entry that does not parse, naming the option.
-    pub fn list(&self, name: &str, default: &[usize]) -> Result<Vec<usize>, String> {
+    pub fn list<T: std::str::FromStr + Clone>(
+        &self,
+        name: &str,
+        default: &[T],
+    ) -> Result<Vec<T>, String> {
         match self.value(name) {
             None => Ok(default.to_vec()),
             Some(text) => text
@@ -100,7 +104,10 @@ mod tests {
             .map(|s| s.to_string())
             .collect();
         let options = Options::new(&args);
-        assert_eq!(options.list("--cells", &[]).unwrap(), vec![4, 2, 2]);
+        assert_eq!(
+            options.list::<usize>("--cells", &[]).unwrap(),
+            vec![4, 2, 2]
+        );
         assert_eq!(options.parse("--dt", 1.0).unwrap(), 0.5);
         assert_eq!(options.parse("--steps", 7).unwrap(), 7);
         assert!(options.flag("--quiet") && !options.flag("--loud"));
@@ -115,6 +122,8 @@ mod tests {
                 .unwrap_err()
                 .contains("--dt")
         );
-        assert!(options.list("--dt", &[]).is_err());
+        assert!(options.list::<usize>("--dt", &[]).is_err());
+        assert_eq!(options.list("--dt", &[1.0]).unwrap(), vec![0.5]);
+        assert_eq!(options.list("--targets", &[0.01]).unwrap(), vec![0.01]);
     }
 }

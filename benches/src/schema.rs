@@ -405,3 +405,296 @@ pub struct MethodsRow {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
 }
+
+/// A list of numbers read from JSON, NaN for each `null`: the
+/// `deserialize_with` of the per-step lists here.
+///
+/// # Errors
+/// A value that is not a list of numbers and `null`s.
+pub fn numbers<'de, D: Deserializer<'de>>(deserializer: D) -> Result<Vec<f64>, D::Error> {
+    Ok(Vec::<Option<f64>>::deserialize(deserializer)?
+        .into_iter()
+        .map(|x| x.unwrap_or(f64::NAN))
+        .collect())
+}
+
+/// `pd-probe accuracy-target`: per iteration method, what an accuracy
+/// target costs and delivers on one scene, and the method the automatic
+/// choice picks (`crate::accuracy_target`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct AccuracyTarget {
+    /// The scene's label (`beam 2304`, `cloth strip`, `armadillo`, ...).
+    pub scene: String,
+    /// What the scene is, in a sentence.
+    pub description: String,
+    /// Vertices.
+    pub n_verts: usize,
+    /// Time step (s).
+    #[serde(default = "nan", deserialize_with = "number")]
+    pub dt: f64,
+    /// Steps of each method before the measured ones.
+    pub warmup: usize,
+    /// Measured steps of each method.
+    pub steps: usize,
+    /// The iteration cap of a step (`[simulation] iterations`).
+    pub iteration_cap: usize,
+    /// The method of the reference solution of each measured step.
+    pub reference_method: String,
+    /// Its relative residual.
+    #[serde(default = "nan", deserialize_with = "number")]
+    pub reference_tolerance: f64,
+    /// Reference steps that stopped at their cap above that residual.
+    pub reference_unconverged_steps: usize,
+    /// Median iterations of a reference step.
+    #[serde(default = "nan", deserialize_with = "number")]
+    pub reference_iterations_median: f64,
+    /// One entry per accuracy target.
+    pub targets: Vec<TargetRun>,
+    /// Wall time of the whole measurement (s).
+    #[serde(default = "nan", deserialize_with = "number")]
+    pub wall_seconds: f64,
+}
+
+/// One accuracy target of [`AccuracyTarget`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TargetRun {
+    /// The target (`[simulation] accuracy`).
+    #[serde(default = "nan", deserialize_with = "number")]
+    pub target: f64,
+    /// The automatic choice at the scene's initial state.
+    pub choice: TargetChoice,
+    /// Every method, in the order of `pd_solver::SolverMethod::ALL`.
+    pub methods: Vec<TargetMethod>,
+}
+
+/// What `Simulation::choose_method` chose and what its probe cost.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TargetChoice {
+    /// The chosen method.
+    pub chosen: String,
+    /// Whether some candidate met the target on every probe step (else
+    /// the choice is the default).
+    pub measured: bool,
+    /// Wall time of the whole probe (ms).
+    #[serde(default = "nan", deserialize_with = "number")]
+    pub probe_ms: f64,
+    /// Every candidate, in the order probed.
+    pub candidates: Vec<TargetCandidate>,
+}
+
+/// One candidate of [`TargetChoice`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TargetCandidate {
+    /// The method.
+    pub method: String,
+    /// `measured`, `excluded`, `slower`, `missed-target` or `failed`.
+    pub outcome: String,
+    /// Mean time of its timed probe steps (ms), when measured.
+    #[serde(
+        default,
+        deserialize_with = "optional_number",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub step_ms: Option<f64>,
+    /// Mean iterations of its timed probe steps, when measured.
+    #[serde(
+        default,
+        deserialize_with = "optional_number",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub iterations: Option<f64>,
+    /// The probe's own line for it (`ProbeResult::describe`).
+    pub text: String,
+}
+
+/// One method at one target of [`AccuracyTarget`]: its measured steps, one
+/// entry per step in each list. A method that cannot run the scene has only
+/// `excluded`; one that failed has `error` and the steps before.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TargetMethod {
+    /// The method.
+    pub method: String,
+    /// Why it cannot run the scene.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub excluded: Option<String>,
+    /// The error that stopped it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+    /// Wall time of each step (ms).
+    #[serde(default, deserialize_with = "numbers")]
+    pub step_ms: Vec<f64>,
+    /// Iterations of each step.
+    #[serde(default)]
+    pub iterations: Vec<usize>,
+    /// Whether each step met the target (its estimate at most the target
+    /// within the cap).
+    #[serde(default)]
+    pub met_target: Vec<bool>,
+    /// The step's own estimate of its relative error.
+    #[serde(default, deserialize_with = "numbers")]
+    pub estimated_error: Vec<f64>,
+    /// The step's true relative error, against the reference.
+    #[serde(default, deserialize_with = "numbers")]
+    pub true_error: Vec<f64>,
+}
+
+/// True errors at or below this are not compared with the estimate: there
+/// the reference's own error counts (Newton's steps end far below any
+/// target).
+pub const TRUE_ERROR_FLOOR: f64 = 1e-6;
+
+/// What a [`TargetMethod`]'s steps add up to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TargetSummary {
+    /// Measured steps.
+    pub steps: usize,
+    /// Median step (ms).
+    pub step_ms_median: f64,
+    /// Median iterations.
+    pub iterations_median: f64,
+    /// Median true error.
+    pub true_error_median: f64,
+    /// Largest true error.
+    pub true_error_max: f64,
+    /// Steps whose estimate met the target.
+    pub met_target: usize,
+    /// Steps whose true error is at most the target.
+    pub true_within_target: usize,
+    /// Steps whose true error is above [`TRUE_ERROR_FLOOR`]: those whose
+    /// ratio estimate / truth is counted.
+    pub compared: usize,
+    /// Median of estimate / truth over the compared steps.
+    pub ratio_median: f64,
+    /// Smallest of them (the worst under-report).
+    pub ratio_min: f64,
+    /// Largest of them.
+    pub ratio_max: f64,
+    /// Compared steps whose estimate is below the truth.
+    pub below_one: usize,
+    /// Compared steps whose estimate is below half the truth.
+    pub below_half: usize,
+}
+
+impl TargetMethod {
+    /// A method that cannot run the scene, and why.
+    pub fn excluded(method: &str, reason: String) -> Self {
+        Self {
+            method: method.into(),
+            excluded: Some(reason),
+            error: None,
+            step_ms: Vec::new(),
+            iterations: Vec::new(),
+            met_target: Vec::new(),
+            estimated_error: Vec::new(),
+            true_error: Vec::new(),
+        }
+    }
+
+    /// The summary of the steps against `target`; `None` without steps.
+    pub fn summary(&self, target: f64) -> Option<TargetSummary> {
+        if self.step_ms.is_empty() {
+            return None;
+        }
+        let median = pd_io::stats::median;
+        let ratios: Vec<f64> = (self.estimated_error.iter().zip(&self.true_error))
+            .filter(|(_, t)| **t > TRUE_ERROR_FLOOR)
+            .map(|(e, t)| e / t)
+            .collect();
+        let iterations: Vec<f64> = self.iterations.iter().map(|&i| i as f64).collect();
+        Some(TargetSummary {
+            steps: self.step_ms.len(),
+            step_ms_median: median(&self.step_ms),
+            iterations_median: median(&iterations),
+            true_error_median: median(&self.true_error),
+            true_error_max: self.true_error.iter().copied().fold(f64::NAN, f64::max),
+            met_target: self.met_target.iter().filter(|m| **m).count(),
+            true_within_target: self.true_error.iter().filter(|t| **t <= target).count(),
+            compared: ratios.len(),
+            ratio_median: median(&ratios),
+            ratio_min: ratios.iter().copied().fold(f64::NAN, f64::min),
+            ratio_max: ratios.iter().copied().fold(f64::NAN, f64::max),
+            below_one: ratios.iter().filter(|r| **r < 1.0).count(),
+            below_half: ratios.iter().filter(|r| **r < 0.5).count(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A method at a target, with a step whose true error is below the
+    /// floor and one whose true error is not a number.
+    fn method() -> TargetMethod {
+        TargetMethod {
+            method: "anderson".into(),
+            excluded: None,
+            error: None,
+            step_ms: vec![2.0, 1.0, 4.0],
+            iterations: vec![5, 6, 9],
+            met_target: vec![true, true, false],
+            estimated_error: vec![0.004, 0.008, 0.02],
+            true_error: vec![0.01, 1e-9, f64::NAN],
+        }
+    }
+
+    /// `pd-probe accuracy-target`'s output writes and reads back as it
+    /// was, a NaN as `null` and back.
+    #[test]
+    fn an_accuracy_target_run_round_trips() {
+        let run = AccuracyTarget {
+            scene: "beam 20".into(),
+            reference_tolerance: f64::NAN,
+            targets: vec![TargetRun {
+                target: 0.01,
+                choice: TargetChoice {
+                    chosen: "anderson".into(),
+                    measured: true,
+                    probe_ms: 12.5,
+                    candidates: vec![
+                        TargetCandidate {
+                            method: "anderson".into(),
+                            outcome: "measured".into(),
+                            step_ms: Some(1.5),
+                            iterations: Some(5.0),
+                            text: "anderson: 1.500 ms a step".into(),
+                        },
+                        TargetCandidate {
+                            method: "newton".into(),
+                            outcome: "slower".into(),
+                            step_ms: None,
+                            iterations: None,
+                            text: "newton: stopped".into(),
+                        },
+                    ],
+                },
+                methods: vec![method(), TargetMethod::excluded("lbfgs", "no".into())],
+            }],
+            ..AccuracyTarget::default()
+        };
+        let text = serde_json::to_string(&run).unwrap();
+        assert!(text.contains("null"), "{text}");
+        let back: AccuracyTarget = serde_json::from_str(&text).unwrap();
+        assert!(back.reference_tolerance.is_nan());
+        assert!(back.targets[0].methods[0].true_error[2].is_nan());
+        // NaN is not equal to itself: compare the text written again.
+        assert_eq!(serde_json::to_string(&back).unwrap(), text);
+        let excluded = &back.targets[0].methods[1];
+        assert_eq!(excluded.excluded.as_deref(), Some("no"));
+        assert!(excluded.summary(0.01).is_none());
+    }
+
+    /// The summary counts ratios only above the floor, and the target
+    /// met by the estimate and by the truth separately.
+    #[test]
+    fn the_summary_of_a_method_counts_what_it_says() {
+        let s = method().summary(0.01).unwrap();
+        assert_eq!((s.steps, s.met_target, s.true_within_target), (3, 2, 2));
+        assert_eq!((s.step_ms_median, s.iterations_median), (2.0, 6.0));
+        // Only the first step is compared: 0.004 / 0.01.
+        assert_eq!((s.compared, s.below_one, s.below_half), (1, 1, 1));
+        assert!((s.ratio_median - 0.4).abs() < 1e-12);
+        assert_eq!(s.ratio_min, s.ratio_max);
+        assert_eq!(s.true_error_max, 0.01);
+    }
+}

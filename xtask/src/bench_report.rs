@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use pd_benches::schema::{Accuracy, AccuracyRow, Contact, Overhead, Phases, Step};
+use pd_benches::schema::{Accuracy, AccuracyRow, AccuracyTarget, Contact, Overhead, Phases, Step};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -33,6 +33,14 @@ pub struct Machine {
     pub memory_gib: Option<f64>,
     /// The first line of `/proc/pressure/cpu`, if there is one.
     pub cpu_pressure: Option<String>,
+    /// The widest SIMD instructions pd's kernels dispatch to here
+    /// (`AVX-512`, `AVX2` or `none`), if known.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub simd: Option<String>,
+    /// The 1-, 5- and 15-minute load averages of `/proc/loadavg`, if
+    /// known.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub load_average: Option<String>,
 }
 
 /// One pair of `pd-probe phases` runs, on 1 and on 2 threads.
@@ -53,6 +61,8 @@ struct LocalSpeedup {
 struct Report {
     limits: Value,
     methods: Vec<MethodsRun>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    accuracy_target: Vec<AccuracyTarget>,
     contact: Vec<Contact>,
     mode: String,
     commit: String,
@@ -195,12 +205,33 @@ pub fn machine() -> Machine {
     let pressure = std::fs::read_to_string("/proc/pressure/cpu")
         .ok()
         .and_then(|t| t.lines().next().map(str::to_string));
+    let load_average = std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .map(|t| t.split_whitespace().take(3).collect::<Vec<_>>().join(" "));
     Machine {
         cpu,
         logical_cores: cores,
         memory_gib,
         cpu_pressure: pressure,
+        simd: Some(simd().into()),
+        load_average,
     }
+}
+
+/// The widest instructions `pd_linalg::simd::dispatch` runs here: AVX-512
+/// (F, DQ and VL: 8 f64 lanes), else AVX2 (with FMA: 4 lanes), else none.
+fn simd() -> &'static str {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::is_x86_feature_detected as has;
+        if has!("avx512f") && has!("avx512dq") && has!("avx512vl") {
+            return "AVX-512 (8 f64 lanes)";
+        }
+        if has!("avx2") && has!("fma") {
+            return "AVX2 (4 f64 lanes)";
+        }
+    }
+    "none (plain path)"
 }
 
 fn command_output(program: &str, arguments: &[&str], root: &Path) -> Option<String> {
@@ -359,12 +390,15 @@ pub fn run(root: &Path, quick: bool, meshes: &[PathBuf]) -> Result<PathBuf, Stri
     crate::bench_limits::flag_speedups(&mut limits, "local step", &pair_speedups);
     eprintln!("iteration methods...");
     let methods = crate::bench_methods::measure(&p, quick)?;
+    eprintln!("speed against an accuracy target...");
+    let accuracy_target = crate::bench_accuracy_target::measure(&p, quick, meshes)?;
     eprintln!("contact...");
     let contact = crate::bench_contact::measure(&p, quick)?;
 
     let report = Report {
         limits,
         methods,
+        accuracy_target,
         contact,
         mode: if quick { "quick" } else { "full" }.into(),
         commit,
@@ -478,6 +512,9 @@ fn markdown(r: &Report) -> String {
     );
     let _ = writeln!(md, "| | |\n| --- | --- |");
     let _ = writeln!(md, "| CPU | {} |", m.cpu);
+    if let Some(simd) = &m.simd {
+        let _ = writeln!(md, "| SIMD | {simd} |");
+    }
     let _ = writeln!(md, "| logical cores | {} |", m.logical_cores);
     let _ = writeln!(
         md,
@@ -492,6 +529,12 @@ fn markdown(r: &Report) -> String {
         m.cpu_pressure.as_deref().unwrap_or("n/a"),
         r.machine_after.cpu_pressure.as_deref().unwrap_or("n/a")
     );
+    if let (Some(before), Some(after)) = (&m.load_average, &r.machine_after.load_average) {
+        let _ = writeln!(
+            md,
+            "| load average (1, 5, 15 min) before / after | {before} / {after} |"
+        );
+    }
     let _ = writeln!(
         md,
         "| wall time of the report | {:.0} s |\n",
@@ -584,6 +627,9 @@ fn markdown(r: &Report) -> String {
     );
 
     md.push_str(&crate::bench_methods::markdown(&r.methods));
+    if !r.accuracy_target.is_empty() {
+        md.push_str(&crate::bench_accuracy_target::markdown(&r.accuracy_target));
+    }
     md.push_str(&crate::bench_contact::markdown(&r.contact));
     let _ = writeln!(md, "## Scaling\n");
     let scaling = &r.scaling;

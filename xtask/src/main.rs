@@ -16,6 +16,7 @@
 //! Every task checks its options first ([`check_options`]); `--help`
 //! prints them all.
 
+mod bench_accuracy_target;
 mod bench_contact;
 mod bench_cpp;
 mod bench_limits;

@@ -13,6 +13,8 @@
 //! pd-probe methods  [beam options] [--mesh BASE] [--integrator be|im|bdf2] [--model M] [--steps N] [--budgets 1,2,...]
 //!                   [--methods local-global,anderson,...] [--window W] [--start S] [--cheb-rho R|auto]
 //!                   [--predicted anderson,lbfgs:linear,...]   (those methods again with a predictor, default extrapolated)
+//! pd-probe accuracy-target --scene beam|strip|mesh|contact-stack [--cells NX,NY,NZ] [--mesh BASE]
+//!                   [--targets 0.01,0.001] [--warmup W] [--steps N]
 //! beam options: --cells NX,NY,NZ --iters K --threads T --dt H --stiffness PA --soft-clamp
 //! ```
 //!
@@ -155,11 +157,13 @@ const KNOWN: &[&str] = &[
     "--reps",
     "--rho",
     "--rounds",
+    "--scene",
     "--side-cells",
     "--soft-clamp",
     "--start",
     "--steps",
     "--stiffness",
+    "--targets",
     "--threads",
     "--time",
     "--warmup",
@@ -178,13 +182,14 @@ fn run(args: &[String]) -> Result<Value, String> {
         Some("bandwidth") => bandwidth(&options),
         Some("cache-scaling") => cache_scaling(&options),
         Some("methods") => methods(&options, &beam),
+        Some("accuracy-target") => accuracy_target(&options, &beam),
         Some("contact") => pd_benches::contact::measure(
             options.parse("--side-cells", 4usize)?,
             options.parse("--warmup", 20usize)?,
             options.parse("--steps", 100usize)?,
         ),
         _ => Err(
-            "usage: pd-probe step|overhead|phases|accuracy|bandwidth|cache-scaling [options] (see the source)"
+            "usage: pd-probe step|overhead|phases|accuracy|bandwidth|cache-scaling|methods|contact|accuracy-target [options] (see the source)"
                 .into(),
         ),
     }
@@ -725,4 +730,34 @@ fn parse_predictor(text: &str) -> Option<pd_solver::Predictor> {
     .filter(
         |p| matches!(p, pd_solver::Predictor::Fitted { order, equations } if equations >= order),
     )
+}
+
+/// `accuracy-target`: each accuracy target of `--targets` on the scene of
+/// `--scene` (`pd_benches::accuracy_target`): the bench beam of `--cells`,
+/// the cloth strip, the TetGen mesh of `--mesh` hanging, or the bundled
+/// contact stack.
+fn accuracy_target(options: &Options<'_>, beam: &Beam) -> Result<Value, String> {
+    use pd_benches::accuracy_target::{TargetPlan, TargetScene};
+    let scene = match options.value("--scene") {
+        Some("beam") => TargetScene::Beam { cells: beam.cells },
+        Some("strip") => TargetScene::Strip,
+        Some("mesh") => TargetScene::Hanging {
+            mesh: options
+                .value("--mesh")
+                .ok_or("--scene mesh needs --mesh BASE")?
+                .into(),
+        },
+        Some("contact-stack") => TargetScene::ContactStack,
+        other => {
+            return Err(format!(
+                "--scene: expected beam, strip, mesh or contact-stack, got {other:?}"
+            ));
+        }
+    };
+    pd_benches::accuracy_target::measure(&TargetPlan {
+        scene,
+        targets: options.list("--targets", &[1e-2, 1e-3])?,
+        warmup: options.parse("--warmup", 3)?,
+        steps: options.parse("--steps", 20)?,
+    })
 }

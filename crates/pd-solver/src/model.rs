@@ -328,6 +328,31 @@ impl Model {
         &self.fixed
     }
 
+    /// The mass-weighted distance `|a - b|_M` between two sets of
+    /// positions (or displacements) over the free vertices (m kg^(1/2)):
+    /// the norm a step's relative error is measured in
+    /// ([`crate::StepStats::estimated_error`]).
+    ///
+    /// ```
+    /// use pd_mesh::{Point, generators};
+    /// use pd_solver::Model;
+    ///
+    /// let mut model = Model::new();
+    /// let body = model.add_body(generators::chain(3, 1.0).unwrap(), vec![4.0; 3]).unwrap();
+    /// model.fix_vertices(body, &[0]).unwrap();
+    /// let a = vec![Point::zeros(); 3];
+    /// let b = vec![Point::new(5.0, 0.0, 0.0), Point::new(1.0, 0.0, 0.0), Point::zeros()];
+    /// assert_eq!(model.mass_distance(&a, &b), 2.0); // the fixed vertex 0 is left out
+    /// ```
+    pub fn mass_distance(&self, a: &[Point], b: &[Point]) -> f64 {
+        (self.masses.iter().zip(&self.fixed))
+            .zip(a.iter().zip(b))
+            .filter(|((_, fixed), _)| !**fixed)
+            .map(|((m, _), (a, b))| m * (a - b).norm_squared())
+            .sum::<f64>()
+            .sqrt()
+    }
+
     /// The bodies, in the order they were added.
     pub fn bodies(&self) -> &[Body] {
         &self.bodies

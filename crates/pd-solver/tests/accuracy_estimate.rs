@@ -117,13 +117,7 @@ type Pairs = Vec<(f64, f64)>;
 
 /// `|a - b|_M` over the free vertices.
 fn mass_distance(sim: &Simulation, a: &[Point], b: &[Point]) -> f64 {
-    let model = sim.model();
-    (model.masses().iter().zip(model.fixed()))
-        .zip(a.iter().zip(b))
-        .filter(|((_, fixed), _)| !**fixed)
-        .map(|((m, _), (a, b))| m * (a - b).norm_squared())
-        .sum::<f64>()
-        .sqrt()
+    sim.model().mass_distance(a, b)
 }
 
 /// The reference of a scene (`build`): `method` solving to `tolerance`,
