@@ -6,6 +6,8 @@
 //!   without a scene it runs the bundled cantilever;
 //! - `pd resume DIR` continues a run from its last checkpoint;
 //! - `pd render DIR` draws a run's surface frames as PNG images and a GIF;
+//! - `pd view DIR... [-o FILE]` writes one self-contained HTML page that
+//!   shows the runs side by side (WebGL2: turn, zoom, play, scrub);
 //! - `pd plot DIR` plots energies and momenta against time (PNG and SVG);
 //! - `pd modes SCENE [--count K] [--out DIR]` writes the scene's lowest
 //!   elastic modes (frequencies, damping ratios, animated shapes);
@@ -23,6 +25,7 @@ mod modes;
 mod pictures;
 mod run;
 mod scenery;
+mod view;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -54,6 +57,10 @@ enum Command {
         /// (0: never), for `pd resume`.
         #[arg(long, value_name = "K", default_value_t = 0)]
         checkpoint_every: usize,
+        /// At the end, write `view.html` (as `pd view`) into the output
+        /// folder.
+        #[arg(long)]
+        view: bool,
     },
     /// Continue a run from the checkpoint in its output folder, to the end
     /// of its scene; the results are identical bit for bit to an
@@ -85,6 +92,23 @@ enum Command {
         /// The GIF is the images shrunk by this factor.
         #[arg(long, default_value_t = 2)]
         gif_downscale: u32,
+    },
+    /// Write one self-contained HTML page (WebGL2, works offline) showing
+    /// one or more runs' OBJ frames side by side with one camera and one
+    /// clock, their colliders, and their energy and probe curves.
+    View {
+        /// Output folders of `pd run` (several: side by side).
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// The page to write [default: DIR/view.html of the first run].
+        #[arg(long, short)]
+        out: Option<PathBuf>,
+        /// Keep every K-th frame (and the last).
+        #[arg(long, value_name = "K", default_value_t = 1)]
+        every: usize,
+        /// Refuse a page above this size, MB (use --every to thin frames).
+        #[arg(long, value_name = "MB", default_value_t = VIEW_MAX_MB)]
+        max_mb: f64,
     },
     /// Plot a run's energies and momenta against time (`DIR/metrics.csv`)
     /// as PNG and SVG in `DIR/plots/`.
@@ -167,6 +191,9 @@ impl Failure {
     }
 }
 
+/// `pd run --view`'s page size limit, MB (as `pd view`'s default).
+const VIEW_MAX_MB: f64 = 50.0;
+
 fn init_logging(quiet: bool) {
     let filter = if quiet {
         EnvFilter::new("error")
@@ -189,7 +216,27 @@ fn main() -> ExitCode {
         Command::Run {
             scene,
             checkpoint_every,
-        } => run::run(&scene, checkpoint_every, quiet),
+            view,
+        } => run::run(&scene, checkpoint_every, quiet).and_then(|out| {
+            if view {
+                let options = view::ViewOptions {
+                    every: 1,
+                    max_mb: VIEW_MAX_MB,
+                };
+                view::view(std::slice::from_ref(&out), &out.join("view.html"), &options)
+            } else {
+                Ok(())
+            }
+        }),
+        Command::View {
+            dirs,
+            out,
+            every,
+            max_mb,
+        } => {
+            let out = out.unwrap_or_else(|| dirs[0].join("view.html"));
+            view::view(&dirs, &out, &view::ViewOptions { every, max_mb })
+        }
         Command::Resume { dir } => run::resume(&dir, quiet),
         Command::Render {
             dir,

@@ -28,7 +28,7 @@ pub(crate) fn label_of(dir: &Path) -> String {
 }
 
 /// The OBJ frames of a run, in order.
-fn obj_frames(dir: &Path) -> Result<Vec<PathBuf>, Failure> {
+pub(crate) fn obj_frames(dir: &Path) -> Result<Vec<PathBuf>, Failure> {
     let frames = dir.join("frames");
     let entries = std::fs::read_dir(&frames).map_err(|e| {
         Failure::Input(format!(

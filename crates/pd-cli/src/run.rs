@@ -131,18 +131,19 @@ pub(crate) fn build(scene: &Scene) -> Result<Simulation, Failure> {
     Ok(sim)
 }
 
-/// `pd run`.
+/// `pd run`; returns the output folder.
 pub(crate) fn run(
     options: &SceneOptions,
     checkpoint_every: usize,
     quiet: bool,
-) -> Result<(), Failure> {
+) -> Result<PathBuf, Failure> {
     let loaded = load_scene(options)?;
     let out = options
         .out
         .clone()
         .unwrap_or_else(|| Path::new("out").join(&loaded.name));
-    run_loaded(&loaded, &out, checkpoint_every, quiet)
+    run_loaded(&loaded, &out, checkpoint_every, quiet)?;
+    Ok(out)
 }
 
 /// Runs a loaded scene into `out` from its start.

@@ -6,17 +6,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{arg, json, pd, pd_ok, stderr, temp_dir, tiny_scene};
-
-/// Decodes a PNG: (width, height, RGB or RGBA bytes, bytes per pixel).
-fn read_png(path: &Path) -> (u32, u32, Vec<u8>, usize) {
-    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
-    let mut reader = decoder.read_info().unwrap();
-    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut buf).unwrap();
-    buf.truncate(info.buffer_size());
-    (info.width, info.height, buf, info.color_type.samples())
-}
+use common::{arg, json, pd, pd_ok, read_png, stderr, temp_dir, tiny_scene};
 
 /// Number of frames in a GIF, and their size.
 fn gif_frames(path: &Path) -> (usize, (u16, u16)) {
