@@ -57,6 +57,14 @@ impl Settings {
     /// minutes.
     pub const MAX_THREADS: usize = 1024;
 
+    /// The largest gravity accepted, m/s^2: 1e6, about 100,000 times the
+    /// Earth's. Anything larger is a mistake of units (the scene is in SI
+    /// units), and past it the quantities a step forms from gravity (the
+    /// divergence check's energy scale `M |g| size`, the gravitational
+    /// energy) lose their meaning long before they overflow: `gravity =
+    /// -1e300` ran until the divergence check reported a bound of `inf` J.
+    pub const MAX_GRAVITY: f64 = 1e6;
+
     /// Checks every field.
     ///
     /// # Errors
@@ -99,6 +107,16 @@ impl Settings {
             return bad(
                 "gravity",
                 format!("must be finite, got {:?}", self.gravity.as_slice()),
+            );
+        }
+        if self.gravity.norm() > Self::MAX_GRAVITY {
+            return bad(
+                "gravity",
+                format!(
+                    "has magnitude {:e} m/s^2, above the {:e} m/s^2 accepted (SI units)",
+                    self.gravity.norm(),
+                    Self::MAX_GRAVITY
+                ),
             );
         }
         if self.threads > Self::MAX_THREADS {

@@ -182,7 +182,21 @@ impl Validator<'_> {
             tolerance: self.non_negative("simulation.tolerance", s.tolerance.unwrap_or(0.0))?,
             accuracy: self.accuracy(s)?,
             gravity: match s.gravity {
-                Some(g) => self.vector("simulation.gravity", g)?,
+                Some(g) => {
+                    let g = self.vector("simulation.gravity", g)?;
+                    if g.norm() > Settings::MAX_GRAVITY {
+                        return Err(self.error(
+                            "simulation.gravity",
+                            format!(
+                                "has magnitude {:e} m/s^2; at most {:e} m/s^2 (about 100,000 g) \
+                                 is accepted: the scene is in SI units",
+                                g.norm(),
+                                Settings::MAX_GRAVITY
+                            ),
+                        ));
+                    }
+                    g
+                }
                 None => defaults.gravity,
             },
             threads: match s.threads {
