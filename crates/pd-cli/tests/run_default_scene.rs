@@ -296,15 +296,19 @@ fn euler_bernoulli_tip_sag() -> f64 {
 /// - large deflection (`d / L` = 0.37): the corotational elements follow
 ///   the rotation of the sections, and a cantilever's vertical tip
 ///   deflection at that load is about 10% below the linear theory's;
-/// - the dynamics: backward Euler's numerical damping (`h omega / 2` = 3%
-///   of critical) takes little off the first overshoot, and 10 local-global
-///   iterations a step leave each step's elastic force short of the
-///   converged one, which deepens the sag.
+/// - the dynamics: backward Euler's numerical damping, a ratio of about
+///   `h omega / 2` = 3% of critical, takes the overshoot from `d` to
+///   `exp(-pi 0.03) d` = 0.9 `d`; 10 local-global iterations a step leave
+///   each step's elastic force short of the converged one (direction and
+///   size not estimated here).
 ///
-/// So the deepest point lies between `d` less those reductions (0.75 `d`)
-/// and the undamped overshoot `2 d` plus shear (2.06 `d`): bounds 0.7 `d`
-/// and 2.1 `d`. A beam of the wrong stiffness or weight by a factor of 2,
-/// or one that did not swing, fails.
+/// Estimate of the deepest point: (1 + 0.9) x 0.88 x 1.03 x 0.9 `d` = 1.55
+/// `d` (measured 1.49 `d`, 0.549 m). Bounds: at most the undamped linear
+/// overshoot `2 d` plus shear, 2.1 `d`; at least 1.2 `d`, 20% below the
+/// estimate for what it leaves out (the iterations, the large-deflection
+/// factor's approximation). A beam twice too stiff or too light (1 `d`),
+/// one whose swing is damped away (no overshoot) or one that creates
+/// energy fails.
 fn check_tip_sag(tip_y: &[f64]) {
     let d = euler_bernoulli_tip_sag();
     assert!((d - 0.368).abs() < 1e-3, "Euler-Bernoulli: {d} m");
@@ -315,7 +319,7 @@ fn check_tip_sag(tip_y: &[f64]) {
         deepest / d
     );
     assert!(
-        deepest > 0.7 * d && deepest < 2.1 * d,
+        deepest > 1.2 * d && deepest < 2.1 * d,
         "the tip sags at most {deepest} m; Euler-Bernoulli's static deflection is {d} m"
     );
 }

@@ -608,7 +608,7 @@ fn read_face_in(test: &str, face: &str) -> (PathBuf, Result<Mesh, Error>) {
 
 #[test]
 fn tetgen_face_malformed_inputs_name_file_and_line() {
-    let cases: [(&str, &str, usize, &str); 9] = [
+    let cases: [(&str, &str, usize, &str); 10] = [
         ("face_empty", "", 1, "header is missing"),
         ("face_header", "2\n", 1, "must have 2 fields"),
         ("face_no_faces", "0 0\n", 1, "declares no faces"),

@@ -109,12 +109,13 @@ impl Settings {
                 format!("must be finite, got {:?}", self.gravity.as_slice()),
             );
         }
-        if self.gravity.norm() > Self::MAX_GRAVITY {
+        // The largest component first: the norm of 1e300 overflows.
+        if self.gravity.amax() > Self::MAX_GRAVITY || self.gravity.norm() > Self::MAX_GRAVITY {
             return bad(
                 "gravity",
                 format!(
-                    "has magnitude {:e} m/s^2, above the {:e} m/s^2 accepted (SI units)",
-                    self.gravity.norm(),
+                    "is {:?} m/s^2; its magnitude must be at most {:e} m/s^2 (SI units)",
+                    self.gravity.as_slice(),
                     Self::MAX_GRAVITY
                 ),
             );

@@ -184,13 +184,17 @@ impl Validator<'_> {
             gravity: match s.gravity {
                 Some(g) => {
                     let g = self.vector("simulation.gravity", g)?;
-                    if g.norm() > Settings::MAX_GRAVITY {
+                    // The largest component first: the norm of 1e300
+                    // overflows.
+                    if g.amax() > Settings::MAX_GRAVITY || g.norm() > Settings::MAX_GRAVITY {
                         return Err(self.error(
                             "simulation.gravity",
                             format!(
-                                "has magnitude {:e} m/s^2; at most {:e} m/s^2 (about 100,000 g) \
-                                 is accepted: the scene is in SI units",
-                                g.norm(),
+                                "is [{:e}, {:e}, {:e}] m/s^2; its magnitude must be at most \
+                                 {:e} m/s^2 (about 100,000 g): the scene is in SI units",
+                                g.x,
+                                g.y,
+                                g.z,
                                 Settings::MAX_GRAVITY
                             ),
                         ));
