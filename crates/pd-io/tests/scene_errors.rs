@@ -523,7 +523,9 @@ fn vertex_mass_out_of_domain_in_a_scene_built_in_code() {
     for bad in [-1.0, 0.0, f64::NAN, f64::INFINITY] {
         let mut scene = parse(&edit("density = 1000.0", "vertex_mass = 0.1")).unwrap();
         scene.bodies[0].mass = MassSpec::VertexMass(bad);
-        let err = scene.build().err().expect("the scene must be refused");
+        let Err(err) = scene.build() else {
+            panic!("a vertex mass of {bad} must be refused")
+        };
         field_error_of(err, Path::new(SOURCE), "body[0].vertex_mass", &["> 0"]);
     }
 }
