@@ -263,8 +263,8 @@ fn on_collider(shape: ColliderShape, degrees: f64) -> Simulation {
 /// The sphere's radius (m): the surface turns under the slide by 0.03
 /// degree over 6 cm, which the expected acceleration follows
 /// (`sphere_slide`). On a sphere of 10 m the measured acceleration exceeds
-/// that expectation by 7.6% (docs/design/contact.md, "Limits"); at 100 m by
-/// 0.7%, at 1000 m by 0.2%.
+/// that expectation by 5.5% (docs/design/contact.md, "Limits"); at 100 m by
+/// 0.7%, at 1000 m by 0.1%.
 const SPHERE_RADIUS: f64 = 100.0;
 
 fn colliders() -> Vec<(&'static str, ColliderShape)> {
