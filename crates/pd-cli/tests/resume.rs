@@ -258,6 +258,21 @@ fn bad_checkpoints_are_input_errors() {
         stderr(&output)
     );
 
+    // A checkpoint of another model: its fingerprint differs (what a mesh
+    // file changed since the run gives), one hex digit changed here.
+    let key = "\"model\":\"fnv1a64:";
+    let at = good.find(key).expect("the checkpoint records its model") + key.len();
+    let digit = if &good[at..at + 1] == "0" { "1" } else { "0" };
+    let other = format!("{}{digit}{}", &good[..at], &good[at + 1..]);
+    std::fs::write(&checkpoint, other).unwrap();
+    let output = pd(&["resume", arg(&out)]);
+    assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
+    assert!(
+        stderr(&output).contains("another model"),
+        "{}",
+        stderr(&output)
+    );
+
     // metrics.csv shorter than the checkpoint (the checkpoint is at step 9).
     std::fs::write(&checkpoint, &good).unwrap();
     cut(&out.join("metrics.csv"), 1 + 5);

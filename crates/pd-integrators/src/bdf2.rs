@@ -45,7 +45,42 @@ impl Bdf2 {
     }
 
     /// Sets the previous state `(x_{n-1}, v_{n-1})`, e.g. from a checkpoint.
-    pub fn set_history(&mut self, positions: &[Point], velocities: &[Point]) {
+    ///
+    /// # Errors
+    /// [`HistoryError::WrongLength`] if `positions` and `velocities` differ
+    /// in length, [`HistoryError::NonFinite`] if a coordinate is NaN or
+    /// infinite (the next step would turn it into a non-finite state); the
+    /// integrator is then unchanged.
+    pub fn set_history(
+        &mut self,
+        positions: &[Point],
+        velocities: &[Point],
+    ) -> Result<(), HistoryError> {
+        if positions.len() != velocities.len() {
+            return Err(HistoryError::WrongLength {
+                integrator: Self::NAME,
+                state: 0,
+                positions: positions.len(),
+                velocities: velocities.len(),
+                vertices: positions.len(),
+            });
+        }
+        for (quantity, values) in [("position", positions), ("velocity", velocities)] {
+            if let Some(vertex) = values.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+                return Err(HistoryError::NonFinite {
+                    integrator: Self::NAME,
+                    state: 0,
+                    quantity,
+                    vertex,
+                });
+            }
+        }
+        self.store_history(positions, velocities);
+        Ok(())
+    }
+
+    /// Stores `(x_{n-1}, v_{n-1})` unchecked, in the buffers it has.
+    fn store_history(&mut self, positions: &[Point], velocities: &[Point]) {
         self.previous_positions.clear();
         self.previous_positions.extend_from_slice(positions);
         self.previous_velocities.clear();
@@ -138,7 +173,8 @@ impl Integrator for Bdf2 {
             );
         }
         // x_n and v_n become the history; the buffers keep their capacity.
-        self.set_history(previous_positions, previous_velocities);
+        // (The divergence check judges the step's own result.)
+        self.store_history(previous_positions, previous_velocities);
     }
 
     fn filter_velocities(
@@ -187,10 +223,7 @@ impl Integrator for Bdf2 {
                 self.reset();
                 Ok(())
             }
-            [(x, v)] if x.len() == vertices && v.len() == vertices => {
-                self.set_history(x, v);
-                Ok(())
-            }
+            [(x, v)] if x.len() == vertices && v.len() == vertices => self.set_history(x, v),
             [(x, v)] => Err(HistoryError::WrongLength {
                 integrator: self.name(),
                 state: 0,
@@ -279,6 +312,48 @@ mod tests {
                 given: 1,
             })
         );
+    }
+
+    #[test]
+    fn refuses_a_non_finite_or_mismatched_history_and_keeps_its_own() {
+        let mut bdf = Bdf2::new();
+        let x = [Point::new(0.0, 1.0, 0.0), Point::new(1.0, 1.0, 0.0)];
+        let v = [Point::new(1.0, 0.0, 0.0), Point::new(0.0, 0.0, 0.0)];
+        bdf.set_history(&x, &v).unwrap();
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let mut x_bad = x;
+            x_bad[1].y = bad;
+            let err = bdf.set_history(&x_bad, &v).unwrap_err();
+            assert_eq!(
+                err,
+                HistoryError::NonFinite {
+                    integrator: "bdf2",
+                    state: 0,
+                    quantity: "position",
+                    vertex: 1,
+                }
+            );
+            assert!(err.to_string().contains("position of vertex 1"), "{err}");
+            let mut v_bad = v;
+            v_bad[0].z = bad;
+            let err = bdf.set_history(&x, &v_bad).unwrap_err();
+            assert!(matches!(
+                err,
+                HistoryError::NonFinite {
+                    quantity: "velocity",
+                    vertex: 0,
+                    ..
+                }
+            ));
+            // Through the trait, as a checkpoint restores it.
+            let history = History {
+                states: vec![(x.to_vec(), v_bad.to_vec())],
+            };
+            assert!(bdf.restore_history(&history, 2).is_err());
+        }
+        assert!(bdf.set_history(&x, &v[..1]).is_err());
+        // Every refusal left the history that was set first.
+        assert_eq!(bdf.history(), Some((&x[..], &v[..])));
     }
 
     /// Uniform motion under a filter `v <- s v` decays as `s^n` exactly:

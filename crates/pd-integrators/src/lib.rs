@@ -179,8 +179,8 @@ pub trait Integrator: std::fmt::Debug + Send + Sync {
     ///
     /// # Errors
     /// [`HistoryError`] for a history this integrator cannot hold: more
-    /// previous states than it keeps, or a state whose length is not
-    /// `vertices`.
+    /// previous states than it keeps, a state whose length is not
+    /// `vertices`, or one with a NaN or infinite coordinate.
     fn restore_history(&mut self, history: &History, vertices: usize) -> Result<(), HistoryError> {
         let _ = vertices;
         if history.states.is_empty() {
@@ -227,6 +227,18 @@ pub enum HistoryError {
         velocities: usize,
         /// Number of vertices of the simulation.
         vertices: usize,
+    },
+    /// A previous state holds a NaN or infinite coordinate.
+    #[error("{integrator} previous state {state}: the {quantity} of vertex {vertex} is not finite")]
+    NonFinite {
+        /// The integrator's name as scenes spell it.
+        integrator: &'static str,
+        /// Which previous state, 0 for the most recent.
+        state: usize,
+        /// `"position"` or `"velocity"`.
+        quantity: &'static str,
+        /// The first vertex with a non-finite coordinate.
+        vertex: usize,
     },
 }
 

@@ -31,6 +31,11 @@
 //! { "...": "...", "solver": [0.7712] }
 //! ```
 //!
+//! `model`, the fingerprint of the model the state belongs to
+//! (`pd_solver::Model::fingerprint`, as `fnv1a64:` and 16 hex digits):
+//! restoring refuses the checkpoint into a simulation of another model,
+//! e.g. when a mesh file the scene names was changed since. A file without
+//! it (written before it was kept) is restored without that check.
 //! `contraction` (the local-global contraction the error estimate carries
 //! from step to step, docs/design/solver.md "How far from converged"),
 //! and `method`, the iteration method a run chose by measurement (a scene
@@ -151,6 +156,10 @@ struct Raw {
     /// The method chosen by measurement, written only when the run chose.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     method: Option<String>,
+    /// The model's fingerprint (`fnv1a64:` and 16 hex digits), written
+    /// whenever the checkpoint has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    model: Option<String>,
     /// The contraction the error estimate carries between steps, written
     /// only when there is one.
     #[serde(default, skip_serializing_if = "is_zero")]
@@ -178,6 +187,28 @@ struct RawPredictor {
 
 const FORMAT: &str = "pd-checkpoint";
 const VERSION: u32 = 1;
+/// How the `model` key spells a fingerprint: this, then 16 hex digits.
+const MODEL_PREFIX: &str = "fnv1a64:";
+
+/// The `model` key's fingerprint, 0 when the file has none.
+fn model_fingerprint(raw: &Raw, field: impl Fn(&str, String) -> Error) -> Result<u64> {
+    let Some(text) = &raw.model else {
+        return Ok(0);
+    };
+    text.strip_prefix(MODEL_PREFIX)
+        .filter(|hex| hex.len() == 16)
+        .and_then(|hex| u64::from_str_radix(hex, 16).ok())
+        .filter(|&fingerprint| fingerprint != 0)
+        .ok_or_else(|| {
+            field(
+                "model",
+                format!(
+                    "is {}; expected {MODEL_PREFIX} and 16 hex digits, not all zero",
+                    crate::lines::quoted(text)
+                ),
+            )
+        })
+}
 
 fn arrays(points: &[Point]) -> Vec<[f64; 3]> {
     points.iter().map(|p| [p.x, p.y, p.z]).collect()
@@ -233,6 +264,7 @@ pub fn write_checkpoint(path: &Path, file: &CheckpointFile) -> Result<()> {
         steps: c.steps,
         time: c.time,
         integrator: c.integrator.clone(),
+        model: (c.model != 0).then(|| format!("{MODEL_PREFIX}{:016x}", c.model)),
         positions: arrays(&c.state.positions),
         velocities: arrays(&c.state.velocities),
         history: c
@@ -280,7 +312,8 @@ pub fn read_checkpoint(path: &Path) -> Result<CheckpointFile> {
     };
     let scene = checked_scene(&raw, field)?;
     check_state(&raw, field)?;
-    Ok(into_file(raw, scene))
+    let model = model_fingerprint(&raw, field)?;
+    Ok(into_file(raw, scene, model))
 }
 
 /// The checkpoint's JSON image; a type or value error names its field, a
@@ -405,7 +438,7 @@ fn check_state(raw: &Raw, field: impl Fn(&str, String) -> Error) -> Result<()> {
 }
 
 /// The checked image as the solver's checkpoint and the run's settings.
-fn into_file(raw: Raw, scene: SceneText) -> CheckpointFile {
+fn into_file(raw: Raw, scene: SceneText, model: u64) -> CheckpointFile {
     CheckpointFile {
         scene,
         steps_requested: raw.steps_requested,
@@ -420,6 +453,7 @@ fn into_file(raw: Raw, scene: SceneText) -> CheckpointFile {
                 velocities: points(&raw.velocities),
             },
             integrator: raw.integrator,
+            model,
             history: History {
                 states: raw
                     .history
@@ -472,6 +506,7 @@ mod tests {
                     velocities: vec![awkward[1], awkward[0]],
                 },
                 integrator: "bdf2".into(),
+                model: 0x0123_4567_89ab_cdef,
                 history: History {
                     states: vec![(awkward.to_vec(), awkward.to_vec())],
                 },
@@ -555,6 +590,32 @@ mod tests {
             assert!(
                 err.starts_with(&format!("{}: {name}: ", path.display())),
                 "{name}: {err}"
+            );
+        }
+    }
+
+    #[test]
+    fn reads_the_model_fingerprint_or_its_absence_and_refuses_a_malformed_one() {
+        let path = temp("model");
+        write_checkpoint(&path, &sample()).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let key = "\"model\":\"fnv1a64:0123456789abcdef\",";
+        assert!(text.contains(key), "{text}");
+        // A file written before the key was kept reads, without a fingerprint.
+        std::fs::write(&path, text.replace(key, "")).unwrap();
+        assert_eq!(read_checkpoint(&path).unwrap().checkpoint.model, 0);
+        for bad in [
+            "fnv1a64:0123",
+            "0123456789abcdef",
+            "fnv1a64:0000000000000000",
+            "fnv1a64:xyz3456789abcdef",
+        ] {
+            let edited = text.replace("fnv1a64:0123456789abcdef", bad);
+            std::fs::write(&path, edited).unwrap();
+            let err = read_checkpoint(&path).unwrap_err().to_string();
+            assert!(
+                err.starts_with(&format!("{}: model: ", path.display())),
+                "{bad}: {err}"
             );
         }
     }

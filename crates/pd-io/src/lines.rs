@@ -189,7 +189,16 @@ impl Line<'_> {
 
     /// Field `index` as a signed integer (boundary markers may be negative).
     pub(crate) fn signed(&self, index: usize, what: &str) -> Result<i64> {
-        self.parse(index, what, "an integer")
+        let value = self.parse(index, what, "an integer");
+        let text = self.text(index);
+        let digits = text.strip_prefix(['-', '+']).unwrap_or(text);
+        if value.is_err() && !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit()) {
+            return Err(self.error(format!(
+                "the {what} {} is out of range (a 64-bit integer)",
+                quoted(text)
+            )));
+        }
+        value
     }
 
     /// Field `index` as a number; `inf` and `nan` parse, so callers that

@@ -186,15 +186,33 @@ fn corners(line: &Line<'_>, defined: usize) -> Result<Vec<usize>> {
                 }
             }
             let index: i64 = vertex.parse().map_err(|_| {
-                line.error(format!(
-                    "the vertex index of corner {} must be an integer, found {}",
-                    quoted(text),
-                    quoted(vertex)
-                ))
+                if is_integer_literal(vertex) {
+                    // Digits, but too many for any index.
+                    line.error(format!(
+                        "the vertex index {} of corner {} is out of range: {defined} vertices \
+                         are defined before this line (valid: 1 to {defined}, or -1 to \
+                         -{defined})",
+                        quoted(vertex),
+                        quoted(text)
+                    ))
+                } else {
+                    line.error(format!(
+                        "the vertex index of corner {} must be an integer, found {}",
+                        quoted(text),
+                        quoted(vertex)
+                    ))
+                }
             })?;
             resolve(line, index, defined)
         })
         .collect()
+}
+
+/// Whether `text` is an integer as OBJ writes one (an optional sign, then
+/// decimal digits), whatever its size.
+fn is_integer_literal(text: &str) -> bool {
+    let digits = text.strip_prefix(['-', '+']).unwrap_or(text);
+    !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())
 }
 
 /// OBJ's 1-based or negative (relative) index to a 0-based one.

@@ -489,11 +489,25 @@ fn obj_malformed_inputs_name_file_and_line() {
         1,
         "0 vertices are defined",
     );
+    // Integers too large for any index are out of range, not "not integers".
     e(
         "obj_huge_index",
         &format!("{V}f 1 2 99999999999999999999\n"),
         4,
-        "must be an integer",
+        "vertex index `99999999999999999999` of corner `99999999999999999999` is out of \
+         range: 3 vertices",
+    );
+    e(
+        "obj_huge_negative_index",
+        &format!("{V}f 1 2 -99999999999999999999/1\n"),
+        4,
+        "vertex index `-99999999999999999999` of corner `-99999999999999999999/1` is out of range",
+    );
+    e(
+        "obj_not_an_integer",
+        &format!("{V}f 1 2 3.0\n"),
+        4,
+        "must be an integer, found `3.0`",
     );
     e(
         "obj_bad_corner",
@@ -594,7 +608,7 @@ fn read_face_in(test: &str, face: &str) -> (PathBuf, Result<Mesh, Error>) {
 
 #[test]
 fn tetgen_face_malformed_inputs_name_file_and_line() {
-    let cases: [(&str, &str, usize, &str); 9] = [
+    let cases: [(&str, &str, usize, &str); 10] = [
         ("face_empty", "", 1, "header is missing"),
         ("face_header", "2\n", 1, "must have 2 fields"),
         ("face_no_faces", "0 0\n", 1, "declares no faces"),
@@ -618,6 +632,12 @@ fn tetgen_face_malformed_inputs_name_file_and_line() {
             "1 1\n0 0 1 2 x\n",
             2,
             "boundary marker must be an integer",
+        ),
+        (
+            "face_huge_marker",
+            "1 1\n0 0 1 2 -99999999999999999999\n",
+            2,
+            "boundary marker `-99999999999999999999` is out of range",
         ),
     ];
     for (test, text, line, needle) in cases {

@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use pd_io::Error;
-use pd_io::scene::{Scene, Syntax};
+use pd_io::scene::{MassSpec, Scene, Syntax};
 use pd_mesh::MeshError;
 
 /// The name bad scenes are parsed under; every message must contain it.
@@ -493,6 +493,41 @@ fn nan_gravity_component() {
         "simulation.gravity[1]",
         &["finite"],
     );
+}
+
+/// A finite but absurd gravity is refused at load, naming the key and the
+/// limit, instead of running until the divergence check's bound overflows.
+#[test]
+fn absurd_gravity() {
+    expect_field_error(
+        parse(&edit(
+            "gravity = [0.0, -9.81, 0.0]",
+            "gravity = [0.0, -1e300, 0.0]",
+        )),
+        "simulation.gravity",
+        &["-1e300", "at most 1e6 m/s^2"],
+    );
+    // The limit itself is accepted.
+    parse(&edit(
+        "gravity = [0.0, -9.81, 0.0]",
+        "gravity = [0.0, -1e6, 0.0]",
+    ))
+    .unwrap();
+}
+
+/// A `Scene` built in code (not read from a file, whose reader checks the
+/// key) with a vertex mass out of its domain: building it names the key
+/// that carries the mass, not the mesh.
+#[test]
+fn vertex_mass_out_of_domain_in_a_scene_built_in_code() {
+    for bad in [-1.0, 0.0, f64::NAN, f64::INFINITY] {
+        let mut scene = parse(&edit("density = 1000.0", "vertex_mass = 0.1")).unwrap();
+        scene.bodies[0].mass = MassSpec::VertexMass(bad);
+        let Err(err) = scene.build() else {
+            panic!("a vertex mass of {bad} must be refused")
+        };
+        field_error_of(err, Path::new(SOURCE), "body[0].vertex_mass", &["> 0"]);
+    }
 }
 
 // --- Mesh files: errors name the mesh file, and the line or element. ---

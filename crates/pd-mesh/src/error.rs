@@ -70,6 +70,18 @@ pub enum MeshError {
         /// The rejected value.
         density: f64,
     },
+    /// A corner of a lone tetrahedron (one not part of a [`crate::Mesh`],
+    /// given to [`crate::tet_volume`] or
+    /// [`crate::generators::tet_quality`]) is not a vertex of the list.
+    #[error("tetrahedron corner {corner} is vertex {index}, but there are {num_vertices} vertices")]
+    CornerOutOfRange {
+        /// Which corner, 0 to 3.
+        corner: usize,
+        /// The offending vertex index.
+        index: usize,
+        /// Number of vertices given.
+        num_vertices: usize,
+    },
     /// A generator or selection parameter is out of its domain.
     #[error("invalid {name}: {reason}")]
     InvalidParameter {

@@ -108,7 +108,7 @@ impl Mesh {
         check_elements(ElementKind::Tet, &tets, n)?;
         check_elements(ElementKind::Triangle, &triangles, n)?;
         for (element, t) in tets.iter().enumerate() {
-            let volume = tet_volume(&vertices, t);
+            let volume = signed_volume(&vertices, t);
             // Relative threshold: a tet whose volume is at round-off level
             // compared with its edge lengths cubed is degenerate.
             let scale = max_edge_length(&vertices, t).powi(3);
@@ -197,7 +197,7 @@ impl Mesh {
     pub fn tet_volumes(&self) -> Vec<f64> {
         self.tets
             .iter()
-            .map(|t| tet_volume(&self.vertices, t))
+            .map(|t| signed_volume(&self.vertices, t))
             .collect()
     }
 
@@ -236,7 +236,7 @@ impl Mesh {
         let mut masses = vec![0.0; self.vertices.len()];
         if !self.tets.is_empty() {
             for t in &self.tets {
-                let share = density * tet_volume(&self.vertices, t) / 4.0;
+                let share = density * signed_volume(&self.vertices, t) / 4.0;
                 t.iter().for_each(|&v| masses[v] += share);
             }
         } else if !self.triangles.is_empty() {
@@ -301,9 +301,40 @@ fn unique_edges(edges: impl Iterator<Item = [usize; 2]>) -> Vec<[usize; 2]> {
     edges
 }
 
-/// Signed volume of a tetrahedron: positive when its vertices are ordered so
-/// that `(x1 - x0) . ((x2 - x0) x (x3 - x0)) > 0`.
-pub fn tet_volume(vertices: &[Point], t: &[usize; 4]) -> f64 {
+/// Signed volume of the tetrahedron `t` of `vertices`: positive when its
+/// corners are ordered so that `(x1 - x0) . ((x2 - x0) x (x3 - x0)) > 0`.
+///
+/// ```
+/// use pd_mesh::{Point, tet_volume};
+///
+/// let corners = [Point::zeros(), Point::x(), Point::y(), Point::z()];
+/// assert_eq!(tet_volume(&corners, &[0, 1, 2, 3]).unwrap(), 1.0 / 6.0);
+/// assert!(tet_volume(&corners, &[0, 1, 2, 4]).is_err());
+/// ```
+///
+/// # Errors
+/// [`MeshError::CornerOutOfRange`] if a corner is not an index of
+/// `vertices`.
+pub fn tet_volume(vertices: &[Point], t: &[usize; 4]) -> Result<f64, MeshError> {
+    check_corners(vertices, t)?;
+    Ok(signed_volume(vertices, t))
+}
+
+/// [`MeshError::CornerOutOfRange`] for the first corner of `t` that is not
+/// an index of `vertices`.
+fn check_corners(vertices: &[Point], t: &[usize; 4]) -> Result<(), MeshError> {
+    match t.iter().position(|&i| i >= vertices.len()) {
+        Some(corner) => Err(MeshError::CornerOutOfRange {
+            corner,
+            index: t[corner],
+            num_vertices: vertices.len(),
+        }),
+        None => Ok(()),
+    }
+}
+
+/// [`tet_volume`] of corners known to be in range (a validated mesh's).
+fn signed_volume(vertices: &[Point], t: &[usize; 4]) -> f64 {
     let [a, b, c, d] = t.map(|i| vertices[i]);
     (b - a).dot(&(c - a).cross(&(d - a))) / 6.0
 }
@@ -326,6 +357,39 @@ fn max_edge_length<const K: usize>(vertices: &[Point], e: &[usize; K]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_lone_tetrahedron_with_a_corner_out_of_range_is_an_error_not_a_panic() {
+        let corners = unit_tet();
+        for (t, corner, index) in [([4, 1, 2, 3], 0, 4), ([0, 1, 2, usize::MAX], 3, usize::MAX)] {
+            let expected = MeshError::CornerOutOfRange {
+                corner,
+                index,
+                num_vertices: 4,
+            };
+            assert_eq!(tet_volume(&corners, &t), Err(expected.clone()));
+            assert_eq!(
+                crate::generators::tet_quality(&corners, &t),
+                Err(expected.clone())
+            );
+            let shown = expected.to_string();
+            assert!(shown.contains(&format!("vertex {index}")), "{shown}");
+        }
+        assert_eq!(
+            tet_volume(&[], &[0, 0, 0, 0]).unwrap_err().to_string(),
+            "tetrahedron corner 0 is vertex 0, but there are 0 vertices"
+        );
+        // A regular tetrahedron's quality is 1 (the measure's definition).
+        let s = 1.0 / 2.0_f64.sqrt();
+        let regular = [
+            Point::new(1.0, 0.0, -s),
+            Point::new(-1.0, 0.0, -s),
+            Point::new(0.0, 1.0, s),
+            Point::new(0.0, -1.0, s),
+        ];
+        let q = crate::generators::tet_quality(&regular, &[0, 1, 2, 3]).unwrap();
+        assert!((q.abs() - 1.0).abs() < 1e-12, "{q}");
+    }
 
     fn unit_tet() -> Vec<Point> {
         vec![

@@ -25,6 +25,11 @@ pub struct Checkpoint {
     pub state: State,
     /// The integrator's name, to refuse restoring into another integrator.
     pub integrator: String,
+    /// [`crate::Model::fingerprint`] of the simulation's model, to refuse
+    /// restoring into a simulation of another model; 0 for a checkpoint
+    /// that does not record it (a checkpoint file written before it was
+    /// kept), which is then restored without this check.
+    pub model: u64,
     /// The integrator's history (previous states of multistep methods).
     pub history: History,
     /// The total energy the divergence check compares with, J.
@@ -85,6 +90,7 @@ impl Simulation {
             time: self.time,
             state: self.state.clone(),
             integrator: self.integrator.name().to_string(),
+            model: self.model_fingerprint(),
             history: self.integrator.history(),
             energy_reference: self.divergence.reference,
             energy_scale: self.divergence.scale,
@@ -100,12 +106,21 @@ impl Simulation {
         }
     }
 
+    /// [`crate::Model::fingerprint`] of this simulation's model, computed
+    /// once.
+    pub fn model_fingerprint(&self) -> u64 {
+        *self
+            .model_fingerprint
+            .get_or_init(|| self.model.fingerprint())
+    }
+
     /// Restores a checkpoint taken of a simulation of the same model,
     /// settings, integrator and damping model.
     ///
     /// # Errors
     /// [`SolverError::InvalidState`] if the checkpoint belongs to another
-    /// integrator, has the wrong number of vertices, a non-finite value, a
+    /// integrator or another model (its [`Checkpoint::model`] is not this
+    /// model's fingerprint), has the wrong number of vertices, a non-finite value, a
     /// history the integrator cannot hold, a predictor correction of the
     /// wrong length, or a method state the method cannot take; the
     /// simulation is then unchanged.
@@ -119,6 +134,14 @@ impl Simulation {
             )));
         }
         let n = self.model.num_vertices();
+        if checkpoint.model != 0 && checkpoint.model != self.model_fingerprint() {
+            return Err(invalid(format!(
+                "the checkpoint is of another model (fingerprint {:016x}, this simulation's \
+                 model has {:016x}): its bodies, masses, fixed vertices or constraints differ",
+                checkpoint.model,
+                self.model_fingerprint()
+            )));
+        }
         let state = &checkpoint.state;
         for (name, values) in [
             ("positions", &state.positions),
@@ -248,5 +271,46 @@ mod tests {
 
         other.restore(&saved).unwrap();
         assert_eq!(other.checkpoint(), saved);
+    }
+
+    /// A chain of 4 vertices with springs of `stiffness` N/m, masses
+    /// `mass` kg and vertex `fixed` held.
+    fn variant(stiffness: f64, mass: f64, fixed: usize) -> Simulation {
+        let mesh = generators::chain(4, 1.0).unwrap();
+        let mut model = Model::new();
+        let body = model.add_body(mesh, vec![mass; 4]).unwrap();
+        model.add_springs(body, stiffness).unwrap();
+        model.fix_vertices(body, &[fixed]).unwrap();
+        let settings = Settings {
+            dt: 0.01,
+            ..Settings::default()
+        };
+        Simulation::new(model, Box::new(Bdf2::new()), Box::new(NoDamping), settings).unwrap()
+    }
+
+    #[test]
+    fn refuses_a_checkpoint_of_another_model_with_as_many_vertices() {
+        let mut saved = variant(50.0, 0.1, 0);
+        saved.run(2).unwrap();
+        let saved = saved.checkpoint();
+        assert_ne!(saved.model, 0);
+        // Each differs from the saved model in one thing only.
+        for (what, mut other) in [
+            ("stiffness", variant(51.0, 0.1, 0)),
+            ("mass", variant(50.0, 0.2, 0)),
+            ("fixed vertex", variant(50.0, 0.1, 3)),
+        ] {
+            let before = other.checkpoint();
+            let err = other.restore(&saved).unwrap_err().to_string();
+            assert!(err.contains("another model"), "{what}: {err}");
+            assert_eq!(other.checkpoint(), before, "{what}");
+        }
+        let mut same = variant(50.0, 0.1, 0);
+        same.restore(&saved).unwrap();
+        assert_eq!(same.checkpoint(), saved);
+        // A checkpoint that records no fingerprint is restored unchecked.
+        let mut unrecorded = saved.clone();
+        unrecorded.model = 0;
+        variant(51.0, 0.1, 0).restore(&unrecorded).unwrap();
     }
 }

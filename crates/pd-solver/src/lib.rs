@@ -40,6 +40,7 @@ mod components;
 pub mod contact;
 mod energy;
 mod global;
+pub mod hash;
 mod lagged;
 mod local;
 mod method_choice;

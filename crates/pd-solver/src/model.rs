@@ -9,6 +9,7 @@ use pd_mesh::{Mesh, Point};
 
 use crate::SolverError;
 
+mod fingerprint;
 mod materials;
 mod shells;
 

@@ -57,6 +57,14 @@ impl Settings {
     /// minutes.
     pub const MAX_THREADS: usize = 1024;
 
+    /// The largest gravity accepted, m/s^2: 1e6, about 100,000 times the
+    /// Earth's. Anything larger is a mistake of units (the scene is in SI
+    /// units), and past it the quantities a step forms from gravity (the
+    /// divergence check's energy scale `M |g| size`, the gravitational
+    /// energy) lose their meaning long before they overflow: `gravity =
+    /// -1e300` ran until the divergence check reported a bound of `inf` J.
+    pub const MAX_GRAVITY: f64 = 1e6;
+
     /// Checks every field.
     ///
     /// # Errors
@@ -99,6 +107,17 @@ impl Settings {
             return bad(
                 "gravity",
                 format!("must be finite, got {:?}", self.gravity.as_slice()),
+            );
+        }
+        // The largest component first: the norm of 1e300 overflows.
+        if self.gravity.amax() > Self::MAX_GRAVITY || self.gravity.norm() > Self::MAX_GRAVITY {
+            return bad(
+                "gravity",
+                format!(
+                    "is {:?} m/s^2; its magnitude must be at most {:e} m/s^2 (SI units)",
+                    self.gravity.as_slice(),
+                    Self::MAX_GRAVITY
+                ),
             );
         }
         if self.threads > Self::MAX_THREADS {

@@ -166,6 +166,9 @@ pub struct Simulation {
     /// The local-global contraction observed in earlier steps, which the
     /// next step's error estimate starts from (step/estimate.rs; 0: none).
     pub(crate) carried_contraction: f64,
+    /// [`Model::fingerprint`] of the model, computed on the first
+    /// checkpoint or restore (checkpoint.rs).
+    pub(crate) model_fingerprint: std::sync::OnceLock<u64>,
 }
 
 impl Simulation {
@@ -269,6 +272,7 @@ impl Simulation {
             probe_deadline: None,
             method_choice: None,
             carried_contraction: 0.0,
+            model_fingerprint: std::sync::OnceLock::new(),
         };
         if !d.is_lagged() {
             sim.prepare_matrix()?;

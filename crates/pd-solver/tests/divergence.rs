@@ -169,6 +169,14 @@ fn invalid_settings_are_rejected_by_name() {
             },
             "gravity",
         ),
+        (
+            // Finite, but beyond Settings::MAX_GRAVITY.
+            Settings {
+                gravity: Point::new(0.0, -1e300, 0.0),
+                ..Settings::default()
+            },
+            "gravity",
+        ),
     ] {
         let error = Simulation::new(
             chain_model(),

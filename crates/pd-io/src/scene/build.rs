@@ -107,10 +107,22 @@ impl Scene {
         } else {
             mesh.translated(body.translate)
         };
+        // The key that carries the masses names every error about them.
+        let mass_field = field(match body.mass {
+            MassSpec::Density(_) => "density",
+            MassSpec::VertexMass(_) => "vertex_mass",
+        });
         let masses = match body.mass {
             MassSpec::Density(rho) => mesh
                 .lumped_masses(rho)
-                .map_err(|e| self.field_error(field("density"), e))?,
+                .map_err(|e| self.field_error(&mass_field, e))?,
+            // A scene file's value is checked when it is read; a `Scene`
+            // built in code is checked here.
+            MassSpec::VertexMass(m) if !(m.is_finite() && m > 0.0) => {
+                return Err(
+                    self.field_error(mass_field, format!("must be finite and > 0, got {m}"))
+                );
+            }
             MassSpec::VertexMass(m) => vec![m; mesh.num_vertices()],
         };
         let fixed = match &body.fixed {
@@ -119,9 +131,10 @@ impl Scene {
                 .map_err(|e| self.field_error(field("fixed"), e))?,
             None => Vec::new(),
         };
+        // `add_body` refuses only masses (a count or a value).
         let id = model
             .add_body(mesh.clone(), masses)
-            .map_err(|e| self.field_error(field("mesh"), e))?;
+            .map_err(|e| self.field_error(&mass_field, e))?;
         for (c, constraint) in body.constraints.iter().enumerate() {
             let here = field(&format!("constraints[{c}]"));
             let result = match constraint {

@@ -182,7 +182,25 @@ impl Validator<'_> {
             tolerance: self.non_negative("simulation.tolerance", s.tolerance.unwrap_or(0.0))?,
             accuracy: self.accuracy(s)?,
             gravity: match s.gravity {
-                Some(g) => self.vector("simulation.gravity", g)?,
+                Some(g) => {
+                    let g = self.vector("simulation.gravity", g)?;
+                    // The largest component first: the norm of 1e300
+                    // overflows.
+                    if g.amax() > Settings::MAX_GRAVITY || g.norm() > Settings::MAX_GRAVITY {
+                        return Err(self.error(
+                            "simulation.gravity",
+                            format!(
+                                "is [{:e}, {:e}, {:e}] m/s^2; its magnitude must be at most \
+                                 {:e} m/s^2 (about 100,000 g): the scene is in SI units",
+                                g.x,
+                                g.y,
+                                g.z,
+                                Settings::MAX_GRAVITY
+                            ),
+                        ));
+                    }
+                    g
+                }
                 None => defaults.gravity,
             },
             threads: match s.threads {
