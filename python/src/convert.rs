@@ -107,11 +107,13 @@ fn shape_text(shape: &[usize]) -> String {
 
 /// An `(N, 3)` array of coordinates (anything NumPy converts to float64) as
 /// points; `what` names the argument. With `rows`, N must be that.
-pub(crate) fn points(what: &str, obj: &Bound<'_, PyAny>, rows: Option<usize>) -> PyResult<Vec<Point>> {
+pub(crate) fn points(
+    what: &str,
+    obj: &Bound<'_, PyAny>,
+    rows: Option<usize>,
+) -> PyResult<Vec<Point>> {
     let array = as_array(obj, "float64").map_err(|e| {
-        PyValueError::new_err(format!(
-            "{what}: expected an (N, 3) array of numbers ({e})"
-        ))
+        PyValueError::new_err(format!("{what}: expected an (N, 3) array of numbers ({e})"))
     })?;
     let array = array.cast::<PyArrayDyn<f64>>()?;
     let shape = array.shape().to_vec();

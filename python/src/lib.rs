@@ -23,6 +23,9 @@ fn _projdyn(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulation::modes, m)?)?;
     m.add_function(wrap_pyfunction!(simulation::restore_simulation, m)?)?;
     m.add_function(wrap_pyfunction!(model::restore_model, m)?)?;
-    m.add("DivergenceError", m.py().get_type::<errors::DivergenceError>())?;
+    m.add(
+        "DivergenceError",
+        m.py().get_type::<errors::DivergenceError>(),
+    )?;
     Ok(())
 }

@@ -172,7 +172,9 @@ impl Model {
     ) -> PyResult<usize> {
         let vertices = points("vertices", vertices, None)?;
         let tets = tets.map(|t| indices::<4>("tets", t)).transpose()?;
-        let triangles = triangles.map(|t| indices::<3>("triangles", t)).transpose()?;
+        let triangles = triangles
+            .map(|t| indices::<3>("triangles", t))
+            .transpose()?;
         let edges = edges.map(|e| indices::<2>("edges", e)).transpose()?;
         if tets.is_none() && triangles.is_none() && edges.is_none() {
             return Err(PyValueError::new_err(
@@ -232,7 +234,12 @@ impl Model {
     }
 
     /// A spring along every edge of `body`: `stiffness` in N/m.
-    fn add_springs(&mut self, py: Python<'_>, body: usize, stiffness: Bound<'_, PyAny>) -> PyResult<()> {
+    fn add_springs(
+        &mut self,
+        py: Python<'_>,
+        body: usize,
+        stiffness: Bound<'_, PyAny>,
+    ) -> PyResult<()> {
         let p = params(py, &[("stiffness", Some(stiffness))])?;
         self.push_constraint(body, "spring", p)
     }
@@ -252,19 +259,34 @@ impl Model {
     }
 
     /// Bending on every interior edge of `body`: flexural rigidity in N m.
-    fn add_bending(&mut self, py: Python<'_>, body: usize, stiffness: Bound<'_, PyAny>) -> PyResult<()> {
+    fn add_bending(
+        &mut self,
+        py: Python<'_>,
+        body: usize,
+        stiffness: Bound<'_, PyAny>,
+    ) -> PyResult<()> {
         let p = params(py, &[("stiffness", Some(stiffness))])?;
         self.push_constraint(body, "bending", p)
     }
 
     /// Area preservation of every triangle of `body`: N/m.
-    fn add_area(&mut self, py: Python<'_>, body: usize, stiffness: Bound<'_, PyAny>) -> PyResult<()> {
+    fn add_area(
+        &mut self,
+        py: Python<'_>,
+        body: usize,
+        stiffness: Bound<'_, PyAny>,
+    ) -> PyResult<()> {
         let p = params(py, &[("stiffness", Some(stiffness))])?;
         self.push_constraint(body, "area", p)
     }
 
     /// Volume preservation of every tetrahedron of `body`: Pa.
-    fn add_volume(&mut self, py: Python<'_>, body: usize, stiffness: Bound<'_, PyAny>) -> PyResult<()> {
+    fn add_volume(
+        &mut self,
+        py: Python<'_>,
+        body: usize,
+        stiffness: Bound<'_, PyAny>,
+    ) -> PyResult<()> {
         let p = params(py, &[("stiffness", Some(stiffness))])?;
         self.push_constraint(body, "volume", p)
     }

@@ -201,9 +201,7 @@ impl Simulation {
                 )));
             }
         }
-        settings
-            .entry("steps")
-            .or_insert(toml::Value::Integer(0));
+        settings.entry("steps").or_insert(toml::Value::Integer(0));
         let mut tables = toml::Table::new();
         tables.insert("simulation".into(), toml::Value::Table(settings));
         for (key, value) in [
@@ -250,8 +248,8 @@ impl Simulation {
         damping: Option<&Bound<'_, PyDict>>,
         solver: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
-        let mut text = std::fs::read_to_string(&path)
-            .map_err(|e| io_error(pd_io::Error::io(&path, e)))?;
+        let mut text =
+            std::fs::read_to_string(&path).map_err(|e| io_error(pd_io::Error::io(&path, e)))?;
         if let Some(damping) = damping {
             let table = to_table("damping", damping)?;
             text = set_table(&path, &text, "damping", table, false)?;
@@ -392,7 +390,8 @@ impl Simulation {
     /// `.obj` or `.ply`, as the frames of `pd run`.
     fn save_frame(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let inner = self.lock()?;
-        py.detach(|| write_frame_file(&path, &inner.sim)).map_err(io_error)
+        py.detach(|| write_frame_file(&path, &inner.sim))
+            .map_err(io_error)
     }
 
     /// Runs to step `steps` (default: the scene's `steps`) and writes the
@@ -446,7 +445,9 @@ impl Simulation {
             Some(model) => Some(model_to_json(model)?),
             None => None,
         };
-        let restore = py.import("projdyn._projdyn")?.getattr("restore_simulation")?;
+        let restore = py
+            .import("projdyn._projdyn")?
+            .getattr("restore_simulation")?;
         let args = (text, model).into_pyobject(py)?;
         PyTuple::new(py, [restore, args.into_any()])
     }

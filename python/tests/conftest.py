@@ -14,7 +14,7 @@ REPO = Path(__file__).resolve().parents[2]
 SCENES = REPO / "scenes"
 # The shared folder sits beside the repository's checkout (CI copies it
 # there too); the armadillo is not in every copy of it.
-ARMADILLO = REPO.parent / "shared" / "meshes" / "armadillo"
+ARMADILLO = REPO.parent / "shared" / "meshes" / "armadillo" / "armadillo"
 
 
 def pd(*args, cwd=REPO):
