@@ -59,10 +59,16 @@ def trajectories(steps, threads=1):
     return np.arange(steps + 1) * dt, curves
 
 
+# Line colours of the PNG writer, in the order of the curves: blue,
+# orange, green (matplotlib's first three).
+COLOURS = [("blue", (31, 119, 180)), ("orange", (255, 127, 14)), ("green", (44, 160, 44))]
+
+
 def write_png(path, curves, times, width=800, height=400):
     """A line plot of `curves` (name -> values over `times`) as an RGB PNG,
-    written without any plotting package."""
-    colours = [(31, 119, 180), (255, 127, 14), (44, 160, 44)]
+    written without any plotting package; the curves take `COLOURS` in
+    order."""
+    colours = [rgb for _, rgb in COLOURS]
     image = np.full((height, width, 3), 255, dtype=np.uint8)
     low = min(c.min() for c in curves.values())
     high = max(c.max() for c in curves.values())
@@ -105,7 +111,8 @@ def plot(times, curves, out):
         import matplotlib.pyplot as plt
     except ImportError:
         write_png(out, curves, times)
-        return "png writer"
+        legend = ", ".join(f"{name} {colour}" for name, (colour, _) in zip(curves, COLOURS))
+        return f"png writer: {legend}"
     fig, ax = plt.subplots(figsize=(8, 4))
     for name, values in curves.items():
         ax.plot(times, values, label=name)

@@ -91,7 +91,7 @@ impl Model {
 }
 
 /// A table of the keyword values given (those not `None`).
-fn params(py: Python<'_>, pairs: &[(&str, Option<Bound<'_, PyAny>>)]) -> PyResult<toml::Table> {
+fn params(pairs: &[(&str, Option<Bound<'_, PyAny>>)]) -> PyResult<toml::Table> {
     let mut table = toml::Table::new();
     for (key, value) in pairs {
         if let Some(value) = value
@@ -100,7 +100,6 @@ fn params(py: Python<'_>, pairs: &[(&str, Option<Bound<'_, PyAny>>)]) -> PyResul
             table.insert((*key).into(), v);
         }
     }
-    let _ = py;
     Ok(table)
 }
 
@@ -158,7 +157,6 @@ impl Model {
     #[allow(clippy::too_many_arguments)]
     fn add_body(
         &mut self,
-        py: Python<'_>,
         vertices: &Bound<'_, PyAny>,
         tets: Option<&Bound<'_, PyAny>>,
         triangles: Option<&Bound<'_, PyAny>>,
@@ -187,17 +185,14 @@ impl Model {
             triangles.unwrap_or_default(),
             edges,
         )?;
-        let table = params(
-            py,
-            &[
-                ("name", name),
-                ("density", density),
-                ("vertex_mass", vertex_mass),
-                ("initial_velocity", initial_velocity),
-                ("angular_velocity", angular_velocity),
-                ("damping", damping),
-            ],
-        )?;
+        let table = params(&[
+            ("name", name),
+            ("density", density),
+            ("vertex_mass", vertex_mass),
+            ("initial_velocity", initial_velocity),
+            ("angular_velocity", angular_velocity),
+            ("damping", damping),
+        ])?;
         self.bodies.push(BodyEntry { mesh, table });
         Ok(self.bodies.len() - 1)
     }
@@ -224,23 +219,17 @@ impl Model {
     #[pyo3(signature = (body, stiffness, *, limits=None))]
     fn add_tet_strain(
         &mut self,
-        py: Python<'_>,
         body: usize,
         stiffness: Bound<'_, PyAny>,
         limits: Option<Bound<'_, PyAny>>,
     ) -> PyResult<()> {
-        let p = params(py, &[("stiffness", Some(stiffness)), ("limits", limits)])?;
+        let p = params(&[("stiffness", Some(stiffness)), ("limits", limits)])?;
         self.push_constraint(body, "tet-strain", p)
     }
 
     /// A spring along every edge of `body`: `stiffness` in N/m.
-    fn add_springs(
-        &mut self,
-        py: Python<'_>,
-        body: usize,
-        stiffness: Bound<'_, PyAny>,
-    ) -> PyResult<()> {
-        let p = params(py, &[("stiffness", Some(stiffness))])?;
+    fn add_springs(&mut self, body: usize, stiffness: Bound<'_, PyAny>) -> PyResult<()> {
+        let p = params(&[("stiffness", Some(stiffness))])?;
         self.push_constraint(body, "spring", p)
     }
 
@@ -249,45 +238,29 @@ impl Model {
     #[pyo3(signature = (body, stiffness, *, limits=None))]
     fn add_triangle_strain(
         &mut self,
-        py: Python<'_>,
         body: usize,
         stiffness: Bound<'_, PyAny>,
         limits: Option<Bound<'_, PyAny>>,
     ) -> PyResult<()> {
-        let p = params(py, &[("stiffness", Some(stiffness)), ("limits", limits)])?;
+        let p = params(&[("stiffness", Some(stiffness)), ("limits", limits)])?;
         self.push_constraint(body, "triangle-strain", p)
     }
 
     /// Bending on every interior edge of `body`: flexural rigidity in N m.
-    fn add_bending(
-        &mut self,
-        py: Python<'_>,
-        body: usize,
-        stiffness: Bound<'_, PyAny>,
-    ) -> PyResult<()> {
-        let p = params(py, &[("stiffness", Some(stiffness))])?;
+    fn add_bending(&mut self, body: usize, stiffness: Bound<'_, PyAny>) -> PyResult<()> {
+        let p = params(&[("stiffness", Some(stiffness))])?;
         self.push_constraint(body, "bending", p)
     }
 
     /// Area preservation of every triangle of `body`: N/m.
-    fn add_area(
-        &mut self,
-        py: Python<'_>,
-        body: usize,
-        stiffness: Bound<'_, PyAny>,
-    ) -> PyResult<()> {
-        let p = params(py, &[("stiffness", Some(stiffness))])?;
+    fn add_area(&mut self, body: usize, stiffness: Bound<'_, PyAny>) -> PyResult<()> {
+        let p = params(&[("stiffness", Some(stiffness))])?;
         self.push_constraint(body, "area", p)
     }
 
     /// Volume preservation of every tetrahedron of `body`: Pa.
-    fn add_volume(
-        &mut self,
-        py: Python<'_>,
-        body: usize,
-        stiffness: Bound<'_, PyAny>,
-    ) -> PyResult<()> {
-        let p = params(py, &[("stiffness", Some(stiffness))])?;
+    fn add_volume(&mut self, body: usize, stiffness: Bound<'_, PyAny>) -> PyResult<()> {
+        let p = params(&[("stiffness", Some(stiffness))])?;
         self.push_constraint(body, "volume", p)
     }
 
@@ -296,13 +269,12 @@ impl Model {
     /// in [0, 0.5).
     fn add_material(
         &mut self,
-        py: Python<'_>,
         body: usize,
         kind: &str,
         young: Bound<'_, PyAny>,
         poisson: Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        let p = params(py, &[("young", Some(young)), ("poisson", Some(poisson))])?;
+        let p = params(&[("young", Some(young)), ("poisson", Some(poisson))])?;
         self.push_constraint(body, kind, p)
     }
 
@@ -312,13 +284,12 @@ impl Model {
     #[pyo3(signature = (body, stiffness, *, vertices=None, r#box=None))]
     fn add_attachment(
         &mut self,
-        py: Python<'_>,
         body: usize,
         stiffness: Bound<'_, PyAny>,
         vertices: Option<&Bound<'_, PyAny>>,
         r#box: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
-        let mut p = params(py, &[("stiffness", Some(stiffness))])?;
+        let mut p = params(&[("stiffness", Some(stiffness))])?;
         p.extend(selection(vertices, r#box)?);
         self.push_constraint(body, "attachment", p)
     }

@@ -285,9 +285,12 @@ impl Simulation {
     /// simulation diverges; the state is then that of the last good step.
     #[pyo3(signature = (n=1))]
     fn step(&self, py: Python<'_>, n: usize) -> PyResult<()> {
+        // The lock is taken inside `catch_panic`: a panic (a bug) unwinds
+        // through it and poisons it, so that the simulation, left half-way
+        // through a step, refuses to be used again.
         let result = py.detach(|| {
-            let mut inner = self.lock()?;
             catch_panic(|| {
+                let mut inner = self.lock()?;
                 for _ in 0..n {
                     if let Err(e) = inner.sim.step() {
                         return Ok(Err(e));
@@ -405,9 +408,10 @@ impl Simulation {
     #[pyo3(signature = (out, steps=None))]
     fn run(&self, py: Python<'_>, out: PathBuf, steps: Option<usize>) -> PyResult<()> {
         let result = py.detach(|| {
-            let mut guard = self.lock()?;
-            let inner = &mut *guard;
-            catch_panic(|| Ok(record_run(inner, &out, steps)))
+            catch_panic(|| {
+                let mut inner = self.lock()?;
+                Ok(record_run(&mut inner, &out, steps))
+            })
         })?;
         match result {
             Ok(()) => Ok(()),
