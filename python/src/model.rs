@@ -73,6 +73,18 @@ impl Model {
         })
     }
 
+    /// Appends a `constraints` entry of `kind` with the keyword values
+    /// given (those not `None`) to `body`.
+    fn add_kind(
+        &mut self,
+        body: usize,
+        kind: &str,
+        pairs: &[(&str, Option<Bound<'_, PyAny>>)],
+    ) -> PyResult<()> {
+        let table = params(pairs)?;
+        self.push_constraint(body, kind, table)
+    }
+
     /// Appends a `constraints` entry of `kind` with `params` to `body`.
     fn push_constraint(&mut self, body: usize, kind: &str, params: toml::Table) -> PyResult<()> {
         let entry = self.body_mut(body)?;
@@ -223,14 +235,16 @@ impl Model {
         stiffness: Bound<'_, PyAny>,
         limits: Option<Bound<'_, PyAny>>,
     ) -> PyResult<()> {
-        let p = params(&[("stiffness", Some(stiffness)), ("limits", limits)])?;
-        self.push_constraint(body, "tet-strain", p)
+        self.add_kind(
+            body,
+            "tet-strain",
+            &[("stiffness", Some(stiffness)), ("limits", limits)],
+        )
     }
 
     /// A spring along every edge of `body`: `stiffness` in N/m.
     fn add_springs(&mut self, body: usize, stiffness: Bound<'_, PyAny>) -> PyResult<()> {
-        let p = params(&[("stiffness", Some(stiffness))])?;
-        self.push_constraint(body, "spring", p)
+        self.add_kind(body, "spring", &[("stiffness", Some(stiffness))])
     }
 
     /// Membrane strain on every triangle of `body`: `stiffness` (E t) in
@@ -242,26 +256,26 @@ impl Model {
         stiffness: Bound<'_, PyAny>,
         limits: Option<Bound<'_, PyAny>>,
     ) -> PyResult<()> {
-        let p = params(&[("stiffness", Some(stiffness)), ("limits", limits)])?;
-        self.push_constraint(body, "triangle-strain", p)
+        self.add_kind(
+            body,
+            "triangle-strain",
+            &[("stiffness", Some(stiffness)), ("limits", limits)],
+        )
     }
 
     /// Bending on every interior edge of `body`: flexural rigidity in N m.
     fn add_bending(&mut self, body: usize, stiffness: Bound<'_, PyAny>) -> PyResult<()> {
-        let p = params(&[("stiffness", Some(stiffness))])?;
-        self.push_constraint(body, "bending", p)
+        self.add_kind(body, "bending", &[("stiffness", Some(stiffness))])
     }
 
     /// Area preservation of every triangle of `body`: N/m.
     fn add_area(&mut self, body: usize, stiffness: Bound<'_, PyAny>) -> PyResult<()> {
-        let p = params(&[("stiffness", Some(stiffness))])?;
-        self.push_constraint(body, "area", p)
+        self.add_kind(body, "area", &[("stiffness", Some(stiffness))])
     }
 
     /// Volume preservation of every tetrahedron of `body`: Pa.
     fn add_volume(&mut self, body: usize, stiffness: Bound<'_, PyAny>) -> PyResult<()> {
-        let p = params(&[("stiffness", Some(stiffness))])?;
-        self.push_constraint(body, "volume", p)
+        self.add_kind(body, "volume", &[("stiffness", Some(stiffness))])
     }
 
     /// A hyperelastic material on every tetrahedron of `body`: `kind` is
