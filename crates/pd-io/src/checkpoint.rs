@@ -536,6 +536,22 @@ mod tests {
     }
 
     #[test]
+    fn the_text_form_is_the_file_and_reads_back_the_same() {
+        let path = temp("text");
+        let file = sample();
+        write_checkpoint(&path, &file).unwrap();
+        let text = checkpoint_to_json(&path, &file).unwrap();
+        // The file is the text and a final newline.
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), format!("{text}\n"));
+        let back = checkpoint_from_json(Path::new("in-memory"), &text).unwrap();
+        assert_eq!(back, file);
+        let err = checkpoint_from_json(Path::new("in-memory"), "{}")
+            .unwrap_err()
+            .to_string();
+        assert!(err.starts_with("in-memory:"), "{err}");
+    }
+
+    #[test]
     fn refuses_edited_scene_text_and_bad_fields() {
         let path = temp("edited");
         write_checkpoint(&path, &sample()).unwrap();
