@@ -8,8 +8,8 @@
 use std::path::{Path, PathBuf};
 
 use pd_damping::Point;
-use pd_damping::registry::DampingSpec;
 use pd_io::frames::{Cells, write_obj};
+use pd_io::modes_report::{MODES_FILE, animation_name, modes_report};
 use pd_io::vtu::{PvdEntry, write_pvd, write_vtu};
 use pd_modes::Mode;
 use pd_solver::{Model, Simulation};
@@ -59,70 +59,11 @@ pub(crate) fn modes(options: &SceneOptions, count: usize) -> Result<(), Failure>
         .unwrap_or_else(|| PathBuf::from("out").join(format!("modes-{}", loaded.name)));
     std::fs::create_dir_all(&out)
         .map_err(|e| Failure::Output(format!("{}: {e}", out.display())))?;
-    let dt = scene.settings.dt;
-    let d = sim.damping_matrix();
-    // Per-body damping gives each body its own coefficients, which the
-    // one-coefficient modal estimate below does not split: no ratios then.
-    let per_body = sim.damping_body_coefficients().is_some();
-    let implicit_only = damping_is_implicit(&scene.damping) && !per_body;
-    let make = || scene.integrator.create();
-    let mut entries = Vec::new();
     for (i, mode) in analysis.modes.iter().enumerate() {
-        let c = d.mass
-            + d.damping_laplacian * mode.laplacian_quotient
-            + d.lagged_stiffness * mode.omega * mode.omega;
-        let discrete = pd_modes::discrete_mode(&make, dt, mode.omega, c);
-        let name = format!("mode_{:02}", i + 1);
-        write_animation(&out, &name, &sim, mode)?;
-        entries.push(serde_json::json!({
-            "mode": i + 1,
-            "frequency_hz": mode.frequency_hz(),
-            "omega_rad_s": mode.omega,
-            "laplacian_quotient_per_s2": mode.laplacian_quotient,
-            "modal_damping_per_s": c,
-            "continuous_damping_ratio": c / (2.0 * mode.omega),
-            "damping_ratio": implicit_only.then_some(discrete.damping_ratio),
-            "discrete_frequency_hz": discrete.omega / std::f64::consts::TAU,
-            "amplitude_factor_per_step": discrete.spectral_radius,
-            "animation": format!("{name}.pvd"),
-        }));
+        write_animation(&out, &animation_name(i), &sim, mode)?;
     }
-    let column =
-        |key: &str| -> Vec<serde_json::Value> { entries.iter().map(|e| e[key].clone()).collect() };
-    let json = serde_json::json!({
-        "scene": scene.source.display().to_string(),
-        "integrator": scene.integrator.name(),
-        "dt": dt,
-        "damping": sim.damping_name(),
-        "damping_coefficients": {
-            "mass_per_s": d.mass,
-            "laplacian_stiffness_s": d.damping_laplacian,
-            "lagged_stiffness_s": d.lagged_stiffness,
-        },
-        "damping_ratios_note": if per_body {
-            "null: per-body damping ([[body]] damping); each body's ratio is set for its own \
-             lowest mode (docs/design/damping.md), which this estimate does not split by body"
-        } else if implicit_only {
-            "discrete damping ratio of each mode under the scene's integrator at dt: the model's \
-             damping plus the integrator's numerical damping"
-        } else {
-            "null: this damping model acts by an explicit velocity filter, which the modal \
-             estimate does not include"
-        },
-        "frequencies_hz": column("frequency_hz"),
-        "damping_ratios": column("damping_ratio"),
-        "dofs": analysis.dofs,
-        "rigid_modes": analysis.rigid_modes,
-        "mechanisms": analysis.mechanisms,
-        "method": analysis.method,
-        "iterations": analysis.iterations,
-        "solved_columns": analysis.solved_columns,
-        "analysis_ms": analysis.seconds * 1e3,
-        "analysis_factor_ms": analysis.factor_seconds * 1e3,
-        "solver_factor_ms": sim.setup_stats().factor_seconds * 1e3,
-        "modes": entries,
-    });
-    let path = out.join("modes.json");
+    let json = modes_report(scene, &sim, &analysis, true);
+    let path = out.join(MODES_FILE);
     let text = serde_json::to_string_pretty(&json).map_err(|e| Failure::Output(e.to_string()))?;
     std::fs::write(&path, text + "\n")
         .map_err(|e| Failure::Output(format!("{}: {e}", path.display())))?;
@@ -132,16 +73,6 @@ pub(crate) fn modes(options: &SceneOptions, count: usize) -> Result<(), Failure>
         analysis.modes.len()
     );
     Ok(())
-}
-
-/// Whether the model's damping is all in its implicit matrix (what the
-/// modal estimate sees): not explicit ether drag or PBD.
-fn damping_is_implicit(spec: &DampingSpec) -> bool {
-    match spec.name() {
-        "pbd" => false,
-        "ether-drag" => spec.flag("implicit").unwrap_or(false),
-        _ => true,
-    }
 }
 
 /// One period of `mode` as `DIR/NAME.pvd` (VTU frames in `DIR/NAME/`) and

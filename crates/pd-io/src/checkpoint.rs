@@ -224,6 +224,17 @@ fn points(arrays: &[[f64; 3]]) -> Vec<Point> {
 /// [`Error::Content`] for a non-finite number (JSON cannot hold it);
 /// [`Error::Io`] naming `path`.
 pub fn write_checkpoint(path: &Path, file: &CheckpointFile) -> Result<()> {
+    let text = checkpoint_to_json(path, file)?;
+    write_atomically(path, |w| writeln!(w, "{text}"))
+}
+
+/// The text of a checkpoint file (one line of JSON, without the final
+/// newline): what [`write_checkpoint`] writes and [`checkpoint_from_json`]
+/// reads back bit for bit. `path` names the checkpoint in messages.
+///
+/// # Errors
+/// [`Error::Content`] for a non-finite number (JSON cannot hold it).
+pub fn checkpoint_to_json(path: &Path, file: &CheckpointFile) -> Result<String> {
     let c = &file.checkpoint;
     let finite = |points: &[Point]| points.iter().all(|p| p.iter().all(|x| x.is_finite()));
     let history_finite = c.history.states.iter().all(|(x, v)| finite(x) && finite(v));
@@ -289,9 +300,9 @@ pub fn write_checkpoint(path: &Path, file: &CheckpointFile) -> Result<()> {
         method: file.method.clone(),
         contraction: c.contraction,
     };
-    write_atomically(path, |w| {
-        serde_json::to_writer(&mut *w, &raw)?;
-        writeln!(w)
+    serde_json::to_string(&raw).map_err(|e| Error::Content {
+        path: path.to_path_buf(),
+        message: e.to_string(),
     })
 }
 
@@ -304,7 +315,16 @@ pub fn write_checkpoint(path: &Path, file: &CheckpointFile) -> Result<()> {
 /// not match, an unknown syntax, or states of mismatched lengths.
 pub fn read_checkpoint(path: &Path) -> Result<CheckpointFile> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let raw = parse_raw(path, &text)?;
+    checkpoint_from_json(path, &text)
+}
+
+/// Reads and checks the text of a checkpoint file; `path` names it in
+/// messages.
+///
+/// # Errors
+/// As [`read_checkpoint`], except that nothing is read from disk.
+pub fn checkpoint_from_json(path: &Path, text: &str) -> Result<CheckpointFile> {
+    let raw = parse_raw(path, text)?;
     let field = |field: &str, message: String| Error::Field {
         path: path.to_path_buf(),
         field: field.into(),
@@ -548,6 +568,22 @@ mod tests {
             back.checkpoint.energy_scale.to_bits(),
             file.checkpoint.energy_scale.to_bits()
         );
+    }
+
+    #[test]
+    fn the_text_form_is_the_file_and_reads_back_the_same() {
+        let path = temp("text");
+        let file = sample();
+        write_checkpoint(&path, &file).unwrap();
+        let text = checkpoint_to_json(&path, &file).unwrap();
+        // The file is the text and a final newline.
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), format!("{text}\n"));
+        let back = checkpoint_from_json(Path::new("in-memory"), &text).unwrap();
+        assert_eq!(back, file);
+        let err = checkpoint_from_json(Path::new("in-memory"), "{}")
+            .unwrap_err()
+            .to_string();
+        assert!(err.starts_with("in-memory:"), "{err}");
     }
 
     #[test]

@@ -46,6 +46,7 @@ pub mod gmsh;
 pub mod hash;
 mod lines;
 pub mod medit;
+pub mod modes_report;
 pub mod obj;
 pub mod ply;
 mod readers;

@@ -371,6 +371,50 @@ impl Recorder {
     }
 }
 
+/// Writes the current state of `sim` as one frame file, in the format its
+/// extension names (`.vtk`, `.vtu`, `.obj` or `.ply`), with the cells and
+/// fields a run's frames of that format have.
+///
+/// # Errors
+/// [`Error::Content`] for another extension; [`Error::Io`] if the file
+/// cannot be written.
+pub fn write_frame_file(path: &Path, sim: &Simulation) -> Result<()> {
+    let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let format = FrameFormat::parse(&extension.to_ascii_lowercase()).ok_or_else(|| {
+        let names: Vec<&str> = FrameFormat::ALL.iter().map(|f| f.name()).collect();
+        Error::Content {
+            path: path.to_path_buf(),
+            message: format!(
+                "unknown frame format {extension:?}: the extension must be one of {}",
+                names.join(", ")
+            ),
+        }
+    })?;
+    let state = sim.state();
+    let t = Topology::of(sim);
+    match format {
+        FrameFormat::Vtk => write_vtk(
+            path,
+            &state.positions,
+            &t.vtk_cells(),
+            Some(&state.velocities),
+        ),
+        FrameFormat::Obj => write_obj(path, &state.positions, &t.surface, &t.lines),
+        FrameFormat::Ply => write_ply(path, &state.positions, &t.surface, &t.lines),
+        FrameFormat::Vtu => {
+            let mut strain = Vec::new();
+            StrainMeasure::new(&t.rest, &t.vtk_cells()).measure_into(&state.positions, &mut strain);
+            write_vtu(
+                path,
+                &state.positions,
+                &t.vtk_cells(),
+                Some(&state.velocities),
+                Some(&strain),
+            )
+        }
+    }
+}
+
 /// Removes the file at `path` if there is one.
 fn remove_if_present(path: &Path) -> Result<()> {
     match std::fs::remove_file(path) {

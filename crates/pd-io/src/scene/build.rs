@@ -241,6 +241,7 @@ impl Scene {
             MeshSource::Gmsh(path) => return gmsh::read_gmsh(path),
             MeshSource::Obj(path) => return obj::read_obj(path),
             MeshSource::Medit(path) => return medit::read_medit(path),
+            MeshSource::Given(mesh) => return Ok(mesh.clone()),
         };
         generated.map_err(|e| self.field_error(field, e))
     }

@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use pd_damping::registry::DampingSpec;
-use pd_mesh::{Point, VertexSelection};
+use pd_mesh::{Mesh, Point, VertexSelection};
 use pd_solver::Settings;
 
 /// Integrators a scene can name: the key of `pd_integrators::registry`.
@@ -56,6 +56,10 @@ pub enum MeshSource {
     Obj(PathBuf),
     /// `file = "....mesh"`: a Medit mesh (tetrahedra, else triangles).
     Medit(PathBuf),
+    /// A mesh a program made in memory (no scene key): the Python package's
+    /// `Model.add_body` puts its arrays here, so that the rest of the body is
+    /// validated and built as a scene's.
+    Given(Mesh),
 }
 
 /// How a body's masses are given.
