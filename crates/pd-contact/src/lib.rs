@@ -106,7 +106,10 @@ pub struct ContactState {
     velocities: Vec<Point>,
     anchor: Vec<Point>,
     h: f64,
+    /// The end velocity is `gamma (x - x_n - anchor - velocity_weight v_n)`
+    /// ([`ContactState::begin_step`]).
     gamma: f64,
+    velocity_weight: f64,
     /// Below this approach speed a hit does not bounce (2 |g| h), m/s.
     rest_speed: f64,
     iteration: usize,
@@ -151,6 +154,7 @@ impl ContactState {
             anchor: vec![Point::zeros(); vertices],
             h: 0.0,
             gamma: 0.0,
+            velocity_weight: 0.0,
             rest_speed: 0.0,
             iteration: 0,
             bodies: None,
@@ -168,18 +172,23 @@ impl ContactState {
     /// Start of a step: keeps the contacts that ended the last step active
     /// (re-anchored at `x_n`, forces warm-started), drops the others, and
     /// copies the velocities and `x_hat - x_n` that restitution needs.
+    /// `(gamma, w)` give the step's end velocity,
+    /// `v_{n+1} = gamma (x - x_hat - w v_n)`
+    /// (`pd_integrators::Integrator::end_velocity`): a bouncing vertex is
+    /// placed where its end velocity is the bounce.
     pub fn begin_step(
         &mut self,
         x_n: &[Point],
         v_n: &[Point],
         anchor_displacement: &[Point],
-        (h, gamma, gravity): (f64, f64, Point),
+        (h, (gamma, w), gravity): (f64, (f64, f64), Point),
     ) {
         if self.frozen {
             return;
         }
         self.h = h;
         self.gamma = gamma;
+        self.velocity_weight = w;
         self.rest_speed = 2.0 * gravity.norm() * h;
         self.iteration = 0;
         self.velocities.copy_from_slice(v_n);
@@ -314,7 +323,7 @@ impl ContactState {
         let speed = -(self.velocities[v] - col.velocity(&hit.point)).dot(&n);
         let (lift, bounce) = if col.restitution > 0.0 && speed > self.rest_speed {
             let bounce = col.restitution * speed;
-            let x_hat = a + self.anchor[v];
+            let x_hat = a + self.anchor[v] + self.velocities[v] * self.velocity_weight;
             (
                 (n.dot(&(x_hat - hit.point)) + bounce / self.gamma).max(0.0),
                 bounce,
@@ -430,6 +439,14 @@ impl ContactState {
         if let Some(bodies) = &self.bodies {
             bodies.filter_velocities(velocities);
         }
+    }
+
+    /// Whether a contact of this step bounced (met its collider faster than
+    /// the resting speed, with restitution): its vertex's end velocity was
+    /// set by the bounce, not by the integrator's history, which a
+    /// multistep method should then forget.
+    pub fn bounced(&self) -> bool {
+        !self.frozen && self.slots.iter().flatten().any(|s| s.bounce > 0.0)
     }
 
     /// The active contacts and the deepest penetration of a free vertex of

@@ -39,6 +39,11 @@ impl Integrator for ImplicitMidpoint {
         }
     }
 
+    /// `v_{n+1} = 2 (x - x_n) / h - v_n = (2 / h) (x - x_n - (h / 2) v_n)`.
+    fn end_velocity(&self, h: f64) -> (f64, f64) {
+        (2.0 / h, 0.5 * h)
+    }
+
     fn prepare(
         &self,
         h: f64,

@@ -133,6 +133,17 @@ pub trait Integrator: std::fmt::Debug + Send + Sync {
         velocities: &mut [Point],
     );
 
+    /// The coming step's end velocity `v_{n+1}` as a function of its
+    /// positions: `(g, w)` with `v_{n+1} = g (x - x_hat - w v_n)`, `x_hat`
+    /// the damping anchor of [`Targets`]. The default `(gamma, 0)` holds where
+    /// the damping velocity is the end velocity (backward Euler, BDF-2);
+    /// implicit midpoint's damping velocity is the step's mean velocity.
+    /// Contact's restitution places a bouncing vertex where its end velocity
+    /// is the bounce (docs/design/contact.md).
+    fn end_velocity(&self, h: f64) -> (f64, f64) {
+        (self.coefficients(h).gamma, 0.0)
+    }
+
     /// The damping velocity `gamma (x - x_hat)` of the coming step as a
     /// combination of positions, divided by `gamma`: the coefficients of
     /// `x_{n+1}, x_n, x_{n-1}, ...` in `x - x_hat`. One-step methods (and a
