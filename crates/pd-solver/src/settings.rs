@@ -57,13 +57,15 @@ impl Settings {
     /// minutes.
     pub const MAX_THREADS: usize = 1024;
 
-    /// The largest gravity accepted, m/s^2: 1e6, about 100,000 times the
-    /// Earth's. Anything larger is a mistake of units (the scene is in SI
-    /// units), and past it the quantities a step forms from gravity (the
-    /// divergence check's energy scale `M |g| size`, the gravitational
-    /// energy) lose their meaning long before they overflow: `gravity =
+    /// The largest gravity accepted, m/s^2: 1e154, where the square of its
+    /// magnitude is still a finite `f64` (its largest value is 1.8e308).
+    /// Past it the quantities a step forms from gravity (its magnitude, the
+    /// divergence check's energy scale `M |g| size`) overflow: `gravity =
     /// -1e300` ran until the divergence check reported a bound of `inf` J.
-    pub const MAX_GRAVITY: f64 = 1e6;
+    /// Below it, an absurd gravity still runs, and a run it makes diverge
+    /// stops with the divergence error at the step where an energy
+    /// overflows.
+    pub const MAX_GRAVITY: f64 = 1e154;
 
     /// Checks every field.
     ///

@@ -191,7 +191,7 @@ impl Validator<'_> {
                             "simulation.gravity",
                             format!(
                                 "is [{:e}, {:e}, {:e}] m/s^2; its magnitude must be at most \
-                                 {:e} m/s^2 (about 100,000 g): the scene is in SI units",
+                                 {:e} m/s^2, where its square still fits in a 64-bit float",
                                 g.x,
                                 g.y,
                                 g.z,
