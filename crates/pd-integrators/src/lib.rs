@@ -135,7 +135,7 @@ pub trait Integrator: std::fmt::Debug + Send + Sync {
 
     /// The coming step's end velocity `v_{n+1}` as a function of its
     /// positions: `(g, w)` with `v_{n+1} = g (x - x_hat - w v_n)`, `x_hat`
-    /// the damping anchor of [`Targets`]. The default `(gamma, 0)` holds where
+    /// the damping anchor of [`StepTargets`]. The default `(gamma, 0)` holds where
     /// the damping velocity is the end velocity (backward Euler, BDF-2);
     /// implicit midpoint's damping velocity is the step's mean velocity.
     /// Contact's restitution places a bouncing vertex where its end velocity
