@@ -17,12 +17,22 @@ const PLANE_HALF_SIDE: f64 = 1.0;
 /// cannot be read (a run without colliders, or a moved scene file), so that
 /// the picture is the one without colliders.
 pub(crate) fn of_run(dir: &Path) -> Scenery {
-    let scene = std::fs::read_to_string(dir.join("summary.json"))
+    of_scene(run_scene(dir).as_ref())
+}
+
+/// The scene `dir/summary.json` names, if it can still be read.
+pub(crate) fn run_scene(dir: &Path) -> Option<Scene> {
+    std::fs::read_to_string(dir.join("summary.json"))
         .ok()
         .and_then(|text| serde_json::from_str::<serde_json::Value>(&text).ok())
         .and_then(|summary| summary.get("scene")?.as_str().map(str::to_owned))
-        .and_then(|path| Scene::load(Path::new(&path)).ok());
-    let Some(contact) = scene.and_then(|s| s.contact) else {
+        .and_then(|path| Scene::load(Path::new(&path)).ok())
+}
+
+/// The colliders of `scene` as scenery (nothing without a scene or
+/// colliders).
+pub(crate) fn of_scene(scene: Option<&Scene>) -> Scenery {
+    let Some(contact) = scene.and_then(|s| s.contact.as_ref()) else {
         return Scenery::default();
     };
     let mut scenery = Scenery::default();

@@ -127,7 +127,9 @@ fn read_run(dir: &Path, options: &ViewOptions) -> Result<Run, Failure> {
             paths[0].display()
         )));
     }
-    let frame_dt = frame_interval(dir, paths.len());
+    let scene = crate::scenery::run_scene(dir);
+    let frame_dt = frame_interval(dir, scene.as_ref(), paths.len());
+    let colliders = colliders_json(scene.as_ref(), &frames[0].positions);
     let times = kept.iter().map(|&i| i as f64 * frame_dt).collect();
     let metrics = if dir.join(pd_io::recorder::MetricsRow::FILE).exists() {
         Some(metrics_json(dir)?)
@@ -139,7 +141,7 @@ fn read_run(dir: &Path, options: &ViewOptions) -> Result<Run, Failure> {
         label: label_of(dir),
         frames,
         times,
-        colliders: colliders_json(dir, &paths[0]),
+        colliders,
         metrics,
         probes,
     })
@@ -167,10 +169,10 @@ fn check_same_topology(a: &Surface, b: &Surface, pa: &Path, pb: &Path) -> Result
     Ok(())
 }
 
-/// Seconds between consecutive frame files: the scene's `dt` and
-/// `output.every` from `summary.json` and the scene it names; failing
-/// those, the run's time spread evenly over its frames.
-fn frame_interval(dir: &Path, frames: usize) -> f64 {
+/// Seconds between consecutive frame files: `dt` from `summary.json` and
+/// `output.every` from the run's scene; failing those, the run's time
+/// spread evenly over its frames.
+fn frame_interval(dir: &Path, scene: Option<&pd_io::scene::Scene>, frames: usize) -> f64 {
     let summary = std::fs::read_to_string(dir.join("summary.json"))
         .ok()
         .and_then(|text| serde_json::from_str::<Value>(&text).ok());
@@ -178,11 +180,7 @@ fn frame_interval(dir: &Path, frames: usize) -> f64 {
         return 1.0;
     };
     let dt = summary.get("dt").and_then(Value::as_f64);
-    let every = summary
-        .get("scene")
-        .and_then(Value::as_str)
-        .and_then(|path| pd_io::scene::Scene::load(Path::new(path)).ok())
-        .map(|scene| scene.output.every);
+    let every = scene.map(|scene| scene.output.every);
     match (dt, every) {
         (Some(dt), Some(every)) if every > 0 => dt * every as f64,
         _ => {
@@ -197,17 +195,16 @@ fn frame_interval(dir: &Path, frames: usize) -> f64 {
 }
 
 /// The run's colliders as surfaces (`pd render`'s scenery); the ground is
-/// a square under the body, sized to the first frame.
-fn colliders_json(dir: &Path, first_frame: &Path) -> Vec<Value> {
-    let scenery = crate::scenery::of_run(dir);
+/// a square under the body, sized to its first frame.
+fn colliders_json(scene: Option<&pd_io::scene::Scene>, first_frame: &[[f64; 3]]) -> Vec<Value> {
+    let scenery = crate::scenery::of_scene(scene);
     let mut colliders: Vec<Value> = scenery
         .solids
         .iter()
         .map(|s| json!({"positions": flat(&s.positions), "triangles": flat_indices(&s.triangles)}))
         .collect();
     if let Some(y) = scenery.ground {
-        let frame = read_obj(first_frame).unwrap_or_default();
-        let (lo, hi) = bounds(&frame.positions);
+        let (lo, hi) = bounds(first_frame);
         let centre = [(lo[0] + hi[0]) / 2.0, (lo[2] + hi[2]) / 2.0];
         let half = 1.5 * (hi[0] - lo[0]).max(hi[2] - lo[2]).max(0.5);
         let corners = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]
@@ -229,19 +226,18 @@ fn flat_indices<const N: usize>(items: &[[usize; N]]) -> Vec<usize> {
 }
 
 /// The smallest box holding `points` (a unit box at the origin if none).
-fn bounds(points: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
-    if points.is_empty() {
-        return ([0.0; 3], [1.0; 3]);
-    }
+fn bounds<'a>(points: impl IntoIterator<Item = &'a [f64; 3]>) -> ([f64; 3], [f64; 3]) {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
+    let mut any = false;
     for p in points {
+        any = true;
         for k in 0..3 {
             lo[k] = lo[k].min(p[k]);
             hi[k] = hi[k].max(p[k]);
         }
     }
-    (lo, hi)
+    if any { (lo, hi) } else { ([0.0; 3], [1.0; 3]) }
 }
 
 /// Evenly thinned indices `0..n`, at most [`PLOT_POINTS`], the last kept.
@@ -351,18 +347,11 @@ fn estimated_bytes(runs: &[Run]) -> f64 {
 
 /// The page, and the quantisation step of its positions, m.
 fn page(runs: &[Run]) -> (String, f64) {
-    let all = runs
-        .iter()
-        .flat_map(|r| &r.frames)
-        .flat_map(|f| &f.positions);
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in all {
-        for k in 0..3 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
-    }
+    let (lo, hi) = bounds(
+        runs.iter()
+            .flat_map(|r| &r.frames)
+            .flat_map(|f| &f.positions),
+    );
     let extent: [f64; 3] = std::array::from_fn(|k| (hi[k] - lo[k]).max(1e-12));
     let quantum = extent.iter().fold(0.0_f64, |a, &e| a.max(e)) / 65535.0;
     let runs_json: Vec<Value> = runs
