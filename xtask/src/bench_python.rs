@@ -115,7 +115,10 @@ mod tests {
                        "python": "3.13.5", "step1_us": 1050.0, "batched_us": 1000.0}"#;
         let m: PythonOverhead = serde_json::from_str(text).unwrap();
         let md = markdown(&PythonSection::Measured(m));
-        assert!(md.contains("Overhead of a call: 50.0 us, +5.00% of a step"), "{md}");
+        assert!(
+            md.contains("Overhead of a call: 50.0 us, +5.00% of a step"),
+            "{md}"
+        );
     }
 
     #[test]
@@ -126,6 +129,9 @@ mod tests {
             panic!("expected a skip, got {section:?}")
         };
         assert!(why.contains("/nonexistent/python-for-the-report"), "{why}");
-        assert!(markdown(&section).contains("Not measured: cannot run"), "{section:?}");
+        assert!(
+            markdown(&section).contains("Not measured: cannot run"),
+            "{section:?}"
+        );
     }
 }

@@ -36,8 +36,7 @@ fn rotated(h: &DMatrix<f64>, r: &Rotation3<f64>) -> DMatrix<f64> {
     let n = h.nrows() / 3;
     let mut big = DMatrix::zeros(3 * n, 3 * n);
     for k in 0..n {
-        big.view_mut((3 * k, 3 * k), (3, 3))
-            .copy_from(r.matrix());
+        big.view_mut((3 * k, 3 * k), (3, 3)).copy_from(r.matrix());
     }
     &big * h * big.transpose()
 }

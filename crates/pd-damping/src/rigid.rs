@@ -498,7 +498,10 @@ mod tests {
             for (points, expected) in &sets {
                 let turned: Vec<Point> = points.iter().map(|p| rotation * p).collect();
                 let freedom = RigidFreedom::of_held_points(&turned, 1.2);
-                assert!(expected(&freedom), "orientation {k}: {points:?} gave {freedom:?}");
+                assert!(
+                    expected(&freedom),
+                    "orientation {k}: {points:?} gave {freedom:?}"
+                );
             }
         }
     }

@@ -23,7 +23,8 @@
 //!   `1/2|v1|_M^2 - 1/2|v0|_M^2 = v_mid^T M (v1 - v0)`, so
 //!   `E1 - E0 = -h v_mid^T D v_mid`: exact conservation without damping, and
 //!   exactly that loss with a constant (or lagged, here constant) `D`.
-//! - BDF-2 has no per-step energy guarantee and is not tested here.
+//! - BDF-2 has no per-step energy guarantee; its law, G-stability, is
+//!   checked in `prop_bdf2_stability.rs`.
 //!
 //! Round-off bound, per step: the computed `x1` satisfies the step's
 //! equations up to a residual `rho` per row of about `u (|A| |x|)_i`

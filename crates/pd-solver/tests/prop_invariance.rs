@@ -135,8 +135,11 @@ impl Case {
     fn simulation(&self, rotation: &Rotation3<f64>, translation: Point) -> Simulation {
         let moved = |p: &Point| rotation * p + translation;
         let mesh = irregular_box(self.cells, self.seed, self.keep);
-        let mesh = Mesh::from_tets(mesh.vertices().iter().map(moved).collect(), mesh.tets().to_vec())
-            .unwrap();
+        let mesh = Mesh::from_tets(
+            mesh.vertices().iter().map(moved).collect(),
+            mesh.tets().to_vec(),
+        )
+        .unwrap();
         let n = mesh.num_vertices();
         let masses = mesh.lumped_masses(1000.0).unwrap();
         let mut model = Model::new();
@@ -152,7 +155,9 @@ impl Case {
         }
         if self.surroundings == Surroundings::Attached {
             let every_fifth: Vec<usize> = (0..n).step_by(5).collect();
-            model.add_attachments(BodyId(0), &every_fifth, 500.0).unwrap();
+            model
+                .add_attachments(BodyId(0), &every_fifth, 500.0)
+                .unwrap();
         }
         let gravity_dir = Point::from(self.gravity).normalize();
         let settings = Settings {
@@ -166,8 +171,8 @@ impl Case {
             threads: 1,
             ..Settings::default()
         };
-        let mut sim = Simulation::new(model, self.integrator(), self.damping.create(), settings)
-            .unwrap();
+        let mut sim =
+            Simulation::new(model, self.integrator(), self.damping.create(), settings).unwrap();
         if let Energy::Material(_) = self.energy {
             let spec = SolverSpec {
                 method: SolverMethod::Newton,
@@ -389,5 +394,8 @@ fn a_fixed_case_holds_and_gravity_along_a_world_axis_fails_it() {
     // the trajectories part by about |Q g - g| (3 h)^2 / 2, several mm.
     case.gravity_in_world_axes = true;
     let (wrong, _) = largest_difference(&case).unwrap();
-    assert!(wrong > 1e-3 && wrong > 1e4 * bound, "{wrong:e} vs bound {bound:e}");
+    assert!(
+        wrong > 1e-3 && wrong > 1e4 * bound,
+        "{wrong:e} vs bound {bound:e}"
+    );
 }
