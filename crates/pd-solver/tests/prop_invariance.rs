@@ -1,6 +1,8 @@
 //! Invariance under a rigid motion of the whole scene, over irregular
-//! meshes, every material family, attachments, contact and every
-//! integrator.
+//! meshes (jittered boxes with tets removed; pieces of 50 to 250 vertices
+//! cut from the TetGen armadillo where `../shared/meshes` is beside the
+//! repository, else more boxes), every material family, attachments,
+//! contact and every integrator.
 //!
 //! **The theorem.** Move a whole scene by a rotation `Q` and a translation
 //! `t`: rest shape `Q X + t`, initial positions and velocities moved alike,
@@ -88,11 +90,33 @@ enum Surroundings {
     Sphere { friction: f64 },
 }
 
+/// The body's mesh.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Shape {
+    /// [`irregular_box`]: a jittered box with some tets removed.
+    Irregular {
+        cells: [usize; 3],
+        seed: u64,
+        keep: f64,
+    },
+    /// [`prop_common::armadillo_piece`] (an irregular box of the same seed
+    /// where the armadillo is absent).
+    Armadillo { seed: u64, radius: f64 },
+}
+
+impl Shape {
+    fn mesh(self) -> Mesh {
+        match self {
+            Self::Irregular { cells, seed, keep } => irregular_box(cells, seed, keep),
+            Self::Armadillo { seed, radius } => prop_common::armadillo_piece(seed, radius)
+                .unwrap_or_else(|| irregular_box([2, 2, 2], seed, 0.8)),
+        }
+    }
+}
+
 #[derive(Debug, Clone)]
 struct Case {
-    cells: [usize; 3],
-    seed: u64,
-    keep: f64,
+    shape: Shape,
     energy: Energy,
     surroundings: Surroundings,
     integrator: usize,
@@ -134,7 +158,7 @@ impl Case {
     /// translation), and the motion's effect on a point.
     fn simulation(&self, rotation: &Rotation3<f64>, translation: Point) -> Simulation {
         let moved = |p: &Point| rotation * p + translation;
-        let mesh = irregular_box(self.cells, self.seed, self.keep);
+        let mesh = self.shape.mesh();
         let mesh = Mesh::from_tets(
             mesh.vertices().iter().map(moved).collect(),
             mesh.tets().to_vec(),
@@ -264,11 +288,23 @@ fn any_damping() -> impl Strategy<Value = DampingChoice> {
     prop_common::damping(0.05)
 }
 
+fn shape() -> impl Strategy<Value = Shape> {
+    prop_oneof![
+        3 => ((1usize..=5, 1usize..=4, 1usize..=4), 0u64..1000, 0.6..1.0f64).prop_map(
+            |(cells, seed, keep)| Shape::Irregular {
+                cells: [cells.0, cells.1, cells.2],
+                seed,
+                keep,
+            }
+        ),
+        1 => (0u64..1_000_000, 0.08..0.16f64)
+            .prop_map(|(seed, radius)| Shape::Armadillo { seed, radius }),
+    ]
+}
+
 prop_compose! {
     fn case()(
-        cells in (1usize..=5, 1usize..=4, 1usize..=4),
-        seed in 0u64..1000,
-        keep in 0.6..1.0f64,
+        shape in shape(),
         energy in energy(),
         surroundings in surroundings(),
         integrator in 0usize..3,
@@ -283,9 +319,7 @@ prop_compose! {
         velocities in prop_common::points(7, 0.5),
     ) -> Case {
         Case {
-            cells: [cells.0, cells.1, cells.2],
-            seed,
-            keep,
+            shape,
             energy,
             surroundings,
             integrator,
@@ -362,9 +396,11 @@ proptest! {
 /// A fixed case, and what a frame-dependent defect does to it.
 fn control_case() -> Case {
     Case {
-        cells: [3, 2, 2],
-        seed: 11,
-        keep: 0.8,
+        shape: Shape::Irregular {
+            cells: [3, 2, 2],
+            seed: 11,
+            keep: 0.8,
+        },
         energy: Energy::Corotational,
         surroundings: Surroundings::Plane { friction: 0.5 },
         integrator: 1,

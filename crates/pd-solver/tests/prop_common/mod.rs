@@ -345,3 +345,50 @@ pub fn irregular_box(cells: [usize; 3], seed: u64, keep: f64) -> Mesh {
     }
     Mesh::from_tets(vertices, tets).unwrap()
 }
+
+/// The TetGen armadillo beside the repository
+/// (`../shared/meshes/armadillo/armadillo.node` and `.ele`: 14,779
+/// vertices, a real mesh with elements of every size and shape), read once;
+/// `None` (with one line saying so) where it is absent.
+pub fn armadillo() -> Option<&'static Mesh> {
+    static MESH: std::sync::OnceLock<Option<Mesh>> = std::sync::OnceLock::new();
+    MESH.get_or_init(|| {
+        let base = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../../shared/meshes/armadillo/armadillo");
+        pd_io::tetgen::read_tetgen_base(&base)
+            .map_err(|e| println!("armadillo pieces skipped: {}: {e}", base.display()))
+            .ok()
+    })
+    .as_ref()
+}
+
+/// A piece of the armadillo: every tet whose four vertices lie within
+/// `radius` m of vertex `seed % n` (about 50 vertices at 0.08 m, 250 at
+/// 0.16 m; it can have several pieces), its unused vertices removed.
+/// `None` without the armadillo.
+pub fn armadillo_piece(seed: u64, radius: f64) -> Option<Mesh> {
+    let full = armadillo()?;
+    let centre = full.vertices()[(seed % full.num_vertices() as u64) as usize];
+    let near: Vec<bool> = (full.vertices().iter())
+        .map(|p| (p - centre).norm() <= radius)
+        .collect();
+    let mut tets: Vec<[usize; 4]> = (full.tets().iter())
+        .filter(|t| t.iter().all(|&v| near[v]))
+        .copied()
+        .collect();
+    if tets.is_empty() {
+        return None;
+    }
+    let mut index = vec![usize::MAX; full.num_vertices()];
+    let mut vertices = Vec::new();
+    for tet in &mut tets {
+        for v in tet.iter_mut() {
+            if index[*v] == usize::MAX {
+                index[*v] = vertices.len();
+                vertices.push(full.vertices()[*v]);
+            }
+            *v = index[*v];
+        }
+    }
+    Mesh::from_tets(vertices, tets).ok()
+}
