@@ -385,7 +385,7 @@ impl<B: GradientBackend> lbfgs::Objective for LogObjective<'_, B> {
         let values: Vec<f64> = iteration.z.iter().map(|z| z.exp()).collect();
         info!(
             "iteration {}: loss {:.6e} m^2, |gradient| {:.3e} m^2 (largest d loss / d ln p), \
-             step {:.3}; {}",
+             step {:.3e}; {}",
             iteration.number,
             iteration.value,
             iteration
