@@ -9,10 +9,10 @@
 //! ([`FiniteDifference`]), one forward run per parameter and side.
 //!
 //! Forward runs are converged: whatever the scene asks, each step runs
-//! Newton's method to an estimated relative error of [`FIT_ACCURACY`], so
-//! that the loss is a smooth function of the parameters to well below the
-//! finite differences' step (a loss from unconverged steps jumps where the
-//! iteration count changes).
+//! to an estimated relative error of [`FIT_ACCURACY`], by Newton's method
+//! where the scene allows it, so that the loss is a smooth function of the
+//! parameters to well below the finite differences' step (a loss from
+//! unconverged steps jumps where the iteration count changes).
 
 mod lbfgs;
 mod paths;
@@ -109,6 +109,8 @@ pub(crate) struct Problem {
     probes: Vec<usize>,
     /// Target probe positions, `[step 1..=N][probe]`, m.
     targets: Vec<Vec<Point>>,
+    /// The iteration method of the forward runs.
+    method: SolverMethod,
 }
 
 impl Problem {
@@ -140,14 +142,41 @@ impl Problem {
             .map_err(Failure::Input)?;
         let track = ProbeTrack::read(target).map_err(|e| Failure::Input(e.to_string()))?;
         let targets = check_target(&track, &parsed).map_err(Failure::Input)?;
-        Ok(Self {
+        let mut problem = Self {
             source: scene.to_path_buf(),
             tree,
             paths,
             start,
             probes: parsed.output.probes.clone(),
             targets,
-        })
+            method: SolverMethod::Newton,
+        };
+        // Newton's method where the scene allows it (it refuses contact,
+        // lagged and per-body damping), else the method the scene names,
+        // else Anderson's, else plain local-global.
+        let named = (!parsed.choose_method).then_some(parsed.solver.method);
+        let candidates = [
+            Some(SolverMethod::Newton),
+            named,
+            Some(SolverMethod::Anderson),
+        ];
+        let mut refused = Vec::new();
+        for method in candidates.into_iter().flatten() {
+            problem.method = method;
+            match problem.scene_at(&problem.start)?.build() {
+                Ok(_) => return Ok(problem),
+                Err(e) => refused.push(format!("{}: {e}", method.name())),
+            }
+        }
+        problem.method = SolverMethod::LocalGlobal;
+        problem.scene_at(&problem.start)?.build().map_err(|e| {
+            refused.push(format!("local-global: {e}"));
+            Failure::Input(format!(
+                "no iteration method runs the scene for fitting: {}",
+                refused.join("; ")
+            ))
+        })?;
+        Ok(problem)
     }
 
     /// The scene's value tree with `values` at the fitted paths.
@@ -172,7 +201,7 @@ impl Problem {
         scene.settings.tolerance = 0.0;
         scene.settings.iterations = ACCURACY_ITERATIONS;
         scene.choose_method = false;
-        scene.solver.method = SolverMethod::Newton;
+        scene.solver.method = self.method;
         Ok(scene)
     }
 
@@ -224,7 +253,7 @@ impl Problem {
             .parent()
             .map_or_else(PathBuf::new, Path::to_path_buf);
         paths::absolute_file_paths(&mut tree, &folder);
-        let body = toml::to_string_pretty(&tree).map_err(|e| e.to_string())?;
+        let body = toml::to_string(&tree).map_err(|e| e.to_string())?;
         Ok(format!(
             "# {} with the values fitted by `pd fit`:\n{}\n\n{body}",
             self.source.display(),
@@ -425,11 +454,12 @@ pub(crate) fn fit(options: &FitOptions) -> Result<PathBuf, Failure> {
     let start = lbfgs::Objective::value_and_gradient(&mut objective, &z0)?;
     info!(
         "start: loss {:.6e} m^2 over {} steps and {} probes; {} ({backend_name} gradients, \
-         forward runs converged by Newton to {FIT_ACCURACY:e})",
+         forward runs converged by {} to {FIT_ACCURACY:e})",
         start.0,
         problem.targets.len(),
         problem.probes.len(),
-        problem.describe(&problem.start)
+        problem.describe(&problem.start),
+        problem.method.name(),
     );
     let settings = lbfgs::Settings {
         max_iterations: options.max_iterations,
@@ -485,6 +515,7 @@ pub(crate) fn fit(options: &FitOptions) -> Result<PathBuf, Failure> {
         "gradient_method": backend_name,
         "finite_difference_step": FD_STEP,
         "forward_accuracy": FIT_ACCURACY,
+        "forward_method": problem.method.name(),
         "timing": {
             "forward_s": mean(|e| e.forward_s),
             "backward_s": mean(|e| e.backward_s),
