@@ -76,7 +76,10 @@ pub(crate) struct Evaluation {
 }
 
 /// Where gradients come from: finite differences here; an adjoint method
-/// can take its place.
+/// can take its place. A backend works from the [`Problem`]: the scene at
+/// given values ([`Problem::scene_at`], set up for converged runs), the
+/// probed vertices and the target positions (the loss's data), and the
+/// fitted paths; [`fit_with`] runs the fit with it.
 pub(crate) trait GradientBackend {
     /// As `fit.json`'s `gradient_method` names it.
     fn name(&self) -> &'static str;
@@ -443,9 +446,21 @@ pub(crate) fn fit(options: &FitOptions) -> Result<PathBuf, Failure> {
             .map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
         Path::new("out").join(format!("fit-{name}"))
     });
+    let backend = FiniteDifference { problem: &problem };
+    fit_with(options, &problem, backend, &out)?;
+    Ok(out)
+}
+
+/// Fits `problem` with gradients from `backend`, then writes `out`.
+fn fit_with<B: GradientBackend>(
+    options: &FitOptions,
+    problem: &Problem,
+    backend: B,
+    out: &Path,
+) -> Result<(), Failure> {
     let mut objective = LogObjective {
-        backend: FiniteDifference { problem: &problem },
-        problem: &problem,
+        backend,
+        problem,
         evaluations: Vec::new(),
         losses: 0,
     };
@@ -524,8 +539,7 @@ pub(crate) fn fit(options: &FitOptions) -> Result<PathBuf, Failure> {
         },
         "fitted_scene": FITTED_SCENE,
     });
-    write_results(&problem, &values, &report, &out)?;
-    Ok(out)
+    write_results(problem, &values, &report, out)
 }
 
 /// Writes the fitted scene (checked to load) and `fit.json` into `out`,
