@@ -1,7 +1,8 @@
 //! A compact L-BFGS minimiser (Nocedal and Wright, "Numerical
 //! Optimization", 2nd ed., algorithms 7.4 and 7.5) with a backtracking
-//! Armijo line search, for the few unconstrained variables of `pd fit`
-//! (the logarithms of positive scene parameters).
+//! Armijo line search, which also doubles a full step accepted at once
+//! while that lowers the value further, for the few unconstrained
+//! variables of `pd fit` (the logarithms of positive scene parameters).
 //!
 //! The line search asks only for values; gradients are asked for at the
 //! accepted points, which is what makes a finite-difference gradient
