@@ -164,6 +164,12 @@ fn the_gradient_at_the_start_matches_central_differences_of_pd_run() {
     ]);
     let report = json(&out.join("fit.json"));
     assert_eq!(report["iterations"], 0);
+    // Without an iteration the scene's values are reported as given.
+    assert_eq!(report["parameters"], report["initial_parameters"]);
+    assert_eq!(
+        report["initial_parameters"]["damping.mass"].as_f64(),
+        Some(0.6 * 0.25)
+    );
     let start_loss = loss(&record(&start, &dir.join("start")), &target);
     // The same runs: the loss agrees to summation rounding.
     let reported = report["loss"].as_f64().unwrap();
