@@ -75,8 +75,8 @@ pub(crate) struct Iteration {
     pub value: f64,
     /// Gradient there.
     pub gradient: Vec<f64>,
-    /// Step length taken along the search direction.
-    pub step: f64,
+    /// The largest change of a variable in this iteration.
+    pub change: f64,
 }
 
 /// Why the minimisation stopped.
@@ -253,7 +253,7 @@ pub(crate) fn minimise<O: Objective>(
             z: z.clone(),
             value,
             gradient: gradient.clone(),
-            step,
+            change: step * longest,
         });
         small_decrease = decrease <= settings.loss_tolerance * before.abs();
     };

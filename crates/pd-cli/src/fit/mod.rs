@@ -417,14 +417,14 @@ impl<B: GradientBackend> lbfgs::Objective for LogObjective<'_, B> {
         let values: Vec<f64> = iteration.z.iter().map(|z| z.exp()).collect();
         info!(
             "iteration {}: loss {:.6e} m^2, |gradient| {:.3e} m^2 (largest d loss / d ln p), \
-             step {:.3e}; {}",
+             ln p moved by up to {:.3e}; {}",
             iteration.number,
             iteration.value,
             iteration
                 .gradient
                 .iter()
                 .fold(0.0_f64, |m, g| m.max(g.abs())),
-            iteration.step,
+            iteration.change,
             self.problem.describe(&values)
         );
     }
