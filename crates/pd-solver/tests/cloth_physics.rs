@@ -4,12 +4,13 @@
 //! size.
 //!
 //! The static problems are solved to convergence by Newton's method on the
-//! model's own energy, and then through the time stepper (the last two
-//! tests: backward Euler brought to rest, implicit midpoint swinging in the
-//! lowest mode) (the constraint blocks' gradients and Hessians, dense,
-//! fixed vertices removed): this tests the constraints and their weights,
-//! not the time stepper. The frequency is the lowest generalized eigenvalue
-//! of the rest Hessian `K` and the lumped mass `M` (inverse iteration).
+//! model's own energy (the constraint blocks' gradients and Hessians, dense,
+//! fixed vertices removed): this tests the constraints and their weights.
+//! The frequency is the lowest generalized eigenvalue of the rest Hessian
+//! `K` and the lumped mass `M` (inverse iteration). The last two tests take
+//! the same strip through the time stepper: backward Euler brought to rest
+//! gives the static sag, implicit midpoint swinging in the lowest mode its
+//! frequency.
 
 use nalgebra::{DMatrix, DVector};
 use pd_mesh::{Point, generators};
