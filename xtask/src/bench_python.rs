@@ -74,9 +74,11 @@ fn measure_with(python: &str, root: &Path, repeats: usize) -> PythonSection {
     }
 }
 
-/// The report's Markdown section.
-pub fn markdown(section: &PythonSection) -> String {
+/// The report's Markdown section; `note` (possibly empty) goes under its
+/// heading.
+pub fn markdown(section: &PythonSection, note: &str) -> String {
     let mut md = String::from("## Python: the cost of a call\n\n");
+    md.push_str(note);
     match section {
         PythonSection::Skipped(why) => {
             let _ = writeln!(md, "Not measured: {why}.\n");
@@ -114,7 +116,7 @@ mod tests {
         let text = r#"{"scene": "cantilever.toml", "steps": 100, "repeats": 5,
                        "python": "3.13.5", "step1_us": 1050.0, "batched_us": 1000.0}"#;
         let m: PythonOverhead = serde_json::from_str(text).unwrap();
-        let md = markdown(&PythonSection::Measured(m));
+        let md = markdown(&PythonSection::Measured(m), "");
         assert!(
             md.contains("Overhead of a call: 50.0 us, +5.00% of a step"),
             "{md}"
@@ -130,7 +132,7 @@ mod tests {
         };
         assert!(why.contains("/nonexistent/python-for-the-report"), "{why}");
         assert!(
-            markdown(&section).contains("Not measured: cannot run"),
+            markdown(&section, "").contains("Not measured: cannot run"),
             "{section:?}"
         );
     }

@@ -43,6 +43,22 @@ pub struct Machine {
     pub load_average: Option<String>,
 }
 
+/// Where and when a section measured again on its own
+/// (`bench-report --only SECTION`) was measured.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SectionRun {
+    /// The commit (with `-dirty` for uncommitted changes).
+    pub commit: String,
+    /// The UTC date.
+    pub date: String,
+    /// The machine, read just before the section ran.
+    pub machine: Machine,
+}
+
+/// The sections `bench-report --only` can measure again on their own,
+/// keeping the rest of the stored report.
+pub const SECTIONS_ALONE: &[&str] = &["python"];
+
 /// One pair of `pd-probe phases` runs, on 1 and on 2 threads.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 struct LocalSpeedup {
@@ -80,6 +96,10 @@ struct Report {
     local_speedup: Vec<LocalSpeedup>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     python: Option<crate::bench_python::PythonSection>,
+    /// Sections measured again on their own after the full run, by name
+    /// ([`SECTIONS_ALONE`]), with their own commit and machine.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    remeasured: std::collections::BTreeMap<String, SectionRun>,
 }
 
 /// What one mode (full or quick) measures.
@@ -415,8 +435,64 @@ pub fn run(root: &Path, quick: bool, meshes: &[PathBuf]) -> Result<PathBuf, Stri
         scaling,
         local_speedup: speedup,
         python: Some(python),
+        remeasured: Default::default(),
     };
     write_report(root, &report)
+}
+
+/// `bench-report --only NAMES`: measures the sections `names` (of
+/// [`SECTIONS_ALONE`]) again and writes them into the stored report, each
+/// stamped with its own commit, date and machine; every other section stays
+/// as the last full run measured it.
+///
+/// # Errors
+/// An unknown section, no stored report, or a failed measurement.
+pub fn run_only(root: &Path, names: &[String]) -> Result<PathBuf, String> {
+    if let Some(unknown) = names.iter().find(|n| !SECTIONS_ALONE.contains(&n.as_str())) {
+        return Err(format!(
+            "--only: unknown section {unknown:?}; sections measured alone: {}",
+            SECTIONS_ALONE.join(", ")
+        ));
+    }
+    let json_path = root.join("docs/reports/bench-report/report.json");
+    let text = std::fs::read_to_string(&json_path).map_err(|e| {
+        format!(
+            "{}: {e} (--only updates a stored report; run the full report first)",
+            json_path.display()
+        )
+    })?;
+    let mut report: Report =
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", json_path.display()))?;
+    for name in names {
+        let (commit, date) = provenance(root);
+        let run = SectionRun {
+            commit,
+            date,
+            machine: machine(),
+        };
+        eprintln!("{name}...");
+        if name.as_str() == "python" {
+            report.python = Some(crate::bench_python::measure(root, 9));
+        }
+        report.remeasured.insert(name.clone(), run);
+    }
+    write_report(root, &report)
+}
+
+/// The line under a section's heading saying where it was measured, when
+/// that was after the full run.
+fn remeasured_note(r: &Report, name: &str) -> String {
+    r.remeasured.get(name).map_or_else(String::new, |run| {
+        format!(
+            "Measured on its own (`cargo xtask bench-report --only {name}`) at commit `{}`, {}, \
+             {} ({}), load average {}.\n\n",
+            run.commit,
+            run.date,
+            run.machine.cpu,
+            run.machine.simd.as_deref().unwrap_or("SIMD unknown"),
+            run.machine.load_average.as_deref().unwrap_or("unknown"),
+        )
+    })
 }
 
 fn write_report(root: &Path, report: &Report) -> Result<PathBuf, String> {
@@ -638,7 +714,10 @@ fn markdown(r: &Report) -> String {
     md.push_str(&crate::bench_contact::markdown(&r.contact));
     if let Some(python) = &r.python {
         md.push('\n');
-        md.push_str(&crate::bench_python::markdown(python));
+        md.push_str(&crate::bench_python::markdown(
+            python,
+            &remeasured_note(r, "python"),
+        ));
     }
     let _ = writeln!(md, "## Scaling\n");
     let scaling = &r.scaling;

@@ -31,7 +31,7 @@ mod stability_contact;
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 
-const USAGE: &str = "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy and docs (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/reports/damping-table.md\n  bench-report [--quick] [--mesh BASE]...\n                            speed/accuracy/scaling/limits report: docs/reports/bench-report.md\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N] [--mesh BASE]...\n                            pd vs the C++ reference: docs/reports/cpp-comparison.md\n  stability [--quick] [--shard I/N [--out DIR] | --merge DIR]\n                            run the matrix of extreme parameters (or one shard of it, or merge shards), write docs/reports/stability.md (use --release)\n  stability --only contact  the contact axis alone (dev profile), write docs/reports/stability-contact.md\n  stability --only methods [--integrator I] [--predictor P]\n                            the method axis (docs/reports/stability-methods.md)";
+const USAGE: &str = "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy and docs (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/reports/damping-table.md\n  bench-report [--quick] [--mesh BASE]...\n                            speed/accuracy/scaling/limits report: docs/reports/bench-report.md\n  bench-report --only SECTION[,SECTION]\n                            measure those sections again (python), keep the rest\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N] [--mesh BASE]...\n                            pd vs the C++ reference: docs/reports/cpp-comparison.md\n  stability [--quick] [--shard I/N [--out DIR] | --merge DIR]\n                            run the matrix of extreme parameters (or one shard of it, or merge shards), write docs/reports/stability.md (use --release)\n  stability --only contact  the contact axis alone (dev profile), write docs/reports/stability-contact.md\n  stability --only methods [--integrator I] [--predictor P]\n                            the method axis (docs/reports/stability-methods.md)";
 
 /// The options each task takes: those without a value, and those whose
 /// value is the next argument.
@@ -39,7 +39,7 @@ fn task_options(task: &str) -> Option<(&'static [&'static str], &'static [&'stat
     Some(match task {
         "ci" => (&[], &[]),
         "damping-table" => (&["--quick"], &[]),
-        "bench-report" => (&["--quick"], &["--mesh"]),
+        "bench-report" => (&["--quick"], &["--mesh", "--only"]),
         "cpp-compare" => (&["--quick"], &["--reference", "--repeat", "--mesh"]),
         "stability" => (
             &["--quick"],
@@ -116,6 +116,11 @@ fn main() -> ExitCode {
         )),
         "bench-report" => {
             let root = workspace_root();
+            // `--only a,b`: measure those sections again, keep the rest.
+            if let Some(only) = args.windows(2).find(|w| w[0] == "--only") {
+                let names: Vec<String> = only[1].split(',').map(str::to_string).collect();
+                return report(bench_report::run_only(&root, &names));
+            }
             // `--mesh BASE` (repeatable): TetGen meshes for the "Real meshes"
             // section; the shared armadillo by default.
             let mut meshes: Vec<PathBuf> = args
