@@ -35,6 +35,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub use pd_adjoint as adjoint;
 pub use pd_constraints as constraints;
 pub use pd_contact as contact;
 pub use pd_damping as damping;
