@@ -5,7 +5,8 @@
 //! from rest under gravity), against its forward run and against finite
 //! differences (docs/design/gradients.md, "Cost").
 //!
-//! Each repeat runs the loss and its gradient with respect to `a2`, the
+//! Each repeat also times the bench's own forward run of the same steps
+//! (local-global with its fixed iteration budget, not converged), then runs the loss and its gradient with respect to `a2`, the
 //! strain stiffness, the density and gravity (6 scalars), and records the
 //! forward and backward wall times; the minimum over the repeats is
 //! reported (the machine may be shared: the load average is printed before
@@ -75,8 +76,14 @@ fn main() -> Result<(), String> {
         rest.len(),
         load()
     );
-    let (mut forward, mut backward) = (f64::INFINITY, f64::INFINITY);
+    let (mut forward, mut backward, mut plain) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
     for repeat in 0..repeats {
+        // The bench's own run of the same steps: local-global, a fixed
+        // budget of iterations per step, not converged.
+        let mut sim = build()?;
+        let start = std::time::Instant::now();
+        sim.run(steps).map_err(|e| e.to_string())?;
+        plain = plain.min(start.elapsed().as_secs_f64());
         let result = loss_and_gradient(
             build()?,
             steps,
@@ -98,6 +105,12 @@ fn main() -> Result<(), String> {
         forward = forward.min(result.forward_s);
         backward = backward.min(result.backward_s);
     }
+    println!(
+        "minimum: plain forward ({} local-global iterations a step) {plain:.3} s; backward / \
+         plain forward {:.2}",
+        beam.iterations,
+        backward / plain
+    );
     println!(
         "minimum: forward {forward:.3} s, backward {backward:.3} s, backward/forward {:.2}; \
          finite differences of {scalars} scalars: {:.3} s one-sided, {:.3} s central \

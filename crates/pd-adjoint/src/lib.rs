@@ -608,7 +608,7 @@ pub fn loss_and_gradient(
                 }
             }
             Scheme::Midpoint => {
-                Operators::add_elastic(&stiffness, &lambda, -c.c1 * c.c2 * (1.0 - c.c2), &mut work);
+                ops.add_elastic(&stiffness, &lambda, -c.c1 * c.c2 * (1.0 - c.c2), &mut work);
                 for (a, w) in xbar[k].iter_mut().zip(&work) {
                     *a += w;
                 }

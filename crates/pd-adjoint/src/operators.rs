@@ -5,13 +5,15 @@
 //! every vertex (the free ones are picked where the derivation needs them).
 
 use pd_constraints::assembly::{LaplacianKind, laplacian};
-use pd_constraints::{ConstraintBlock, CsrMatrix, Triplet};
+use pd_constraints::{ConstraintBlock, CsrMatrix, Stencil};
 use pd_integrators::StepCoefficients;
 use pd_mesh::Point;
 
 /// What one step's derivatives are built from.
 pub(crate) struct Operators {
     pub blocks: Vec<Box<dyn ConstraintBlock>>,
+    /// Each block's stencils.
+    stencils: Vec<Vec<Stencil>>,
     pub masses: Vec<f64>,
     pub fixed: Vec<bool>,
     /// The damping Laplacian `L_d` (n x n, symmetric).
@@ -33,8 +35,13 @@ impl Operators {
     ) -> Self {
         let n = masses.len();
         let damping_laplacian = laplacian(&blocks, n, LaplacianKind::Damping);
+        let stencils = blocks
+            .iter()
+            .map(|b| (0..b.len()).map(|i| b.stencil(i)).collect())
+            .collect();
         Self {
             blocks,
+            stencils,
             masses,
             fixed,
             damping_laplacian,
@@ -44,35 +51,21 @@ impl Operators {
         }
     }
 
-    /// The elastic Hessian `K(q)` (3n x 3n, x, y, z interleaved per vertex):
-    /// the sum of every constraint's exact energy Hessian at `q`.
-    pub fn elastic_hessian(&self, q: &[Point]) -> CsrMatrix {
-        let n = q.len();
-        let mut triplets = Vec::new();
-        let mut values = Vec::new();
-        for block in &self.blocks {
-            let len = block.hessian_len();
-            let count = block.len();
-            values.resize(len * count, 0.0);
-            block.hessian_range(q, 0, false, &mut values);
-            for (i, h) in values.chunks_exact(len).enumerate() {
-                let stencil = block.stencil(i);
-                let size = 3 * stencil.len();
-                for (k, &vk) in stencil.iter().enumerate() {
-                    for (l, &vl) in stencil.iter().enumerate() {
-                        for a in 0..3 {
-                            for b in 0..3 {
-                                let value = h[(3 * k + a) * size + 3 * l + b];
-                                if value != 0.0 {
-                                    triplets.push(Triplet::new(3 * vk + a, 3 * vl + b, value));
-                                }
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        CsrMatrix::from_triplet_vec(3 * n, 3 * n, triplets)
+    /// The elastic Hessian `K(q)`: every constraint's exact energy Hessian
+    /// at `q` (3 STENCIL x 3 STENCIL each), kept per element and applied
+    /// without assembly.
+    pub fn elastic_hessian(&self, q: &[Point]) -> ElementHessians {
+        let blocks = self
+            .blocks
+            .iter()
+            .map(|block| {
+                let len = block.hessian_len();
+                let mut values = vec![0.0; len * block.len()];
+                block.hessian_range(q, 0, false, &mut values);
+                (values, len)
+            })
+            .collect();
+        ElementHessians { blocks }
     }
 
     /// `out = (M/h^2 + c1 c2 gamma D) w` with `D = a1 M + a2 L_d` scaled by
@@ -99,11 +92,21 @@ impl Operators {
     }
 
     /// `out += scale K w`.
-    pub fn add_elastic(k: &CsrMatrix, w: &[Point], scale: f64, out: &mut [Point]) {
-        for (i, o) in out.iter_mut().enumerate() {
-            for a in 0..3 {
-                let sum: f64 = k.row(3 * i + a).map(|(col, v)| v * w[col / 3][col % 3]).sum();
-                o[a] += scale * sum;
+    pub fn add_elastic(&self, k: &ElementHessians, w: &[Point], scale: f64, out: &mut [Point]) {
+        for ((values, len), stencils) in k.blocks.iter().zip(&self.stencils) {
+            for (h, stencil) in values.chunks_exact(*len).zip(stencils) {
+                let size = 3 * stencil.len();
+                for (a, &va) in stencil.iter().enumerate() {
+                    let mut sum = Point::zeros();
+                    for (b, &vb) in stencil.iter().enumerate() {
+                        let wb = w[vb];
+                        for i in 0..3 {
+                            let row = &h[(3 * a + i) * size + 3 * b..][..3];
+                            sum[i] += row[0] * wb.x + row[1] * wb.y + row[2] * wb.z;
+                        }
+                    }
+                    out[va] += sum * scale;
+                }
             }
         }
     }
@@ -113,14 +116,20 @@ impl Operators {
     pub fn hessian_product(
         &self,
         c: StepCoefficients,
-        k: &CsrMatrix,
+        k: &ElementHessians,
         w: &[Point],
         out: &mut [Point],
     ) {
         out.iter_mut().for_each(|o| *o = Point::zeros());
         self.add_inertia_damping(c, w, 1.0, out);
-        Self::add_elastic(k, w, c.c1 * c.c2 * c.c2, out);
+        self.add_elastic(k, w, c.c1 * c.c2 * c.c2, out);
     }
+}
+
+/// The exact element Hessians of every block at one point: values
+/// (`hessian_len` per constraint) and that length.
+pub(crate) struct ElementHessians {
+    blocks: Vec<(Vec<f64>, usize)>,
 }
 
 /// Zeroes the entries of fixed vertices.

@@ -5,11 +5,10 @@
 //! curvature (an indefinite `H` under compression) or do not converge.
 
 use nalgebra::{DMatrix, DVector};
-use pd_constraints::CsrMatrix;
 use pd_integrators::StepCoefficients;
 use pd_mesh::Point;
 
-use crate::operators::{Operators, dot, mask_fixed};
+use crate::operators::{ElementHessians, Operators, dot, mask_fixed};
 
 /// How one adjoint solve went.
 #[derive(Debug, Clone, Copy, Default)]
@@ -35,13 +34,13 @@ pub(crate) enum SolveFailure {
 }
 
 /// Solves `H lambda = g` (full-length vectors, zero at fixed vertices) into
-/// `lambda`. `precondition` solves `A z = r` in place over the free
+/// `lambda`, starting from the `lambda` given. `precondition` solves `A z = r` in place over the free
 /// vertices' entries (one point per free vertex).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn solve(
     ops: &Operators,
     c: StepCoefficients,
-    k: &CsrMatrix,
+    k: &ElementHessians,
     free: &[usize],
     g: &[Point],
     lambda: &mut [Point],
@@ -49,15 +48,25 @@ pub(crate) fn solve(
     precondition: &mut dyn FnMut(&mut [Point]) -> Result<(), pd_solver::SolverError>,
 ) -> Result<SolveReport, SolveFailure> {
     let n = g.len();
-    lambda.iter_mut().for_each(|l| *l = Point::zeros());
     let g_norm = dot(g, g).sqrt();
     if g_norm == 0.0 {
+        lambda.iter_mut().for_each(|l| *l = Point::zeros());
         return Ok(SolveReport::default());
     }
-    let mut r = g.to_vec();
+    // The iteration starts from the `lambda` given (the previous step's
+    // adjoint: successive steps' systems and right-hand sides differ by
+    // little), or from zero when that is the better start.
+    mask_fixed(lambda, &ops.fixed);
+    let mut hp = vec![Point::zeros(); n];
+    ops.hessian_product(c, k, lambda, &mut hp);
+    mask_fixed(&mut hp, &ops.fixed);
+    let mut r: Vec<Point> = g.iter().zip(&hp).map(|(g, h)| g - h).collect();
+    if dot(&r, &r) >= g_norm * g_norm {
+        lambda.iter_mut().for_each(|l| *l = Point::zeros());
+        r.copy_from_slice(g);
+    }
     let mut z = vec![Point::zeros(); n];
     let mut p = vec![Point::zeros(); n];
-    let mut hp = vec![Point::zeros(); n];
     let mut buffer = vec![Point::zeros(); free.len()];
     let mut apply_preconditioner = |r: &[Point], z: &mut [Point]| {
         for (b, &v) in buffer.iter_mut().zip(free) {
@@ -132,7 +141,7 @@ pub(crate) fn solve(
 fn dense_solve(
     ops: &Operators,
     c: StepCoefficients,
-    k: &CsrMatrix,
+    k: &ElementHessians,
     free: &[usize],
     g: &[Point],
     lambda: &mut [Point],
