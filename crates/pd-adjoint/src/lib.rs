@@ -286,6 +286,69 @@ fn check_supported(sim: &Simulation) -> Result<(), AdjointError> {
     }
 }
 
+/// Checks that the simulation's step matrix is the one the derivation
+/// assumes, `A = (1/h^2 + c1 c2 gamma a1) M + c1 c2^2 L_sys + c1 c2 gamma a2
+/// L_d` (docs/design/formulation.md, "The global step"), by one product with
+/// a fixed vector: a damping term the adjoint does not know of (a new model's
+/// matrix) would change it, and is refused rather than differentiated wrongly.
+fn check_step_matrix(sim: &mut Simulation) -> Result<(), AdjointError> {
+    let d = sim.damping_model().implicit_matrix();
+    let (worst, scale) = step_matrix_misfit(sim, d)?;
+    // Both sums add the same terms in different orders: round-off only.
+    if worst > 1e-9 * scale {
+        return Err(AdjointError::Unsupported {
+            what: format!(
+                "the {} damping model's step matrix holds a term the adjoint does not know of \
+                 (|A w - A_assumed w| = {worst:e} against {scale:e})",
+                sim.damping_name()
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// The largest entry of `A w - A_assumed w` over the free vertices, and the
+/// largest of `A_assumed w`, for the assumed damping coefficients `d`.
+fn step_matrix_misfit(
+    sim: &mut Simulation,
+    d: pd_damping::DampingMatrix,
+) -> Result<(f64, f64), AdjointError> {
+    let c = sim.step_coefficients();
+    let h = sim.settings().dt;
+    let matrix = sim.global_matrix()?;
+    let model = sim.model();
+    let blocks = model.constraint_blocks();
+    let n = model.num_vertices();
+    let system = laplacian(&blocks, n, LaplacianKind::System);
+    let damping_laplacian = laplacian(&blocks, n, LaplacianKind::Damping);
+    let free = sim.free_vertices();
+    // A vector with no symmetry to hide a term behind.
+    let w: Vec<Point> = (0..n)
+        .map(|v| {
+            let t = v as f64;
+            Point::new((0.7 * t + 0.1).sin(), (1.3 * t + 0.2).cos(), (0.37 * t + 0.5).sin())
+        })
+        .collect();
+    let mut on_free = w.clone();
+    mask_fixed(&mut on_free, model.fixed());
+    let damping = c.c1 * c.c2 * c.gamma;
+    let mass = 1.0 / (h * h) + damping * d.mass;
+    let mut worst: f64 = 0.0;
+    let mut scale: f64 = 0.0;
+    for (f, &v) in free.iter().enumerate() {
+        let expected = on_free[v] * (mass * model.masses()[v])
+            + system.row_dot(v, &on_free) * (c.c1 * c.c2 * c.c2)
+            + damping_laplacian.row_dot(v, &on_free) * (damping * d.damping_laplacian);
+        let actual: Point = matrix
+            .row(f)
+            .map(|(g, value)| on_free[free[g]] * value)
+            .sum();
+        worst = worst.max((expected - actual).norm());
+        scale = scale.max(expected.norm());
+    }
+    Ok((worst, scale))
+}
+
 /// What each asked parameter needs, resolved against the model.
 enum Resolved {
     DampingMass,
@@ -426,6 +489,8 @@ pub fn loss_and_gradient(
         .iter()
         .map(|&p| resolve(&sim, p))
         .collect::<Result<Vec<_>, _>>()?;
+
+    check_step_matrix(&mut sim)?;
 
     // Forward.
     let forward_start = Instant::now();
@@ -748,5 +813,43 @@ fn targets(
                 .collect();
             (y, anchor)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use pd_damping::LaplacianDamping;
+    use pd_integrators::ImplicitMidpoint;
+    use pd_mesh::generators;
+    use pd_solver::{Model, Settings};
+
+    use super::*;
+
+    /// The step-matrix check sees a damping term 1% off what it assumes,
+    /// and nothing when the assumption is right.
+    #[test]
+    fn step_matrix_check_sees_an_unknown_term() {
+        let beam = generators::box_tets([1.0, 0.2, 0.2], [3, 1, 1]).unwrap();
+        let masses = beam.lumped_masses(1000.0).unwrap();
+        let mut model = Model::new();
+        let body = model.add_body(beam, masses).unwrap();
+        model.add_tet_strain(body, 1e5, None).unwrap();
+        model.add_attachments(body, &[0, 1], 1e3).unwrap();
+        model.fix_vertices(body, &[2]).unwrap();
+        let damping = LaplacianDamping::new(0.02, 0.5, false).unwrap();
+        let settings = Settings::default();
+        let mut sim =
+            Simulation::new(model, Box::new(ImplicitMidpoint), Box::new(damping), settings)
+                .unwrap();
+        let d = sim.damping_model().implicit_matrix();
+        let (worst, scale) = step_matrix_misfit(&mut sim, d).unwrap();
+        assert!(worst <= 1e-12 * scale, "{worst:e} against {scale:e}");
+        let off = pd_damping::DampingMatrix {
+            damping_laplacian: 1.01 * d.damping_laplacian,
+            ..d
+        };
+        let (worst, scale) = step_matrix_misfit(&mut sim, off).unwrap();
+        assert!(worst > 1e-6 * scale, "{worst:e} against {scale:e}");
+        assert!(check_step_matrix(&mut sim).is_ok());
     }
 }
