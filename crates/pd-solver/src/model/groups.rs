@@ -6,7 +6,6 @@
 use std::ops::Range;
 
 use pd_constraints::{ConstraintBlock, ConstraintSet};
-use pd_mesh::Point;
 
 use super::{BodyId, Model};
 use crate::SolverError;
@@ -111,16 +110,6 @@ impl Model {
             GroupStorage::Other(i) => self.other[*i].boxed_clone(),
             GroupStorage::Empty => return None,
         })
-    }
-
-    /// The gradient (N) of group `group`'s energy at positions `q`, added
-    /// to `out` (one entry per vertex); nothing for a group without
-    /// constraints.
-    #[doc(hidden)]
-    pub fn add_group_gradient(&self, group: usize, q: &[Point], out: &mut [Point]) {
-        if let Some(block) = self.constraint_group_block(group) {
-            block.add_gradient(q, out);
-        }
     }
 }
 
