@@ -43,7 +43,10 @@ fn main() -> Result<(), String> {
     let build = || -> Result<pd_solver::Simulation, String> {
         let mut sim = beam.simulation("laplacian", integrator)?;
         let positions = sim.state().positions.clone();
-        let velocities = positions.iter().map(|x| Point::new(0.0, x.x, 0.0)).collect();
+        let velocities = positions
+            .iter()
+            .map(|x| Point::new(0.0, x.x, 0.0))
+            .collect();
         sim.set_state(State {
             positions,
             velocities,

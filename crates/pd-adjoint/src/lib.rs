@@ -326,7 +326,11 @@ fn step_matrix_misfit(
     let w: Vec<Point> = (0..n)
         .map(|v| {
             let t = v as f64;
-            Point::new((0.7 * t + 0.1).sin(), (1.3 * t + 0.2).cos(), (0.37 * t + 0.5).sin())
+            Point::new(
+                (0.7 * t + 0.1).sin(),
+                (1.3 * t + 0.2).cos(),
+                (0.37 * t + 0.5).sin(),
+            )
         })
         .collect();
     let mut on_free = w.clone();
@@ -354,9 +358,14 @@ enum Resolved {
     DampingMass,
     DampingStiffness,
     /// The model's group index and its stiffness.
-    Stiffness { group: usize, stiffness: f64 },
+    Stiffness {
+        group: usize,
+        stiffness: f64,
+    },
     /// `dm_i / drho` for every vertex (zero outside the body).
-    Density { unit_masses: Vec<f64> },
+    Density {
+        unit_masses: Vec<f64>,
+    },
     InitialPositions,
     InitialVelocities,
     Gravity,
@@ -620,7 +629,11 @@ pub fn loss_and_gradient(
                 &free,
                 &g,
                 &mut lambda,
-                (options.tolerance, options.max_iterations, options.dense_limit),
+                (
+                    options.tolerance,
+                    options.max_iterations,
+                    options.dense_limit,
+                ),
                 &mut precondition,
             )
         };
@@ -744,7 +757,8 @@ pub fn loss_and_gradient(
                     *out -= (0..n)
                         .filter(|&i| unit_masses[i] != 0.0)
                         .map(|i| {
-                            let dr = (x[i] - y[i]) / (h * h) + (x[i] - anchor[i]) * (damping * d.mass);
+                            let dr =
+                                (x[i] - y[i]) / (h * h) + (x[i] - anchor[i]) * (damping * d.mass);
                             unit_masses[i] * lambda[i].dot(&dr)
                         })
                         .sum::<f64>();
@@ -753,7 +767,9 @@ pub fn loss_and_gradient(
                 Resolved::InitialPositions | Resolved::InitialVelocities => {}
             }
         }
-        gravity_bar += (0..n).map(|i| lambda[i] * (masses[i] * energy)).sum::<Point>();
+        gravity_bar += (0..n)
+            .map(|i| lambda[i] * (masses[i] * energy))
+            .sum::<Point>();
     }
     mask_fixed(&mut vbar[0], &ops.fixed);
     let gradients = resolved
@@ -838,9 +854,13 @@ mod tests {
         model.fix_vertices(body, &[2]).unwrap();
         let damping = LaplacianDamping::new(0.02, 0.5, false).unwrap();
         let settings = Settings::default();
-        let mut sim =
-            Simulation::new(model, Box::new(ImplicitMidpoint), Box::new(damping), settings)
-                .unwrap();
+        let mut sim = Simulation::new(
+            model,
+            Box::new(ImplicitMidpoint),
+            Box::new(damping),
+            settings,
+        )
+        .unwrap();
         let d = sim.damping_model().implicit_matrix();
         let (worst, scale) = step_matrix_misfit(&mut sim, d).unwrap();
         assert!(worst <= 1e-12 * scale, "{worst:e} against {scale:e}");

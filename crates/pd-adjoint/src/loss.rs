@@ -94,8 +94,14 @@ impl Loss for ProbeLoss {
                     self.vertices.len()
                 ));
             }
-            if let Some(p) = targets.iter().position(|t| !t.iter().all(|c| c.is_finite())) {
-                return Err(format!("the target of probe {p} at step {} is not finite", s + 1));
+            if let Some(p) = targets
+                .iter()
+                .position(|t| !t.iter().all(|c| c.is_finite()))
+            {
+                return Err(format!(
+                    "the target of probe {p} at step {} is not finite",
+                    s + 1
+                ));
             }
         }
         Ok(())

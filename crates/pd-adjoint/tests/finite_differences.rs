@@ -12,8 +12,7 @@
 //! converged to 1e-12 of each step's displacement, over `eps`).
 
 use pd_adjoint::{
-    AdjointOptions, Loss, LossGradient, Parameter, ParameterGradient, ProbeLoss,
-    loss_and_gradient,
+    AdjointOptions, Loss, LossGradient, Parameter, ParameterGradient, ProbeLoss, loss_and_gradient,
 };
 use pd_damping::LaplacianDamping;
 use pd_integrators::{BackwardEuler, Bdf2, ImplicitMidpoint, Integrator};
@@ -152,7 +151,10 @@ fn check(what: &str, adjoint: f64, (d1, d2): (f64, f64), loss: f64, eps: f64) {
         "{what}: adjoint {adjoint:e} against finite differences {d2:e} (eps {eps:e}: {d1:e})"
     );
     // A check that cannot fail is no check: the derivative is not zero.
-    assert!(d2.abs() > 10.0 * bound, "{what}: the derivative {d2:e} is lost in the noise {bound:e}");
+    assert!(
+        d2.abs() > 10.0 * bound,
+        "{what}: the derivative {d2:e} is lost in the noise {bound:e}"
+    );
 }
 
 fn scalar(g: &ParameterGradient) -> f64 {
@@ -218,9 +220,21 @@ fn check_all(integrator: &'static str) {
     // the eps^2 truncation error and the stopping error over eps are both
     // small.
     let eps = 1e-3 * scene.a1;
-    check("a1", scalar(&g[0]), central(&scene, eps, &|s, t| s.a1 += t), loss, eps);
+    check(
+        "a1",
+        scalar(&g[0]),
+        central(&scene, eps, &|s, t| s.a1 += t),
+        loss,
+        eps,
+    );
     let eps = 1e-3 * scene.a2;
-    check("a2", scalar(&g[1]), central(&scene, eps, &|s, t| s.a2 += t), loss, eps);
+    check(
+        "a2",
+        scalar(&g[1]),
+        central(&scene, eps, &|s, t| s.a2 += t),
+        loss,
+        eps,
+    );
     let eps = 1e-3 * scene.strain;
     check(
         "tet-strain stiffness",
@@ -274,11 +288,11 @@ fn check_all(integrator: &'static str) {
     );
     let gravity = points(&g[7]);
     assert_eq!(gravity.len(), 1);
-    for axis in 0..3 {
+    for (axis, &component) in gravity[0].iter().enumerate() {
         let eps = 1e-3;
         check(
             &format!("gravity[{axis}]"),
-            gravity[0][axis],
+            component,
             central(&scene, eps, &|s, t| s.gravity[axis] += t),
             loss,
             eps,

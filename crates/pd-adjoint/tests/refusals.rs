@@ -136,8 +136,14 @@ fn invalid_arguments_are_named() {
     }
     // Masses that are not one density times the lumped volumes.
     let masses = (0..20).map(|v| 1.0 + v as f64).collect();
-    let message = error(beam(laplacian(), Some(masses)), &[Parameter::Density { body: 0 }]);
-    assert!(message.contains("not its mesh's lumped masses"), "{message}");
+    let message = error(
+        beam(laplacian(), Some(masses)),
+        &[Parameter::Density { body: 0 }],
+    );
+    assert!(
+        message.contains("not its mesh's lumped masses"),
+        "{message}"
+    );
 
     let sim = beam(laplacian(), None);
     let loss = loss(&sim);

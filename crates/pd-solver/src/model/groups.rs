@@ -52,9 +52,9 @@ impl Model {
         storage: GroupStorage,
     ) {
         let len = match &storage {
-            GroupStorage::TetStrain(r) | GroupStorage::Springs(r) | GroupStorage::Attachments(r) => {
-                r.len()
-            }
+            GroupStorage::TetStrain(r)
+            | GroupStorage::Springs(r)
+            | GroupStorage::Attachments(r) => r.len(),
             GroupStorage::Other(i) => self.other[*i].len(),
             GroupStorage::Empty => 0,
         };
@@ -103,7 +103,9 @@ impl Model {
             GroupStorage::TetStrain(r) => {
                 Box::new(ConstraintSet::new(self.tet_strain[r.clone()].to_vec()))
             }
-            GroupStorage::Springs(r) => Box::new(ConstraintSet::new(self.springs[r.clone()].to_vec())),
+            GroupStorage::Springs(r) => {
+                Box::new(ConstraintSet::new(self.springs[r.clone()].to_vec()))
+            }
             GroupStorage::Attachments(r) => {
                 Box::new(ConstraintSet::new(self.attachments[r.clone()].to_vec()))
             }
@@ -131,7 +133,10 @@ mod tests {
         let springs = model.add_springs(body, 30.0).unwrap();
         model.add_attachments(body, &[0, 1], 7.0).unwrap();
         let groups = model.constraint_groups();
-        let kinds: Vec<_> = groups.iter().map(|g| (g.body, g.kind, g.stiffness, g.len)).collect();
+        let kinds: Vec<_> = groups
+            .iter()
+            .map(|g| (g.body, g.kind, g.stiffness, g.len))
+            .collect();
         assert_eq!(
             kinds,
             vec![
