@@ -8,7 +8,8 @@
 //! objective"), so by the implicit function theorem each step's adjoint
 //! solves `H lambda = xbar_{n+1}` with `H` the exact Hessian of `g`, by
 //! conjugate gradients preconditioned with the step's prefactored PD matrix
-//! `A` (the forward run's own Cholesky factor), with a dense fallback. The
+//! `A` (the forward run's own Cholesky factor), with a dense LU or MINRES
+//! fallback. The
 //! result is the loss and its gradient with respect to each asked
 //! [`Parameter`]: the damping coefficients, a constraint group's stiffness,
 //! a body's density, the initial positions and velocities, and gravity.
@@ -129,9 +130,13 @@ pub struct AdjointOptions {
     /// Newton iterations per forward step at most.
     pub forward_iterations: usize,
     /// The largest number of unknowns (3 per free vertex) the dense
-    /// fallback factorises; a larger system whose iteration fails is an
-    /// [`AdjointError::NotConverged`].
+    /// fallback factorises; a larger system whose conjugate gradients fail
+    /// goes to preconditioned MINRES.
     pub dense_limit: usize,
+    /// MINRES iterations per step at most (the fallback of a system larger
+    /// than [`AdjointOptions::dense_limit`]); if it does not converge
+    /// either, the result is an [`AdjointError::NotConverged`].
+    pub minres_iterations: usize,
 }
 
 impl Default for AdjointOptions {
@@ -142,6 +147,7 @@ impl Default for AdjointOptions {
             forward_tolerance: 1e-10,
             forward_iterations: 100,
             dense_limit: 3000,
+            minres_iterations: 1000,
         }
     }
 }
@@ -169,7 +175,7 @@ pub struct LossGradient {
     pub backward_s: f64,
     /// Preconditioned conjugate-gradient iterations over all steps.
     pub adjoint_iterations: usize,
-    /// Steps whose adjoint system the dense fallback solved.
+    /// Steps whose adjoint system a fallback (dense LU or MINRES) solved.
     pub fallback_steps: usize,
     /// The largest final relative residual of a step's adjoint solve.
     pub adjoint_residual: f64,
@@ -204,8 +210,8 @@ pub enum AdjointError {
     /// A step's adjoint system could not be solved.
     #[error(
         "the adjoint system of step {step} did not converge: relative residual {residual:e} after \
-         {iterations} iterations, and its {unknowns} unknowns exceed the dense fallback's limit \
-         (AdjointOptions::dense_limit)"
+         {iterations} iterations (conjugate gradients, then MINRES: its {unknowns} unknowns exceed \
+         AdjointOptions::dense_limit)"
     )]
     NotConverged {
         /// The step (1-based).
@@ -633,6 +639,7 @@ pub fn loss_and_gradient(
                     options.tolerance,
                     options.max_iterations,
                     options.dense_limit,
+                    options.minres_iterations,
                 ),
                 &mut precondition,
             )

@@ -1,8 +1,9 @@
 //! The adjoint system of one step, `H lambda = g` over the free vertices
 //! (docs/design/gradients.md, "Solving the adjoint system"): conjugate
-//! gradients preconditioned with the step's prefactored PD matrix `A`, and a
-//! dense LU factorisation of `H` when they meet a direction of non-positive
-//! curvature (an indefinite `H` under compression) or do not converge.
+//! gradients preconditioned with the step's prefactored PD matrix `A`, and,
+//! when they meet a direction of non-positive curvature (an indefinite `H`
+//! under compression) or do not converge, a dense LU factorisation of `H`
+//! (small systems) or preconditioned MINRES (larger ones).
 
 use nalgebra::{DMatrix, DVector};
 use pd_integrators::StepCoefficients;
@@ -44,7 +45,7 @@ pub(crate) fn solve(
     free: &[usize],
     g: &[Point],
     lambda: &mut [Point],
-    (tolerance, max_iterations, dense_limit): (f64, usize, usize),
+    (tolerance, max_iterations, dense_limit, minres_iterations): (f64, usize, usize, usize),
     precondition: &mut dyn FnMut(&mut [Point]) -> Result<(), pd_solver::SolverError>,
 ) -> Result<SolveReport, SolveFailure> {
     let n = g.len();
@@ -118,22 +119,123 @@ pub(crate) fn solve(
             residual,
         });
     }
-    if 3 * free.len() > dense_limit {
-        return Err(SolveFailure::TooLarge {
-            iterations,
-            residual,
-        });
-    }
-    dense_solve(ops, c, k, free, g, lambda)?;
-    let mut check = vec![Point::zeros(); n];
+    let fallback_iterations = if 3 * free.len() > dense_limit {
+        // Too large to factor densely: MINRES, which needs a symmetric `H`
+        // only, from zero.
+        let run = minres(
+            ops,
+            (c, k),
+            g,
+            lambda,
+            (tolerance, minres_iterations),
+            &mut apply_preconditioner,
+        )?;
+        if !run.1 {
+            return Err(SolveFailure::TooLarge {
+                iterations: iterations + run.0,
+                residual: true_residual(ops, (c, k), g, lambda) / g_norm,
+            });
+        }
+        run.0
+    } else {
+        dense_solve(ops, c, k, free, g, lambda)?;
+        0
+    };
+    Ok(SolveReport {
+        iterations: iterations + fallback_iterations,
+        fallback: true,
+        residual: true_residual(ops, (c, k), g, lambda) / g_norm,
+    })
+}
+
+/// `|g - H lambda|` over the free vertices.
+fn true_residual(
+    ops: &Operators,
+    (c, k): (StepCoefficients, &ElementHessians),
+    g: &[Point],
+    lambda: &[Point],
+) -> f64 {
+    let mut check = vec![Point::zeros(); g.len()];
     ops.hessian_product(c, k, lambda, &mut check);
     mask_fixed(&mut check, &ops.fixed);
     let misfit: Vec<Point> = g.iter().zip(&check).map(|(g, h)| g - h).collect();
-    Ok(SolveReport {
-        iterations,
-        fallback: true,
-        residual: dot(&misfit, &misfit).sqrt() / g_norm,
-    })
+    dot(&misfit, &misfit).sqrt()
+}
+
+/// Preconditioned MINRES (Elman, Silvester and Wathen, "Finite Elements
+/// and Fast Iterative Solvers", the preconditioned MINRES algorithm) for
+/// the symmetric, possibly indefinite `H` with the symmetric positive
+/// definite preconditioner `A`, from `lambda = 0`. It minimises the
+/// residual in the `A^{-1}` norm over the Krylov space, so it needs no
+/// definiteness of `H`. Stops when that norm has fallen by `tolerance`;
+/// returns the iterations and whether it converged.
+fn minres(
+    ops: &Operators,
+    (c, k): (StepCoefficients, &ElementHessians),
+    g: &[Point],
+    lambda: &mut [Point],
+    (tolerance, max_iterations): (f64, usize),
+    precondition: &mut dyn FnMut(&[Point], &mut [Point]) -> Result<(), pd_solver::SolverError>,
+) -> Result<(usize, bool), SolveFailure> {
+    let n = g.len();
+    let zero = || vec![Point::zeros(); n];
+    lambda.iter_mut().for_each(|l| *l = Point::zeros());
+    let (mut v_prev, mut v) = (zero(), g.to_vec());
+    let mut z = zero();
+    precondition(&v, &mut z).map_err(SolveFailure::Preconditioner)?;
+    let mut gamma = dot(&z, &v);
+    if !(gamma > 0.0) {
+        return Ok((0, false));
+    }
+    gamma = gamma.sqrt();
+    let gamma_start = gamma;
+    let mut gamma_prev = 1.0;
+    let mut eta = gamma;
+    let (mut s_prev, mut s, mut c_prev, mut c_cur) = (0.0, 0.0, 1.0, 1.0);
+    let (mut w_prev, mut w, mut w_next) = (zero(), zero(), zero());
+    let (mut hz, mut v_next, mut z_next) = (zero(), zero(), zero());
+    for iteration in 1..=max_iterations {
+        z.iter_mut().for_each(|z| *z /= gamma);
+        ops.hessian_product(c, k, &z, &mut hz);
+        mask_fixed(&mut hz, &ops.fixed);
+        let delta = dot(&hz, &z);
+        for (((next, hz), v), v_prev) in v_next.iter_mut().zip(&hz).zip(&v).zip(&v_prev) {
+            *next = hz - v * (delta / gamma) - v_prev * (gamma / gamma_prev);
+        }
+        precondition(&v_next, &mut z_next).map_err(SolveFailure::Preconditioner)?;
+        let gamma_next = dot(&z_next, &v_next).max(0.0).sqrt();
+        let alpha0 = c_cur * delta - c_prev * s * gamma;
+        let alpha1 = alpha0.hypot(gamma_next);
+        let alpha2 = s * delta + c_prev * c_cur * gamma;
+        let alpha3 = s_prev * gamma;
+        if alpha1 == 0.0 {
+            return Ok((iteration, false));
+        }
+        let (c_next, s_next) = (alpha0 / alpha1, gamma_next / alpha1);
+        for (((next, z), w_prev), w) in w_next.iter_mut().zip(&z).zip(&w_prev).zip(&w) {
+            *next = (z - w_prev * alpha3 - w * alpha2) / alpha1;
+        }
+        for (l, w) in lambda.iter_mut().zip(&w_next) {
+            *l += w * (c_next * eta);
+        }
+        eta *= -s_next;
+        if eta.abs() <= tolerance * gamma_start {
+            return Ok((iteration, true));
+        }
+        if gamma_next == 0.0 {
+            return Ok((iteration, false));
+        }
+        // Shift the recurrences by one.
+        std::mem::swap(&mut v_prev, &mut v);
+        std::mem::swap(&mut v, &mut v_next);
+        std::mem::swap(&mut z, &mut z_next);
+        std::mem::swap(&mut w_prev, &mut w);
+        std::mem::swap(&mut w, &mut w_next);
+        (gamma_prev, gamma) = (gamma, gamma_next);
+        (c_prev, c_cur) = (c_cur, c_next);
+        (s_prev, s) = (s, s_next);
+    }
+    Ok((max_iterations, false))
 }
 
 /// `H lambda = g` by a dense LU factorisation of `H` over the free
