@@ -1,6 +1,7 @@
 //! The adjoint gradient against central finite differences of the same loss,
 //! for every parameter kind and every integrator, on a clamped beam of 28
-//! vertices swinging and sagging for 20 steps of 10 ms.
+//! vertices (tet strain, springs and two attachments: three constraint
+//! groups) swinging and sagging for 20 steps of 10 ms.
 //!
 //! Each finite difference is taken at two step sizes, `eps` and `eps / 2`.
 //! A central difference's error is `C eps^2` (plus the forward run's
@@ -29,6 +30,7 @@ struct Scene {
     a2: f64,
     strain: f64,
     springs: f64,
+    attachments: f64,
     density: f64,
     gravity: Point,
     /// Added to the initial positions and velocities.
@@ -46,6 +48,7 @@ impl Scene {
             a2: 0.01,
             strain: 2e4,
             springs: 300.0,
+            attachments: 50.0,
             density: 1000.0,
             gravity: Point::new(0.3, -9.81, 0.5),
             dx0: vec![Point::zeros(); VERTICES],
@@ -67,6 +70,10 @@ impl Scene {
         let body = model.add_body(beam, masses).unwrap();
         model.add_tet_strain(body, self.strain, None).unwrap();
         model.add_springs(body, self.springs).unwrap();
+        // Two corners of the free end, held softly where they rest.
+        model
+            .add_attachments(body, &[20, 27], self.attachments)
+            .unwrap();
         model.fix_vertices(body, &clamp).unwrap();
         let rest = model.rest_positions().to_vec();
         let settings = Settings {
@@ -201,6 +208,10 @@ fn check_all(integrator: &'static str) {
         },
         Parameter::Density { body: 0 },
         Parameter::InitialPositions,
+        Parameter::ConstraintStiffness {
+            body: 0,
+            constraint: 2,
+        },
         Parameter::InitialVelocities,
         Parameter::ExternalForce,
     ];
@@ -251,6 +262,14 @@ fn check_all(integrator: &'static str) {
         loss,
         eps,
     );
+    let eps = 1e-3 * scene.attachments;
+    check(
+        "attachment stiffness",
+        scalar(&g[6]),
+        central(&scene, eps, &|s, t| s.attachments += t),
+        loss,
+        eps,
+    );
     let eps = 1e-3 * scene.density;
     check(
         "density",
@@ -275,7 +294,7 @@ fn check_all(integrator: &'static str) {
         eps,
     );
     let d = direction(2);
-    let along: f64 = points(&g[6]).iter().zip(&d).map(|(a, b)| a.dot(b)).sum();
+    let along: f64 = points(&g[7]).iter().zip(&d).map(|(a, b)| a.dot(b)).sum();
     let eps = 1e-4;
     check(
         "initial velocities",
@@ -286,7 +305,7 @@ fn check_all(integrator: &'static str) {
         loss,
         eps,
     );
-    let gravity = points(&g[7]);
+    let gravity = points(&g[8]);
     assert_eq!(gravity.len(), 1);
     for (axis, &component) in gravity[0].iter().enumerate() {
         let eps = 1e-3;
