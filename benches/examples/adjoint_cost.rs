@@ -1,8 +1,10 @@
 //! `cargo run --release -p pd-benches --example adjoint_cost -- [--cells
-//! NX,NY,NZ] [--steps N] [--repeats R] [--integrator be|im|bdf2]`: what a
+//! NX,NY,NZ] [--steps N] [--repeats R] [--integrator be|im|bdf2] [--forward
+//! METHOD]`: what a
 //! gradient by the adjoint method (`pd_adjoint::loss_and_gradient`) costs on
 //! the bench beam (one thread, Laplacian damping `a2 = 0.003 s`, swinging up
-//! from rest under gravity), against its forward run and against finite
+//! from rest under gravity; the forward run by `METHOD`, Anderson by
+//! default, as `AdjointOptions` has it), against its forward run and against finite
 //! differences (docs/design/gradients.md, "Cost").
 //!
 //! Each repeat also times the bench's own forward run of the same steps
@@ -27,7 +29,16 @@ fn load() -> String {
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let options = Options::new(&args);
-    options.only(&["--cells", "--steps", "--repeats", "--integrator"])?;
+    options.only(&[
+        "--cells",
+        "--steps",
+        "--repeats",
+        "--integrator",
+        "--forward",
+    ])?;
+    let forward_method = options.value("--forward").unwrap_or("anderson");
+    let forward_method = pd_solver::SolverMethod::parse(forward_method)
+        .ok_or(format!("--forward: unknown method {forward_method:?}"))?;
     let cells: Vec<usize> = options.list("--cells", &[35, 7, 7])?;
     let [cx, cy, cz] = cells[..] else {
         return Err("--cells takes three counts".into());
@@ -92,17 +103,22 @@ fn main() -> Result<(), String> {
             steps,
             &loss,
             &parameters,
-            &AdjointOptions::default(),
+            &AdjointOptions {
+                forward_method,
+                ..AdjointOptions::default()
+            },
         )
         .map_err(|e| e.to_string())?;
         println!(
             "repeat {repeat}: forward {:.3} s, backward {:.3} s, adjoint iterations {} \
-             ({:.1} per step), fallback steps {}, unconverged forward steps {}",
+             ({:.1} per step), fallback steps {}, forward steps retried by Newton {}, \
+             unconverged forward steps {}",
             result.forward_s,
             result.backward_s,
             result.adjoint_iterations,
             result.adjoint_iterations as f64 / steps as f64,
             result.fallback_steps,
+            result.forward_retries,
             result.unconverged_steps
         );
         forward = forward.min(result.forward_s);

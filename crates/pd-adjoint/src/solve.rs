@@ -11,6 +11,10 @@ use pd_mesh::Point;
 
 use crate::operators::{ElementHessians, Operators, dot, mask_fixed};
 
+/// `z = A^{-1} r` over full-length vectors (zero at fixed vertices).
+type Preconditioner<'a> =
+    dyn FnMut(&[Point], &mut [Point]) -> Result<(), pd_solver::SolverError> + 'a;
+
 /// How one adjoint solve went.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct SolveReport {
@@ -175,7 +179,7 @@ fn minres(
     g: &[Point],
     lambda: &mut [Point],
     (tolerance, max_iterations): (f64, usize),
-    precondition: &mut dyn FnMut(&[Point], &mut [Point]) -> Result<(), pd_solver::SolverError>,
+    precondition: &mut Preconditioner<'_>,
 ) -> Result<(usize, bool), SolveFailure> {
     let n = g.len();
     let zero = || vec![Point::zeros(); n];

@@ -217,11 +217,12 @@ fn check_all(integrator: &'static str) {
     ];
     let result = run(&scene, &probe_loss(), &parameters);
     println!(
-        "{integrator}: loss {:e}, adjoint iterations {}, fallback steps {}, residual {:e}, unconverged {}",
+        "{integrator}: loss {:e}, adjoint iterations {}, fallback steps {}, residual {:e}, retries {}, unconverged {}",
         result.loss,
         result.adjoint_iterations,
         result.fallback_steps,
         result.adjoint_residual,
+        result.forward_retries,
         result.unconverged_steps
     );
     assert_eq!(result.unconverged_steps, 0, "the forward run must converge");

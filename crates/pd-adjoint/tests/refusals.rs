@@ -1,5 +1,5 @@
-//! What the adjoint refuses, and how it says so; the dense fallback of the
-//! adjoint solve.
+//! What the adjoint refuses, and how it says so; the fallbacks of the adjoint
+//! solve and of the forward run.
 
 use pd_adjoint::{
     AdjointError, AdjointOptions, Parameter, ParameterGradient, ProbeLoss, loss_and_gradient,
@@ -8,7 +8,7 @@ use pd_damping::{Damping, EtherDrag, LaplacianDamping, NoDamping, PbdDamping, Ra
 use pd_integrators::BackwardEuler;
 use pd_mesh::{Point, VertexSelection, generators};
 use pd_solver::contact::{Collider, ColliderShape, ContactSettings};
-use pd_solver::{Model, Settings, Simulation};
+use pd_solver::{Model, Settings, Simulation, SolverMethod};
 
 const STEPS: usize = 5;
 
@@ -232,4 +232,38 @@ fn fallbacks_give_the_same_gradient() {
         panic!("the adjoint solve must fail: {result:?}");
     };
     assert_eq!((step, unknowns), (STEPS, 3 * 16));
+}
+
+/// A forward method that cannot reach the tolerance in its budget
+/// (local-global, 2 iterations, which cannot shrink a step's residual by
+/// 1e-10) has every step solved again by Newton's method, and the gradient
+/// is the one of a run converged throughout.
+#[test]
+fn newton_solves_the_steps_the_forward_method_leaves() {
+    let parameters = [Parameter::DampingStiffness, Parameter::InitialVelocities];
+    let run = |options: AdjointOptions| {
+        let sim = beam(laplacian(), None);
+        let loss = loss(&sim);
+        loss_and_gradient(sim, STEPS, &loss, &parameters, &options).unwrap()
+    };
+    let reference = run(AdjointOptions {
+        forward_method: SolverMethod::Newton,
+        ..AdjointOptions::default()
+    });
+    let retried = run(AdjointOptions {
+        forward_method: SolverMethod::LocalGlobal,
+        forward_iterations: 2,
+        ..AdjointOptions::default()
+    });
+    assert_eq!(
+        (reference.forward_retries, reference.unconverged_steps),
+        (0, 0)
+    );
+    assert_eq!(
+        (retried.forward_retries, retried.unconverged_steps),
+        (STEPS, 0)
+    );
+    // Both runs are converged to 1e-10 of each step; the gradients agree
+    // to about that relative accuracy: 1e-7 leaves a margin.
+    assert_same(&reference.gradients, &retried.gradients, 1e-7);
 }
