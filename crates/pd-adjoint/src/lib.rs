@@ -115,6 +115,55 @@ impl std::fmt::Display for Parameter {
     }
 }
 
+impl std::str::FromStr for Parameter {
+    type Err = String;
+
+    /// A parameter by the path [`Parameter`]'s `Display` writes (the
+    /// scene's field path for the scalar ones): `damping.mass`,
+    /// `damping.stiffness`, `body[i].constraints[j].stiffness`,
+    /// `body[i].density`, `initial positions`, `initial velocities`,
+    /// `gravity`.
+    ///
+    /// ```
+    /// use pd_adjoint::Parameter;
+    ///
+    /// let p: Parameter = "body[0].constraints[2].stiffness".parse().unwrap();
+    /// assert_eq!(p, Parameter::ConstraintStiffness { body: 0, constraint: 2 });
+    /// assert!("body[0].mass".parse::<Parameter>().is_err());
+    /// ```
+    fn from_str(text: &str) -> Result<Self, String> {
+        let index = |inner: &str| inner.parse::<usize>().ok();
+        let parsed = match text {
+            "damping.mass" => Some(Parameter::DampingMass),
+            "damping.stiffness" => Some(Parameter::DampingStiffness),
+            "initial positions" => Some(Parameter::InitialPositions),
+            "initial velocities" => Some(Parameter::InitialVelocities),
+            "gravity" => Some(Parameter::ExternalForce),
+            _ => text.strip_prefix("body[").and_then(|rest| {
+                let (body, rest) = rest.split_once(']')?;
+                let body = index(body)?;
+                if rest == ".density" {
+                    return Some(Parameter::Density { body });
+                }
+                let constraint = rest
+                    .strip_prefix(".constraints[")?
+                    .strip_suffix("].stiffness")?;
+                Some(Parameter::ConstraintStiffness {
+                    body,
+                    constraint: index(constraint)?,
+                })
+            }),
+        };
+        parsed.ok_or_else(|| {
+            format!(
+                "unknown parameter {text:?}: expected damping.mass, damping.stiffness, \
+                 body[i].constraints[j].stiffness, body[i].density, initial positions, initial \
+                 velocities or gravity"
+            )
+        })
+    }
+}
+
 /// How the forward run is converged and the adjoint systems are solved.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AdjointOptions {
@@ -883,6 +932,29 @@ mod tests {
     use pd_solver::{Model, Settings};
 
     use super::*;
+
+    /// Every parameter reads back from the path it is written as.
+    #[test]
+    fn parameters_round_trip_through_their_paths() {
+        let all = [
+            Parameter::DampingMass,
+            Parameter::DampingStiffness,
+            Parameter::ConstraintStiffness {
+                body: 3,
+                constraint: 12,
+            },
+            Parameter::Density { body: 1 },
+            Parameter::InitialPositions,
+            Parameter::InitialVelocities,
+            Parameter::ExternalForce,
+        ];
+        for p in all {
+            assert_eq!(p.to_string().parse::<Parameter>(), Ok(p));
+        }
+        for bad in ["body[x].density", "body[0].constraints[1]", "damping", ""] {
+            assert!(bad.parse::<Parameter>().is_err(), "{bad}");
+        }
+    }
 
     /// The step-matrix check sees a damping term 1% off what it assumes,
     /// and nothing when the assumption is right.
