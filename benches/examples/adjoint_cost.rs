@@ -110,10 +110,12 @@ fn main() -> Result<(), String> {
         )
         .map_err(|e| e.to_string())?;
         println!(
-            "repeat {repeat}: forward {:.3} s, backward {:.3} s, adjoint iterations {} \
+            "repeat {repeat}: forward {:.3} s ({} iterations, {:.1} ms each), backward {:.3} s, adjoint iterations {} \
              ({:.1} per step), fallback steps {}, forward steps retried by Newton {}, \
              unconverged forward steps {}",
             result.forward_s,
+            result.forward_iterations,
+            1e3 * result.forward_s / result.forward_iterations.max(1) as f64,
             result.backward_s,
             result.adjoint_iterations,
             result.adjoint_iterations as f64 / steps as f64,
