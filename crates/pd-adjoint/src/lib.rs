@@ -654,8 +654,10 @@ pub fn loss_and_gradient(
         .collect();
     let free = sim.free_vertices().to_vec();
     let zeros = vec![Point::zeros(); n];
-    let mut xbar = vec![zeros.clone(); steps + 1];
-    let mut vbar = vec![zeros.clone(); steps + 1];
+    // The adjoints of each state, allocated when a step first reaches them
+    // and dropped once their step is done: at most three states' at a time.
+    let mut xbar: Vec<Vec<Point>> = vec![Vec::new(); steps + 1];
+    let mut vbar: Vec<Vec<Point>> = vec![Vec::new(); steps + 1];
     let mut scalars = vec![0.0; resolved.len()];
     let mut gravity_bar = Point::zeros();
     let mut lambda = zeros.clone();
@@ -668,6 +670,13 @@ pub fn loss_and_gradient(
         let s = k + 1;
         let (scheme, c) = schemes[k];
         let (x, x_n) = (&states[s].positions, &states[k].positions);
+        for state in k.saturating_sub(1)..=s {
+            for adjoint in [&mut xbar[state], &mut vbar[state]] {
+                if adjoint.is_empty() {
+                    adjoint.resize(n, Point::zeros());
+                }
+            }
+        }
         // The loss's own term.
         work.iter_mut().for_each(|w| *w = Point::zeros());
         loss.gradient(s, x, &mut work);
@@ -867,14 +876,18 @@ pub fn loss_and_gradient(
         gravity_bar += (0..n)
             .map(|i| lambda[i] * (masses[i] * energy))
             .sum::<Point>();
+        // State s is done: nothing earlier reads its adjoints.
+        xbar[s] = Vec::new();
+        vbar[s] = Vec::new();
     }
     mask_fixed(&mut vbar[0], &ops.fixed);
+    let (xbar0, vbar0) = (std::mem::take(&mut xbar[0]), std::mem::take(&mut vbar[0]));
     let gradients = resolved
         .iter()
         .zip(&scalars)
         .map(|(r, &value)| match r {
-            Resolved::InitialPositions => ParameterGradient::Points(xbar[0].clone()),
-            Resolved::InitialVelocities => ParameterGradient::Points(vbar[0].clone()),
+            Resolved::InitialPositions => ParameterGradient::Points(xbar0.clone()),
+            Resolved::InitialVelocities => ParameterGradient::Points(vbar0.clone()),
             Resolved::Gravity => ParameterGradient::Points(vec![gravity_bar]),
             _ => ParameterGradient::Scalar(value),
         })
