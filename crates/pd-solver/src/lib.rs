@@ -56,7 +56,7 @@ mod weights;
 pub use builder::SimulationBuilder;
 pub use checkpoint::Checkpoint;
 pub use method_choice::{MethodChoice, PROBE_STEPS, ProbeOutcome, ProbeResult};
-pub use model::{Body, BodyId, Model};
+pub use model::{Body, BodyId, ConstraintGroup, Model};
 pub use settings::Settings;
 pub use simulation::{Energies, SetupStats, Simulation, State, StepStats};
 pub use step::{

@@ -10,8 +10,12 @@ use pd_mesh::{Mesh, Point};
 use crate::SolverError;
 
 mod fingerprint;
+mod groups;
 mod materials;
 mod shells;
+
+pub use groups::ConstraintGroup;
+use groups::GroupStorage;
 
 /// Index of a body in a [`Model`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -81,6 +85,8 @@ pub struct Model {
     attachments: Arc<Vec<Attachment>>,
     /// Blocks of kinds defined elsewhere ([`Model::add_constraints`]).
     other: Vec<Box<dyn ConstraintBlock>>,
+    /// One entry per `add_*` call, in order ([`Model::constraint_groups`]).
+    groups: Vec<(ConstraintGroup, GroupStorage)>,
 }
 
 impl Clone for Model {
@@ -94,6 +100,7 @@ impl Clone for Model {
             springs: self.springs.clone(),
             attachments: self.attachments.clone(),
             other: self.other.iter().map(|b| b.boxed_clone()).collect(),
+            groups: self.groups.clone(),
         }
     }
 }
@@ -162,7 +169,15 @@ impl Model {
             .map(|t| TetStrain::new(rest, t.map(|v| v + offset), stiffness, limits))
             .collect::<Result<Vec<_>, _>>()
             .map(locality_order);
-        Self::append(body, new, &mut self.tet_strain)
+        let start = self.tet_strain.len();
+        let count = Self::append(body, new, &mut self.tet_strain)?;
+        self.record_group(
+            Some(body),
+            TetStrain::KIND,
+            Some(stiffness),
+            GroupStorage::TetStrain(start..start + count),
+        );
+        Ok(count)
     }
 
     /// Adds a spring along every edge of a body (stiffness in N/m, rest
@@ -200,7 +215,15 @@ impl Model {
             .iter()
             .map(|e| Spring::with_rest_length(rest, e.map(|v| v + offset), stiffness, rest_length))
             .collect::<Result<Vec<_>, _>>();
-        Self::append(body, new, &mut self.springs)
+        let start = self.springs.len();
+        let count = Self::append(body, new, &mut self.springs)?;
+        self.record_group(
+            Some(body),
+            Spring::KIND,
+            Some(stiffness),
+            GroupStorage::Springs(start..start + count),
+        );
+        Ok(count)
     }
 
     /// Adds constraints of any kind, including one defined outside this
@@ -242,9 +265,13 @@ impl Model {
             }
         }
         let count = constraints.len();
-        if count > 0 {
+        let storage = if count > 0 {
             self.other.push(Box::new(ConstraintSet::new(constraints)));
-        }
+            GroupStorage::Other(self.other.len() - 1)
+        } else {
+            GroupStorage::Empty
+        };
+        self.record_group(None, C::KIND, None, storage);
         Ok(count)
     }
 
@@ -276,6 +303,7 @@ impl Model {
         stiffness: f64,
     ) -> Result<(), SolverError> {
         let range = self.body_vertices(body, vertices)?;
+        let start = self.attachments.len();
         for &v in vertices {
             let global = range.start + v;
             let attachment = Attachment::new(global, self.rest_positions[global], stiffness)
@@ -285,6 +313,12 @@ impl Model {
                 })?;
             Arc::make_mut(&mut self.attachments).push(attachment);
         }
+        self.record_group(
+            Some(body),
+            Attachment::KIND,
+            Some(stiffness),
+            GroupStorage::Attachments(start..self.attachments.len()),
+        );
         Ok(())
     }
 

@@ -610,3 +610,99 @@ impl Simulation {
         false
     }
 }
+
+/// What a differentiating caller (the `pd-adjoint` crate) reads of a
+/// simulation: not for users.
+impl Simulation {
+    /// Global index of each free vertex, in the order of the global
+    /// system's unknowns.
+    #[doc(hidden)]
+    pub fn free_vertices(&self) -> &[usize] {
+        self.global.free()
+    }
+
+    /// Whether contact (colliders, contact between or within bodies) is on.
+    #[doc(hidden)]
+    pub fn uses_contact(&self) -> bool {
+        self.has_contact()
+    }
+
+    /// The integrator's coefficients `(c1, c2, gamma)` for the coming step
+    /// (docs/design/formulation.md, "The step objective").
+    #[doc(hidden)]
+    pub fn step_coefficients(&self) -> pd_integrators::StepCoefficients {
+        self.integrator.coefficients(self.settings.dt)
+    }
+
+    /// Sets the iteration cap and the relative stopping tolerance
+    /// ([`Settings::iterations`], [`Settings::tolerance`]) and turns the
+    /// accuracy target off.
+    ///
+    /// # Errors
+    /// As [`Settings::validate`]; the settings are then unchanged.
+    #[doc(hidden)]
+    pub fn set_stopping(&mut self, iterations: usize, tolerance: f64) -> Result<(), SolverError> {
+        let settings = Settings {
+            iterations,
+            tolerance,
+            accuracy: 0.0,
+            ..self.settings.clone()
+        };
+        settings.validate()?;
+        self.settings = settings;
+        Ok(())
+    }
+
+    /// Solves `A z = rhs` in place (one point per free vertex, the three
+    /// columns at once) with the cached Cholesky factor of the global
+    /// matrix `A` for the integrator coefficients `c` and the simulation's
+    /// damping (factorising on a cache miss): the preconditioner of an
+    /// adjoint solve.
+    ///
+    /// # Errors
+    /// [`SolverError::Unsupported`] for a lagged damping model (its matrix
+    /// changes every step); a failed factorisation.
+    #[doc(hidden)]
+    pub fn solve_step_matrix(
+        &mut self,
+        c: pd_integrators::StepCoefficients,
+        rhs: &mut [Point],
+    ) -> Result<(), SolverError> {
+        let d = self.damping.implicit_matrix();
+        if d.is_lagged() {
+            return Err(SolverError::Unsupported {
+                what: "solving with the step matrix of a lagged damping model".into(),
+            });
+        }
+        if rhs.len() != self.global.free().len() {
+            return Err(SolverError::InvalidState {
+                reason: format!(
+                    "{} right-hand-side points for {} free vertices",
+                    rhs.len(),
+                    self.global.free().len()
+                ),
+            });
+        }
+        let coefficients = crate::system::SystemCoefficients::of(c, d, self.settings.dt);
+        if self
+            .global
+            .prepare(coefficients, self.local.blocks(), &self.state.positions)?
+        {
+            self.setup.factorisations += 1;
+        }
+        self.global.solve(rhs);
+        for (f, out) in rhs.iter_mut().enumerate() {
+            *out = self.global.solution(f);
+        }
+        Ok(())
+    }
+}
+
+impl Simulation {
+    /// The damping model (what it damps and how: rotation preservation,
+    /// explicit forces, per-body coefficients).
+    #[doc(hidden)]
+    pub fn damping_model(&self) -> &dyn pd_damping::Damping {
+        self.damping.as_ref()
+    }
+}

@@ -9,7 +9,7 @@
 //! [`constraints`] (the PD energy terms), [`integrators`], [`damping`] (each
 //! damping model a trait implementation), [`solver`] (the model and the
 //! time step), [`contact`] (colliders, contact between and within bodies),
-//! [`modes`] (modal analysis) and, with the default `scenes` feature, [`io`] (scene files, mesh readers, frame
+//! [`modes`] (modal analysis), [`adjoint`] (gradients of a loss on a run) and, with the default `scenes` feature, [`io`] (scene files, mesh readers, frame
 //! writers). A program that needs no contact depends on `pd-solver` with
 //! `default-features = false, features = ["metis"]` and compiles none of it.
 //!
@@ -35,6 +35,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub use pd_adjoint as adjoint;
 pub use pd_constraints as constraints;
 pub use pd_contact as contact;
 pub use pd_damping as damping;

@@ -53,6 +53,12 @@ impl Model {
         })?;
         let count = set.len();
         self.other.push(Box::new(set));
+        self.record_group(
+            Some(body),
+            kind.name(),
+            Some(young),
+            super::GroupStorage::Other(self.other.len() - 1),
+        );
         Ok(count)
     }
 

@@ -29,7 +29,7 @@ impl Model {
         let new = self.per_triangle(body, TriangleStrain::KIND, |rest, t| {
             TriangleStrain::new(rest, t, stiffness, limits)
         })?;
-        self.add_constraints(new)
+        self.add_body_constraints(body, stiffness, new)
     }
 
     /// Adds an area-preservation constraint for every triangle of a body,
@@ -39,7 +39,7 @@ impl Model {
     /// As [`Model::add_triangle_strain`].
     pub fn add_area(&mut self, body: BodyId, stiffness: f64) -> Result<usize, SolverError> {
         let new = self.per_triangle(body, Area::KIND, |rest, t| Area::new(rest, t, stiffness))?;
-        self.add_constraints(new)
+        self.add_body_constraints(body, stiffness, new)
     }
 
     /// Adds bending with flexural rigidity `stiffness = D` in N m to a body's
@@ -71,7 +71,7 @@ impl Model {
             .collect::<Result<Vec<_>, _>>()
             .map_err(to_solver)?;
         if curved.iter().any(|h| h.rest_magnitude() > 0.0) {
-            return self.add_constraints(curved);
+            return self.add_body_constraints(body, stiffness, curved);
         }
         let across = neighbours(triangles).map_err(to_solver)?;
         // A triangle without interior edges has no bending to measure.
@@ -89,7 +89,7 @@ impl Model {
             })
             .collect::<Result<Vec<_>, _>>()
             .map_err(to_solver)?;
-        self.add_constraints(flat)
+        self.add_body_constraints(body, stiffness, flat)
     }
 
     /// Adds a volume-preservation constraint for every tetrahedron of a
@@ -115,7 +115,7 @@ impl Model {
                     .map_err(|e| element_error(body, "volume", "tetrahedron", i, &t[..], e))?,
             );
         }
-        self.add_constraints(new)
+        self.add_body_constraints(body, stiffness, new)
     }
 
     /// Builds one constraint per triangle of `body` with `build(rest,
