@@ -114,7 +114,7 @@ fn known_values_are_recovered_from_four_times_off() {
             "{name}: fitted {fitted}, true {value}\n{report:#}"
         );
     }
-    assert_eq!(report["gradient_method"], "finite-difference");
+    assert_eq!(report["gradient_method"], "adjoint");
     assert!(report["iterations"].as_u64().unwrap() >= 1);
     assert!(report["timing"]["forward_s"].as_f64().unwrap() > 0.0);
     assert!(report["timing"]["backward_s"].as_f64().unwrap() > 0.0);

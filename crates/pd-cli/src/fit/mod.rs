@@ -5,7 +5,8 @@
 //! distance between the simulated and the target probe positions, m^2.
 //! Every fitted value is positive and is optimised in log space
 //! (`z = ln p`) by L-BFGS ([`lbfgs`]). Gradients come from a
-//! [`GradientBackend`]; the one here takes central differences in `z`
+//! [`GradientBackend`]: the adjoint method ([`adjoint`]) where the paths
+//! and the scene allow it, else central differences in `z`
 //! ([`FiniteDifference`]), one forward run per parameter and side.
 //!
 //! Forward runs are converged: whatever the scene asks, each step runs
@@ -14,6 +15,7 @@
 //! parameters to well below the finite differences' step (a loss from
 //! unconverged steps jumps where the iteration count changes).
 
+mod adjoint;
 mod lbfgs;
 mod paths;
 
@@ -236,6 +238,11 @@ impl Problem {
         Ok(Some(sum / (self.targets.len() * self.probes.len()) as f64))
     }
 
+    /// The probed vertices and the target positions `[step 1..=N][probe]`.
+    pub(crate) fn loss_data(&self) -> (&[usize], &[Vec<Point>]) {
+        (&self.probes, &self.targets)
+    }
+
     /// `path = value, ...`, for messages.
     pub(crate) fn describe(&self, values: &[f64]) -> String {
         self.paths
@@ -446,8 +453,18 @@ pub(crate) fn fit(options: &FitOptions) -> Result<PathBuf, Failure> {
             .map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
         Path::new("out").join(format!("fit-{name}"))
     });
-    let backend = FiniteDifference { problem: &problem };
-    fit_with(options, &problem, backend, &out)?;
+    match adjoint::Adjoint::new(&problem) {
+        Ok(backend) => fit_with(options, &problem, backend, &out)?,
+        Err(why) => {
+            info!("gradients by finite differences: {why}");
+            fit_with(
+                options,
+                &problem,
+                FiniteDifference { problem: &problem },
+                &out,
+            )?;
+        }
+    }
     Ok(out)
 }
 
