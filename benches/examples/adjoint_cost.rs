@@ -1,6 +1,6 @@
 //! `cargo run --release -p pd-benches --example adjoint_cost -- [--cells
 //! NX,NY,NZ] [--steps N] [--repeats R] [--integrator be|im|bdf2] [--forward
-//! METHOD]`: what a
+//! METHOD] [--json]`: what a
 //! gradient by the adjoint method (`pd_adjoint::loss_and_gradient`) costs on
 //! the bench beam (one thread, Laplacian damping `a2 = 0.003 s`, swinging up
 //! from rest under gravity; the forward run by `METHOD`, Anderson by
@@ -13,7 +13,8 @@
 //! forward and backward wall times; the minimum over the repeats is
 //! reported (the machine may be shared: the load average is printed before
 //! and after). Finite differences cost one forward run per scalar
-//! (one-sided) or two (central).
+//! (one-sided) or two (central). With `--json` the summary is one JSON
+//! object on the last line (what `cargo xtask bench-report` reads).
 
 use pd_adjoint::{AdjointOptions, Parameter, ProbeLoss, loss_and_gradient};
 use pd_benches::{Beam, Options};
@@ -35,7 +36,9 @@ fn main() -> Result<(), String> {
         "--repeats",
         "--integrator",
         "--forward",
+        "--json",
     ])?;
+    let json = options.flag("--json");
     let forward_method = options.value("--forward").unwrap_or("anderson");
     let forward_method = pd_solver::SolverMethod::parse(forward_method)
         .ok_or(format!("--forward: unknown method {forward_method:?}"))?;
@@ -91,6 +94,7 @@ fn main() -> Result<(), String> {
         load()
     );
     let (mut forward, mut backward, mut plain) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    let (mut forward_iterations, mut adjoint_iterations) = (0, 0);
     for repeat in 0..repeats {
         // The bench's own run of the same steps: local-global, a fixed
         // budget of iterations per step, not converged.
@@ -123,8 +127,26 @@ fn main() -> Result<(), String> {
             result.forward_retries,
             result.unconverged_steps
         );
+        if result.forward_s < forward {
+            forward_iterations = result.forward_iterations;
+        }
         forward = forward.min(result.forward_s);
         backward = backward.min(result.backward_s);
+        adjoint_iterations = result.adjoint_iterations;
+    }
+    if json {
+        println!(
+            "{{\"vertices\": {}, \"steps\": {steps}, \"integrator\": \"{integrator}\", \
+             \"forward_method\": \"{}\", \"scalars\": {scalars}, \"repeats\": {repeats}, \
+             \"plain_s\": {plain}, \"plain_iterations\": {}, \"forward_s\": {forward}, \
+             \"forward_iterations\": {forward_iterations}, \"backward_s\": {backward}, \
+             \"adjoint_iterations\": {adjoint_iterations}, \"load_after\": \"{}\"}}",
+            rest.len(),
+            forward_method.name(),
+            beam.iterations,
+            load()
+        );
+        return Ok(());
     }
     println!(
         "minimum: plain forward ({} local-global iterations a step) {plain:.3} s; backward / \

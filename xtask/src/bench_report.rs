@@ -57,7 +57,7 @@ pub struct SectionRun {
 
 /// The sections `bench-report --only` can measure again on their own,
 /// keeping the rest of the stored report.
-pub const SECTIONS_ALONE: &[&str] = &["python"];
+pub const SECTIONS_ALONE: &[&str] = &["python", "gradients"];
 
 /// One pair of `pd-probe phases` runs, on 1 and on 2 threads.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -96,6 +96,8 @@ struct Report {
     local_speedup: Vec<LocalSpeedup>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     python: Option<crate::bench_python::PythonSection>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    gradients: Vec<crate::bench_gradients::GradientCost>,
     /// Sections measured again on their own after the full run, by name
     /// ([`SECTIONS_ALONE`]), with their own commit and machine.
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
@@ -416,6 +418,8 @@ pub fn run(root: &Path, quick: bool, meshes: &[PathBuf]) -> Result<PathBuf, Stri
     let accuracy_target = crate::bench_accuracy_target::measure(&p, quick, meshes)?;
     eprintln!("contact...");
     let contact = crate::bench_contact::measure(&p, quick)?;
+    eprintln!("gradients...");
+    let gradients = crate::bench_gradients::measure(root, quick)?;
     eprintln!("python call overhead...");
     let python = crate::bench_python::measure(root, if quick { 3 } else { 9 });
 
@@ -435,6 +439,7 @@ pub fn run(root: &Path, quick: bool, meshes: &[PathBuf]) -> Result<PathBuf, Stri
         scaling,
         local_speedup: speedup,
         python: Some(python),
+        gradients,
         remeasured: Default::default(),
     };
     write_report(root, &report)
@@ -471,8 +476,10 @@ pub fn run_only(root: &Path, names: &[String]) -> Result<PathBuf, String> {
             machine: machine(),
         };
         eprintln!("{name}...");
-        if name.as_str() == "python" {
-            report.python = Some(crate::bench_python::measure(root, 9));
+        match name.as_str() {
+            "python" => report.python = Some(crate::bench_python::measure(root, 9)),
+            "gradients" => report.gradients = crate::bench_gradients::measure(root, false)?,
+            _ => {}
         }
         report.remeasured.insert(name.clone(), run);
     }
@@ -712,6 +719,13 @@ fn markdown(r: &Report) -> String {
         md.push_str(&crate::bench_accuracy_target::markdown(&r.accuracy_target));
     }
     md.push_str(&crate::bench_contact::markdown(&r.contact));
+    if !r.gradients.is_empty() {
+        md.push('\n');
+        md.push_str(&crate::bench_gradients::markdown(
+            &r.gradients,
+            &remeasured_note(r, "gradients"),
+        ));
+    }
     if let Some(python) = &r.python {
         md.push('\n');
         md.push_str(&crate::bench_python::markdown(

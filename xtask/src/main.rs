@@ -19,6 +19,7 @@
 mod bench_accuracy_target;
 mod bench_contact;
 mod bench_cpp;
+mod bench_gradients;
 mod bench_limits;
 mod bench_methods;
 mod bench_plot;
@@ -31,7 +32,7 @@ mod stability_contact;
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 
-const USAGE: &str = "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy and docs (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/reports/damping-table.md\n  bench-report [--quick] [--mesh BASE]...\n                            speed/accuracy/scaling/limits report: docs/reports/bench-report.md\n  bench-report --only SECTION[,SECTION]\n                            measure those sections again (python), keep the rest\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N] [--mesh BASE]...\n                            pd vs the C++ reference: docs/reports/cpp-comparison.md\n  stability [--quick] [--shard I/N [--out DIR] | --merge DIR]\n                            run the matrix of extreme parameters (or one shard of it, or merge shards), write docs/reports/stability.md (use --release)\n  stability --only contact  the contact axis alone (dev profile), write docs/reports/stability-contact.md\n  stability --only methods [--integrator I] [--predictor P]\n                            the method axis (docs/reports/stability-methods.md)";
+const USAGE: &str = "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy and docs (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/reports/damping-table.md\n  bench-report [--quick] [--mesh BASE]...\n                            speed/accuracy/scaling/limits report: docs/reports/bench-report.md\n  bench-report --only SECTION[,SECTION]\n                            measure those sections again (python, gradients), keep the rest\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N] [--mesh BASE]...\n                            pd vs the C++ reference: docs/reports/cpp-comparison.md\n  stability [--quick] [--shard I/N [--out DIR] | --merge DIR]\n                            run the matrix of extreme parameters (or one shard of it, or merge shards), write docs/reports/stability.md (use --release)\n  stability --only contact  the contact axis alone (dev profile), write docs/reports/stability-contact.md\n  stability --only methods [--integrator I] [--predictor P]\n                            the method axis (docs/reports/stability-methods.md)";
 
 /// The options each task takes: those without a value, and those whose
 /// value is the next argument.
