@@ -70,10 +70,18 @@ impl Scene {
     /// # Errors
     /// As [`Scene::resolve_damping`] and [`Scene::resolve_body_damping`];
     /// a body's lagged model (`rayleigh-lagged`) next to a different model
-    /// on another body, at `body[i].damping` (or `damping`).
-    pub(super) fn damping_model(&self, model: &Model) -> Result<Box<dyn Damping>> {
+    /// on another body, at `body[i].damping` (or `damping`). A Caughey
+    /// series fit of `[damping]` puts the ratios it achieves in `achieved`
+    /// (`(mode, omega, zeta)`).
+    pub(super) fn damping_model(
+        &self,
+        model: &Model,
+        achieved: &mut Vec<(usize, f64, f64)>,
+    ) -> Result<Box<dyn Damping>> {
         if !self.has_per_body_damping() {
-            let (spec, _) = self.resolve_damping(model)?;
+            let (spec, _, ratios) =
+                self.resolve_spec_with_ratios(&self.damping, model, "damping")?;
+            *achieved = ratios;
             return spec
                 .create()
                 .map_err(|e| super::field_error(&self.source, "damping", e));
