@@ -130,10 +130,12 @@ pub(crate) fn build(scene: &Scene) -> Result<Simulation, Failure> {
             terms.join(", ")
         );
     }
-    for (mode, omega, zeta) in achieved {
+    for a in achieved {
         info!(
-            "damping ratio of mode {mode} ({:.4} Hz) with the fitted series: {zeta:.5}",
-            omega / std::f64::consts::TAU
+            "damping ratio of mode {} ({:.4} Hz) with the fitted series: {:.5}",
+            a.mode,
+            a.omega / std::f64::consts::TAU,
+            a.ratio
         );
     }
     for (b, d) in sim

@@ -134,14 +134,25 @@ pub struct SeriesData {
     pub spectrum_bound: f64,
 }
 
+/// The damping ratio a fitted series gives one mode.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AchievedRatio {
+    /// The elastic mode, 1-based.
+    pub mode: usize,
+    /// Its angular frequency, rad/s.
+    pub omega: f64,
+    /// The damping ratio the series gives it (neglecting couplings).
+    pub ratio: f64,
+}
+
 /// A fitted Caughey series and the ratios it gives.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SeriesFit {
     /// The coefficients.
     pub coefficients: FittedCoefficients,
-    /// `(mode, omega, zeta)` for each mode the fit was asked about (1-based
-    /// mode, rad/s, the damping ratio the series gives it).
-    pub achieved: Vec<(usize, f64, f64)>,
+    /// The ratio of each mode the fit was asked about (the asked modes, or
+    /// the band's).
+    pub achieved: Vec<AchievedRatio>,
 }
 
 /// Which matrix a model's `stiffness` multiplies.
@@ -453,23 +464,27 @@ fn to_fitted(a: &[f64]) -> FittedCoefficients {
     fitted
 }
 
-/// `(mode, omega, zeta)` of each of `asked` (1-based) under the series `a`.
+/// The ratio of each of `asked` (1-based) under the series `a`.
 fn achieved(
     a: &[f64],
     asked: &[usize],
     modes: &[ModalData],
     series: &SeriesData,
-) -> Vec<(usize, f64, f64)> {
+) -> Vec<AchievedRatio> {
     asked
         .iter()
-        .map(|&m| {
-            let omega = modes[m - 1].omega;
+        .map(|&mode| {
+            let omega = modes[mode - 1].omega;
             let c: f64 = a
                 .iter()
-                .zip(&series.quotients[m - 1])
+                .zip(&series.quotients[mode - 1])
                 .map(|(a, q)| a * q)
                 .sum();
-            (m, omega, c / (2.0 * omega))
+            AchievedRatio {
+                mode,
+                omega,
+                ratio: c / (2.0 * omega),
+            }
         })
         .collect()
 }
@@ -601,6 +616,8 @@ pub fn series_negative_at(a: &[f64], bound: f64) -> Option<f64> {
 /// scaled to unit largest entry first (a series' columns span powers of the
 /// quotients); Householder QR. `None` when the scaled matrix is
 /// rank-deficient to `1e-12` of its largest pivot.
+// The Householder updates read and write `a[i][j]` by row and column.
+#[allow(clippy::needless_range_loop)]
 fn scaled_least_squares(rows: &[Vec<f64>], targets: &[f64]) -> Option<Vec<f64>> {
     let m = rows.len();
     let n = rows.first()?.len();

@@ -106,6 +106,7 @@ fn three_mode_series_gives_modes_1_3_5_their_ratios() {
     let sim = scene(&beam(0.01, &damping)).build().unwrap();
     let d = sim.damping_matrix();
     assert_eq!(d.series_powers(), 1, "{d:?}");
+    println!("fitted series: {:?}", d.series_coefficients());
     // Without damping, the same measurement: implicit midpoint adds none
     // (its map keeps |mu| = 1), so this is what the measurement itself
     // errs by (peak interpolation, geometric nonlinearity at 1e-3 L).
@@ -139,7 +140,10 @@ fn three_mode_series_gives_modes_1_3_5_their_ratios() {
 /// `damping`.
 fn free_beam(damping: &str) -> String {
     beam(0.01, damping)
-        .replace("integrator = \"implicit-midpoint\"", "integrator = \"backward-euler\"")
+        .replace(
+            "integrator = \"implicit-midpoint\"",
+            "integrator = \"backward-euler\"",
+        )
         .replace(
             "fixed = { box = { min = [-1.0, -1.0, -1.0], max = [1e-9, 1.0, 1.0] } }\n",
             "",
@@ -238,9 +242,8 @@ fn series_mistakes_are_clear_errors() {
         lagged.contains("damping.ratios") && lagged.contains("laplacian model only"),
         "{lagged}"
     );
-    let rotation = parse(
-        "ratios = [0.06, 0.05, 0.35]\nmodes = [1, 3, 5]\npreserve_rotation = true",
-    );
+    let rotation =
+        parse("ratios = [0.06, 0.05, 0.35]\nmodes = [1, 3, 5]\npreserve_rotation = true");
     let rotation = match rotation {
         Err(e) => e.to_string(),
         Ok(()) => build(
@@ -256,11 +259,17 @@ fn series_mistakes_are_clear_errors() {
         .to_string();
     assert!(negative.contains("damping.series"), "{negative}");
     let band = parse("band = [1.0, 10.0]").unwrap_err().to_string();
-    assert!(band.contains("damping.band") && band.contains("ratio"), "{band}");
+    assert!(
+        band.contains("damping.band") && band.contains("ratio"),
+        "{band}"
+    );
     let narrow = build("band = [0.5, 1.0]\nratio = 0.05", 0.01)
         .unwrap_err()
         .to_string();
-    assert!(narrow.contains("damping.band") && narrow.contains("holds 1 elastic"), "{narrow}");
+    assert!(
+        narrow.contains("damping.band") && narrow.contains("holds 1 elastic"),
+        "{narrow}"
+    );
 }
 
 #[test]
@@ -270,10 +279,13 @@ fn band_fit_is_positive_and_reports_its_modes() {
     let (sim, achieved) = scene(&beam(0.01, "band = [0.5, 6.5]\nratio = 0.05"))
         .build_with_ratios()
         .unwrap();
-    let modes: Vec<usize> = achieved.iter().map(|a| a.0).collect();
+    let modes: Vec<usize> = achieved.iter().map(|a| a.mode).collect();
     assert_eq!(modes, vec![1, 2, 3, 4], "{achieved:?}");
     let d = sim.damping_matrix();
-    println!("band fit: {:?}, achieved {achieved:?}", d.series_coefficients());
+    println!(
+        "band fit: {:?}, achieved {achieved:?}",
+        d.series_coefficients()
+    );
     // The fit is a least-squares compromise over the band, so each ratio is
     // near, not at, 0.05; the two-term fit `ratio = 0.05` on mode 1 gives
     // these modes 0.050, 0.0385, 0.053, 0.040 (`pd modes`), 23% off at
@@ -281,9 +293,9 @@ fn band_fit_is_positive_and_reports_its_modes() {
     // fall back to a1 and a2), so its worst must be smaller.
     let spread = achieved
         .iter()
-        .map(|a| (a.2 - 0.05).abs() / 0.05)
+        .map(|a| (a.ratio - 0.05).abs() / 0.05)
         .fold(0.0, f64::max);
     assert!(spread < 0.2, "{achieved:?}");
     // Positivity: every achieved ratio is positive.
-    assert!(achieved.iter().all(|a| a.2 > 0.0), "{achieved:?}");
+    assert!(achieved.iter().all(|a| a.ratio > 0.0), "{achieved:?}");
 }

@@ -147,7 +147,7 @@ impl GlobalSystem {
         let series_rows = series_matrices(&damping_rows, &free, &free_index, masses, series_powers);
         let mut per_column: Vec<Vec<usize>> = (0..nf).map(|j| vec![j]).collect();
         let entries = |rows| free_entries(rows, &free_index);
-        let series_entries = series_rows.iter().flat_map(|rows| entries(rows));
+        let series_entries = series_rows.iter().flat_map(&entries);
         for (fr, fc, _) in entries(&damping_rows)
             .chain(entries(&anchoring_rows))
             .chain(series_entries)

@@ -26,12 +26,11 @@ impl Scene {
 
     /// [`Scene::build`], with the damping ratios a Caughey series fit
     /// (`[damping]` with three or more `ratios`, or a `band`) achieves at
-    /// the modes it was fitted to: `(mode, omega in rad/s, zeta)`, 1-based
-    /// modes; empty for any other damping.
+    /// the modes it was fitted to; empty for any other damping.
     ///
     /// # Errors
     /// As [`Scene::build`].
-    pub fn build_with_ratios(&self) -> Result<(Simulation, Vec<(usize, f64, f64)>)> {
+    pub fn build_with_ratios(&self) -> Result<(Simulation, Vec<pd_damping::ratio::AchievedRatio>)> {
         let mut model = Model::new();
         for (b, body) in self.bodies.iter().enumerate() {
             self.add_body(&mut model, b, body)?;

@@ -71,12 +71,11 @@ impl Scene {
     /// As [`Scene::resolve_damping`] and [`Scene::resolve_body_damping`];
     /// a body's lagged model (`rayleigh-lagged`) next to a different model
     /// on another body, at `body[i].damping` (or `damping`). A Caughey
-    /// series fit of `[damping]` puts the ratios it achieves in `achieved`
-    /// (`(mode, omega, zeta)`).
+    /// series fit of `[damping]` puts the ratios it achieves in `achieved`.
     pub(super) fn damping_model(
         &self,
         model: &Model,
-        achieved: &mut Vec<(usize, f64, f64)>,
+        achieved: &mut Vec<pd_damping::ratio::AchievedRatio>,
     ) -> Result<Box<dyn Damping>> {
         if !self.has_per_body_damping() {
             let (spec, _, ratios) =

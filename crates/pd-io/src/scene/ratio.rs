@@ -3,7 +3,7 @@
 //! from the model's elastic modes at rest ([`pd_modes`],
 //! [`pd_damping::ratio`]) when the scene is built.
 
-use pd_damping::ratio::{FittedCoefficients, ModalData, RatioTarget, SeriesData};
+use pd_damping::ratio::{AchievedRatio, FittedCoefficients, ModalData, RatioTarget, SeriesData};
 use pd_solver::Model;
 
 use super::spec::Scene;
@@ -45,8 +45,7 @@ impl Scene {
     }
 
     /// [`Scene::resolve_spec`], with the ratios a Caughey series fit
-    /// achieves at its modes (`(mode, omega rad/s, zeta)`; empty for one
-    /// or two ratios).
+    /// achieves at its modes (empty for one or two ratios).
     pub(super) fn resolve_spec_with_ratios(
         &self,
         spec: &pd_damping::registry::DampingSpec,
@@ -55,7 +54,7 @@ impl Scene {
     ) -> Result<(
         pd_damping::registry::DampingSpec,
         Option<FittedCoefficients>,
-        Vec<(usize, f64, f64)>,
+        Vec<AchievedRatio>,
     )> {
         let error =
             |e: &pd_damping::DampingError| super::per_body::damping_error(&self.source, field, e);
