@@ -63,12 +63,12 @@ pub const MAX_SERIES_TERMS: usize = 8;
 pub const HIGHER_SERIES_TERMS: usize = MAX_SERIES_TERMS - 2;
 
 /// Coefficients of an implicit damping matrix
-/// `D = mass M + damping_laplacian L_d + sum_j series[j] L_d (M^-1 L_d)^(j+1)
-/// + lagged_stiffness K(x_n)`.
+/// `D = mass M + damping_laplacian L_d + sum_j series_j L_d (M^-1 L_d)^(j+1)
+/// + lagged_stiffness K(x_n)` (`series_j` the entry `j` of `series`, from 0).
 ///
 /// The `series` terms continue Laplacian damping into a Caughey series in
-/// `M^-1 L_d` (`docs/design/damping.md`, "Caughey series"): `series[0]` is
-/// `a3` (s^3) of `L_d M^-1 L_d`, `series[1]` is `a4` (s^5) of
+/// `M^-1 L_d` (`docs/design/damping.md`, "Caughey series"): its entry 0 is
+/// `a3` (s^3) of `L_d M^-1 L_d`, entry 1 is `a4` (s^5) of
 /// `L_d M^-1 L_d M^-1 L_d`, and so on; all zero for every other model.
 /// `L_d` and `M` are restricted to the free vertices there.
 ///
