@@ -299,3 +299,61 @@ fn band_fit_is_positive_and_reports_its_modes() {
     // Positivity: every achieved ratio is positive.
     assert!(achieved.iter().all(|a| a.ratio > 0.0), "{achieved:?}");
 }
+
+#[test]
+fn the_step_objective_with_a_series_never_increases() {
+    // Local-global iterations minimise the step objective g exactly when
+    // the objective's damping term is the one in the global matrix and
+    // right-hand side (crates/pd-solver/tests/prop_objective.rs): a series
+    // term entered with the wrong factor, anchor or sign in either would
+    // show as an increase. The series is made to dominate the step: a3 is
+    // sized so that a3 G^2 / h is a hundred times M / h^2 at the top of
+    // the spectrum, and the beam starts bent and twisting.
+    let probe = scene(&beam(0.01, "stiffness = 0.0")).build().unwrap();
+    let bound = pd_modes::SeriesOperator::new(probe.model()).spectrum_bound();
+    let a3 = 1e2 / (0.01 * bound * bound);
+    for integrator in ["backward-euler", "implicit-midpoint", "bdf2"] {
+        let text = beam(
+            0.01,
+            &format!("stiffness = 1e-4\nmass = 0.5\nseries = [{a3:e}]"),
+        )
+        .replace("\"implicit-midpoint\"", &format!("\"{integrator}\""))
+        .replace(
+            "iterations = 5000\ntolerance = 1e-10",
+            "iterations = 15\ntolerance = 0.0",
+        )
+        .replace("gravity = [0.0, 0.0, 0.0]", "gravity = [0.0, -9.81, 0.0]");
+        let mut sim = scene(&text).build().unwrap();
+        // Moving along the torsion mode, displaced along the first: the
+        // series term's velocity is large from the first iterate on.
+        let analysis = pd_modes::elastic_modes(sim.model(), 5).unwrap();
+        let rest = sim.model().rest_positions().to_vec();
+        let (bend, twist) = (&analysis.modes[0].shape, &analysis.modes[4].shape);
+        sim.set_state(State {
+            positions: rest.iter().zip(bend).map(|(x, p)| x + p * 0.05).collect(),
+            velocities: twist.iter().map(|p| p * 5.0).collect(),
+        })
+        .unwrap();
+        sim.record_objective(true);
+        let mut worst: f64 = 0.0;
+        for _ in 0..5 {
+            sim.step().unwrap();
+            let trace = sim.objective_trace().unwrap().to_vec();
+            for pair in trace.windows(2) {
+                // g is a sum of non-negative terms (inertia, elastic energy,
+                // the PSD damping form) over 120 free dofs, each computed
+                // from displacements: its round-off is at most about
+                // 64 n u = 1e-12 of g; 1e-10 leaves a factor 100.
+                let rise = pair[1] - pair[0];
+                worst = worst.max(rise / pair[0].abs());
+                assert!(
+                    rise <= 1e-10 * pair[0].abs(),
+                    "{integrator}: objective rose from {} to {}",
+                    pair[0],
+                    pair[1]
+                );
+            }
+        }
+        println!("{integrator}: largest relative rise {worst:e}");
+    }
+}
