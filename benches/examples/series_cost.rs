@@ -1,10 +1,10 @@
-//! `cargo run --release -p pd-benches --example series_cost -- [REPS]
+//! `cargo run -p pd-benches --example series_cost -- [REPS]
 //! [TETGEN_BASE]`: what a Caughey series damping costs against plain
 //! Laplacian damping (`docs/design/damping.md`, "Caughey series"): the
 //! structural non-zeros of the global step's Cholesky factor
 //! (`Simulation::factor_nnz`) and its stored values, the set-up time, and
 //! the step time (one thread, 10 iterations, backward Euler; the fastest of
-//! `REPS` (5) runs of 20 steps) on the 2k benchmark beam; with a TetGen base
+//! `REPS` (5) runs of 10 steps, the variants' runs interleaved) on the 2k benchmark beam; with a TetGen base
 //! (the armadillo), the fill on that mesh too. All coefficients positive
 //! (the cost depends on the pattern, not on the values).
 
@@ -49,19 +49,33 @@ fn main() -> Result<(), String> {
         mesh.num_vertices(),
         beam.iterations
     );
-    let mut plain_step = None;
-    for (name, a2, higher) in VARIANTS {
+    // The variants' runs interleaved, so that a change of the machine's
+    // load hits all of them alike; the fastest run of each is kept.
+    // `PD_SERIES_VARIANT=k` runs variant `k` alone (for instruction counts
+    // under `valgrind --tool=callgrind --toggle-collect='*Simulation::run*'`).
+    let only: Option<usize> = std::env::var("PD_SERIES_VARIANT")
+        .ok()
+        .and_then(|k| k.parse().ok());
+    let mut sims = Vec::new();
+    for (k, (name, a2, higher)) in VARIANTS.into_iter().enumerate() {
+        if only.is_some_and(|o| o != k) {
+            continue;
+        }
         let start = Instant::now();
         let mut sim = simulation(&beam, mesh.clone(), a2, higher)?;
         let setup = start.elapsed().as_secs_f64();
         sim.run(3).map_err(|e| e.to_string())?;
-        let mut fastest = f64::INFINITY;
-        for _ in 0..reps {
+        sims.push((name, sim, setup, f64::INFINITY));
+    }
+    for _ in 0..reps {
+        for (_, sim, _, fastest) in &mut sims {
             let start = Instant::now();
-            sim.run(20).map_err(|e| e.to_string())?;
-            fastest = fastest.min(start.elapsed().as_secs_f64() / 20.0);
+            sim.run(10).map_err(|e| e.to_string())?;
+            *fastest = fastest.min(start.elapsed().as_secs_f64() / 10.0);
         }
-        let plain = *plain_step.get_or_insert(fastest);
+    }
+    let plain = sims[0].3;
+    for (name, sim, setup, fastest) in &sims {
         println!(
             "  {name:16} factor nnz {:9}  stored {:9}  set-up {:7.1} ms  step {:7.3} ms ({:.3}x)",
             sim.factor_nnz(),
