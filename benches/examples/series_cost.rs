@@ -3,10 +3,11 @@
 //! Laplacian damping (`docs/design/damping.md`, "Caughey series"): the
 //! structural non-zeros of the global step's Cholesky factor
 //! (`Simulation::factor_nnz`) and its stored values, the set-up time, and
-//! the step time (one thread, 10 iterations, backward Euler; the fastest of
-//! `REPS` (5) runs of 10 steps, the variants' runs interleaved) on the 2k benchmark beam; with a TetGen base
-//! (the armadillo), the fill on that mesh too. All coefficients positive
-//! (the cost depends on the pattern, not on the values).
+//! the step time (one thread, 10 iterations, backward Euler; the fastest
+//! of `REPS` (5) runs of 10 steps, the variants' runs interleaved) on the
+//! 2k benchmark beam; with a TetGen base (the armadillo), the fill on that
+//! mesh too. All coefficients positive (the cost depends on the pattern,
+//! not on the values).
 
 use std::time::Instant;
 

@@ -333,7 +333,11 @@ impl RatioTarget {
                     for (&k, a) in terms.iter().zip(&sub) {
                         full[k] = *a;
                     }
-                    if check_positive(&full, modes, series).is_err() {
+                    // Without a3 the model is plain Laplacian damping,
+                    // whose a2 must not be negative.
+                    if (full[2] == 0.0 && full[1] < 0.0)
+                        || check_positive(&full, modes, series).is_err()
+                    {
                         continue;
                     }
                     let residual: f64 = rows

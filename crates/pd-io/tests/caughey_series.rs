@@ -107,6 +107,22 @@ fn three_mode_series_gives_modes_1_3_5_their_ratios() {
     let d = sim.damping_matrix();
     assert_eq!(d.series_powers(), 1, "{d:?}");
     println!("fitted series: {:?}", d.series_coefficients());
+    // `pd modes`' report sums the series over each mode's quotients, which
+    // it computes again: the asked modes read the asked ratios back. The
+    // fit's 3 x 3 system, scaled to unit columns, is solved by QR to about
+    // its condition number times u; 1e-9 allows a condition number of 4e6.
+    let s = scene(&beam(0.01, &damping));
+    let analysis = pd_modes::elastic_modes(sim.model(), 5).unwrap();
+    let report = pd_io::modes_report::modes_report(&s, &sim, &analysis, false);
+    for (mode, zeta) in [1, 3, 5].into_iter().zip(asked) {
+        let reported = report["modes"][mode - 1]["continuous_damping_ratio"]
+            .as_f64()
+            .unwrap();
+        assert!(
+            (reported - zeta).abs() <= 1e-9 * zeta,
+            "mode {mode}: pd modes reports {reported}, asked {zeta}"
+        );
+    }
     // Without damping, the same measurement: implicit midpoint adds none
     // (its map keeps |mu| = 1), so this is what the measurement itself
     // errs by (peak interpolation, geometric nonlinearity at 1e-3 L).
