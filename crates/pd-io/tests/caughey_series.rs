@@ -274,6 +274,22 @@ fn series_mistakes_are_clear_errors() {
         .unwrap_err()
         .to_string();
     assert!(negative.contains("damping.series"), "{negative}");
+    // A body's own series beside another body's plain damping: the
+    // per-body weights scale a2 L_d only.
+    let mut two = beam(0.01, "stiffness = 0.0").replace(
+        "\n\n[[body]]",
+        "\n\n[[body]]\ndamping = { model = \"laplacian\", stiffness = 1e-4 }",
+    );
+    let second = two[two.find("[[body]]").unwrap()..]
+        .replace("stiffness = 1e-4 }", "stiffness = 1e-4, series = [1e-10] }")
+        .replace("fixed = {", "translate = [0.0, 0.0, 0.4]\nfixed = {");
+    two.push('\n');
+    two.push_str(&second);
+    let per_body = scene(&two).build().unwrap_err().to_string();
+    assert!(
+        per_body.contains("body[1].damping") && per_body.contains("per body"),
+        "{per_body}"
+    );
     let band = parse("band = [1.0, 10.0]").unwrap_err().to_string();
     assert!(
         band.contains("damping.band") && band.contains("ratio"),

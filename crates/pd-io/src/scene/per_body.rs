@@ -114,6 +114,15 @@ impl Scene {
                     ),
                 ));
             }
+            if damping.implicit_matrix().has_series() {
+                return Err(super::field_error(
+                    &self.source,
+                    field(b),
+                    "a Caughey series (three or more ratios, a band, or series) cannot be \
+                     mixed with other damping per body (the per-body weights scale a2 L_d \
+                     only); give every body the same damping, or use it in [damping] alone",
+                ));
+            }
             models.push(damping);
         }
         let per_body =
