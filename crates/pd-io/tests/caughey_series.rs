@@ -290,6 +290,17 @@ fn series_mistakes_are_clear_errors() {
         per_body.contains("body[1].damping") && per_body.contains("per body"),
         "{per_body}"
     );
+    let newton = scene(&format!(
+        "{}\n[solver]\nmethod = \"newton\"\n",
+        beam(0.01, "stiffness = 1e-4\nseries = [1e-10]")
+    ))
+    .build()
+    .unwrap_err()
+    .to_string();
+    assert!(
+        newton.contains("solver.method") && newton.contains("Caughey series"),
+        "{newton}"
+    );
     let band = parse("band = [1.0, 10.0]").unwrap_err().to_string();
     assert!(
         band.contains("damping.band") && band.contains("ratio"),
