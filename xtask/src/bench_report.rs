@@ -78,6 +78,8 @@ struct Report {
     accuracy: Vec<Accuracy>,
     scaling: Vec<Step>,
     local_speedup: Vec<LocalSpeedup>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    python: Option<crate::bench_python::PythonSection>,
 }
 
 /// What one mode (full or quick) measures.
@@ -394,6 +396,8 @@ pub fn run(root: &Path, quick: bool, meshes: &[PathBuf]) -> Result<PathBuf, Stri
     let accuracy_target = crate::bench_accuracy_target::measure(&p, quick, meshes)?;
     eprintln!("contact...");
     let contact = crate::bench_contact::measure(&p, quick)?;
+    eprintln!("python call overhead...");
+    let python = crate::bench_python::measure(root, if quick { 3 } else { 9 });
 
     let report = Report {
         limits,
@@ -410,6 +414,7 @@ pub fn run(root: &Path, quick: bool, meshes: &[PathBuf]) -> Result<PathBuf, Stri
         accuracy,
         scaling,
         local_speedup: speedup,
+        python: Some(python),
     };
     write_report(root, &report)
 }
@@ -631,6 +636,10 @@ fn markdown(r: &Report) -> String {
         md.push_str(&crate::bench_accuracy_target::markdown(&r.accuracy_target));
     }
     md.push_str(&crate::bench_contact::markdown(&r.contact));
+    if let Some(python) = &r.python {
+        md.push('\n');
+        md.push_str(&crate::bench_python::markdown(python));
+    }
     let _ = writeln!(md, "## Scaling\n");
     let scaling = &r.scaling;
     let _ = writeln!(

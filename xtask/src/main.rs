@@ -22,6 +22,7 @@ mod bench_cpp;
 mod bench_limits;
 mod bench_methods;
 mod bench_plot;
+mod bench_python;
 mod bench_report;
 mod damping_table;
 mod stability;

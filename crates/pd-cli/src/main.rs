@@ -13,7 +13,9 @@
 //!   elastic modes (frequencies, damping ratios, animated shapes);
 //! - `pd compare SCENE --damping a,b,...` (or `--integrator a,b,...`,
 //!   `--ratio z1,z2,...`, `--accuracy e1,e2,...`) runs a scene once per
-//!   variant and compares them.
+//!   variant and compares them;
+//! - `pd fit SCENE --target PROBES.csv --fit PATH,... [--out DIR]` fits
+//!   scene values (damping, stiffness, density) to a recorded motion.
 //!
 //! Logs go to stderr through `tracing`, filtered by `RUST_LOG` (default
 //! `info`); `--quiet` prints nothing but errors. Exit codes: 0 success,
@@ -21,6 +23,7 @@
 //! 3 divergence, 4 output failure.
 
 mod compare;
+mod fit;
 mod modes;
 mod pictures;
 mod run;
@@ -158,6 +161,35 @@ enum Command {
         )]
         accuracy: Vec<f64>,
     },
+    /// Fit scene values (damping coefficients or ratios, stiffness,
+    /// density) to a recorded motion: writes `fit.json` (fitted values,
+    /// loss, gradient, timings) and the fitted scene `fitted.toml`.
+    Fit {
+        /// Scene file (.toml or .json), holding the starting values.
+        scene: PathBuf,
+        /// The motion to match: a `probes.csv` as `pd run` writes it, with
+        /// the scene's probes, steps and time step.
+        #[arg(long, value_name = "PROBES.csv")]
+        target: PathBuf,
+        /// Scene values to fit, comma separated, spelled as the scene
+        /// loader's messages spell them: damping.stiffness, damping.mass,
+        /// damping.ratio, damping.ratios[k], body[i].density,
+        /// body[i].vertex_mass, body[i].constraints[j].stiffness,
+        /// body[i].constraints[j].young, body[i].damping.KEY.
+        #[arg(long, value_delimiter = ',', required = true, value_name = "PATHS")]
+        fit: Vec<String>,
+        #[arg(long, help = "Output folder [default: out/fit-<scene name>]")]
+        out: Option<PathBuf>,
+        /// Most L-BFGS iterations (0: only the loss and gradient at the
+        /// scene's values).
+        #[arg(long, value_name = "N", default_value_t = 50)]
+        max_iterations: usize,
+        /// Stop once an iteration lowers the loss by at most this fraction
+        /// of it, or the gradient in log parameters (d loss / d ln p) is
+        /// at most this times the loss.
+        #[arg(long, default_value_t = 1e-6)]
+        tolerance: f64,
+    },
 }
 
 /// How a command can fail, each with its exit code.
@@ -283,6 +315,22 @@ fn main() -> ExitCode {
             },
             quiet,
         ),
+        Command::Fit {
+            scene,
+            target,
+            fit,
+            out,
+            max_iterations,
+            tolerance,
+        } => fit::fit(&fit::FitOptions {
+            scene,
+            target,
+            fit,
+            out,
+            max_iterations,
+            tolerance,
+        })
+        .map(|_| ()),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -424,11 +424,7 @@ pub(crate) fn isotropic_hessian(
             add(block[(a, b)], &scaling[a], &scaling[b]);
         }
     }
-    let flip_mu = if s[0] == s[1] {
-        p.flip_at_equal
-    } else {
-        (p.c[0] - p.c[1]) / (s[0] - s[1])
-    };
+    let flip_mu = crate::unit_product::flip_slope([p.c[0], p.c[1]], [s[0], s[1]], p.flip_at_equal);
     let cross = u(0) * v(1).transpose();
     let cross_t = u(1) * v(0).transpose();
     let flip = vec6((cross + cross_t) / std::f64::consts::SQRT_2);

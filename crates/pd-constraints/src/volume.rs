@@ -122,11 +122,11 @@ fn volume_hessian(w: f64, gx: &[Point], project_psd: bool, out: &mut [f64]) {
         }
     }
     for (a, b) in [(0, 1), (0, 2), (1, 2)] {
-        let flip = if s[a] == s[b] {
-            0.5 * (j[a][a] + j[b][b] - j[a][b] - j[b][a])
-        } else {
-            (c[a] - c[b]) / (s[a] - s[b])
-        };
+        let flip = unit_product::flip_slope(
+            [c[a], c[b]],
+            [s[a], s[b]],
+            0.5 * (j[a][a] + j[b][b] - j[a][b] - j[b][a]),
+        );
         add(clamp(1.0 - flip), &mode(a, b, 1.0), &mode(a, b, 1.0));
         let sum = s[a] + s[b];
         let twist = if c[a] + c[b] == sum {

@@ -124,30 +124,46 @@ pub struct RigidBody {
 impl RigidFreedom {
     /// The freedom left by holding points `held` (m), `size` (m) the body's
     /// size: points within `1e-9 size` of a point or a line count as one.
+    ///
+    /// The test is geometric, on distances: the line is the one through the
+    /// first point and the point farthest from it, and every point's
+    /// distance from it is compared with the tolerance. Distances are
+    /// computed to about `u size`, far inside the tolerance, so the answer
+    /// does not depend on how the body is oriented. (An eigen-decomposition
+    /// of the points' spread, compared with the tolerance squared, did: its
+    /// round-off, about `u` times the largest eigenvalue, is far above
+    /// `(1e-9 size)^2`, and two holding points were a hinge in one
+    /// orientation and held in another.)
     pub fn of_held_points(held: &[Point], size: f64) -> Self {
-        if held.is_empty() {
+        let Some(&first) = held.first() else {
             return Self::Free;
-        }
-        let centre = held.iter().sum::<Point>() / held.len() as f64;
-        let mut spread = Matrix3::zeros();
-        for p in held {
-            let r = p - centre;
-            spread += r * r.transpose();
-        }
-        let tolerance = (1e-9 * size).powi(2) * held.len() as f64;
-        let Some(eigen) = SymmetricEigen::try_new(spread, f64::EPSILON, EIGEN_MAX_ITERATIONS)
-        else {
-            return Self::Held;
         };
-        let mut order = [0, 1, 2];
-        order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
-        let [largest, middle, _] = order.map(|k| eigen.eigenvalues[k]);
-        if largest <= tolerance {
-            Self::Pivot { point: centre }
-        } else if middle <= tolerance {
+        let tolerance = 1e-9 * size;
+        let centre = held.iter().sum::<Point>() / held.len() as f64;
+        let farthest = held
+            .iter()
+            .map(|p| p - first)
+            .max_by(|a, b| a.norm_squared().total_cmp(&b.norm_squared()))
+            .unwrap_or_else(Point::zeros);
+        let length = farthest.norm();
+        if !(length > tolerance) {
+            // Every point is within the tolerance of the first (or a
+            // coordinate is not finite, where no line is defined either).
+            return if length.is_finite() {
+                Self::Pivot { point: centre }
+            } else {
+                Self::Held
+            };
+        }
+        let axis = farthest / length;
+        let on_line = held.iter().all(|p| {
+            let r = p - first;
+            (r - axis * axis.dot(&r)).norm() <= tolerance
+        });
+        if on_line {
             Self::Hinge {
                 point: centre,
-                axis: eigen.eigenvectors.column(order[0]).into_owned(),
+                axis,
             }
         } else {
             Self::Held
@@ -439,6 +455,55 @@ mod tests {
             fit.motion().velocity_at(&Point::new(1.0, 1.0, 1.0)),
             Point::zeros()
         );
+    }
+
+    #[test]
+    fn holding_points_give_the_same_freedom_in_every_orientation() {
+        // Two points hold a door on its hinge, three collinear ones too,
+        // one (or two within the tolerance) a pendulum, three in a triangle
+        // hold it, however the scene is turned.
+        let sets: [(&[Point], fn(&RigidFreedom) -> bool); 4] = [
+            (
+                &[Point::new(0.09, -0.05, 0.007), Point::new(1.13, 0.05, 0.28)],
+                |f| matches!(f, RigidFreedom::Hinge { .. }),
+            ),
+            (
+                &[
+                    Point::new(0.1, 0.2, 0.3),
+                    Point::new(0.4, 0.7, 0.9),
+                    Point::new(0.7, 1.2, 1.5),
+                ],
+                |f| matches!(f, RigidFreedom::Hinge { .. }),
+            ),
+            (
+                &[Point::new(0.1, 0.2, 0.3), Point::new(0.1, 0.2, 0.3 + 1e-12)],
+                |f| matches!(f, RigidFreedom::Pivot { .. }),
+            ),
+            (
+                &[
+                    Point::new(0.0, 0.0, 0.0),
+                    Point::new(1.0, 0.0, 0.0),
+                    Point::new(0.0, 0.5, 0.0),
+                ],
+                |f| *f == RigidFreedom::Held,
+            ),
+        ];
+        for k in 0..200 {
+            let t = k as f64;
+            let rotation = nalgebra::Rotation3::new(Point::new(
+                (0.37 * t).sin() * 3.0,
+                (0.91 * t).cos() * 2.0,
+                0.013 * t,
+            ));
+            for (points, expected) in &sets {
+                let turned: Vec<Point> = points.iter().map(|p| rotation * p).collect();
+                let freedom = RigidFreedom::of_held_points(&turned, 1.2);
+                assert!(
+                    expected(&freedom),
+                    "orientation {k}: {points:?} gave {freedom:?}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -49,6 +49,7 @@ pub mod medit;
 pub mod modes_report;
 pub mod obj;
 pub mod ply;
+pub mod probes;
 mod readers;
 pub mod recorder;
 pub mod scene;
@@ -58,4 +59,5 @@ pub mod strain;
 pub mod tetgen;
 pub mod vtu;
 
+pub use atomic::write_atomically;
 pub use error::{Error, Result};

@@ -5,9 +5,12 @@
 //!
 //! The static problems are solved to convergence by Newton's method on the
 //! model's own energy (the constraint blocks' gradients and Hessians, dense,
-//! fixed vertices removed): this tests the constraints and their weights,
-//! not the time stepper. The frequency is the lowest generalized eigenvalue
-//! of the rest Hessian `K` and the lumped mass `M` (inverse iteration).
+//! fixed vertices removed): this tests the constraints and their weights.
+//! The frequency is the lowest generalized eigenvalue of the rest Hessian
+//! `K` and the lumped mass `M` (inverse iteration). The last two tests take
+//! the same strip through the time stepper: backward Euler brought to rest
+//! gives the static sag, implicit midpoint swinging in the lowest mode its
+//! frequency.
 
 use nalgebra::{DMatrix, DVector};
 use pd_mesh::{Point, generators};
@@ -180,6 +183,13 @@ fn hanging_strip_stretches_by_rho_g_l2_over_2_e_t() {
 /// Lowest generalized eigenvalue of `K phi = lambda M phi` on the free
 /// dofs, by inverse iteration from `start`.
 fn lowest_frequency(model: &Model, start: impl Fn(&Point) -> Point) -> f64 {
+    lowest_mode(model, start).0
+}
+
+/// The lowest mode: its angular frequency (rad/s) and its shape, one
+/// point per vertex (zero on fixed vertices), by inverse iteration from
+/// `start`.
+fn lowest_mode(model: &Model, start: impl Fn(&Point) -> Point) -> (f64, Vec<Point>) {
     let free = free_dofs(model);
     let (_, hessian) = derivatives(model, model.rest_positions());
     let k = DMatrix::from_fn(free.len(), free.len(), |i, j| hessian[(free[i], free[j])]);
@@ -200,7 +210,11 @@ fn lowest_frequency(model: &Model, start: impl Fn(&Point) -> Point) -> f64 {
         }
         lambda = rayleigh;
     }
-    lambda.sqrt()
+    let mut shape = vec![Point::zeros(); model.num_vertices()];
+    for (i, &d) in free.iter().enumerate() {
+        shape[d / 3][d % 3] = x[i];
+    }
+    (lambda.sqrt(), shape)
 }
 
 #[test]
@@ -248,4 +262,142 @@ fn degenerate_triangles_and_wrong_meshes_are_rejected() {
     let body = model.add_body(beam, vec![1.0; n]).unwrap();
     let e = model.add_area(body, 1.0).unwrap_err().to_string();
     assert!(e.contains("triangle mesh"), "{e}");
+}
+
+/// The cantilever of [`cantilever_error`] at 2 cells across (20 along),
+/// stepped by `integrator` with Newton's method to a relative change of
+/// 1e-12 per step (the step's equations solved to round-off), gravity
+/// `g` (m/s^2, along -y), undamped, time step `dt`.
+fn stepped_strip(
+    integrator: Box<dyn pd_integrators::Integrator>,
+    g: f64,
+    dt: f64,
+) -> pd_solver::Simulation {
+    let (length, width, rho_a, d) = (1.0, 0.1, 0.2, 1e-3);
+    let (mut model, body) = strip(length, width, 20, 2, 1, rho_a);
+    model.add_triangle_strain(body, 1e5, None).unwrap();
+    model.add_bending(body, d).unwrap();
+    fix_where(&mut model, body, |p| p.x <= 1e-9);
+    let settings = pd_solver::Settings {
+        dt,
+        iterations: 200,
+        tolerance: 1e-12,
+        gravity: Point::new(0.0, -g, 0.0),
+        threads: 1,
+        ..pd_solver::Settings::default()
+    };
+    let mut sim =
+        pd_solver::Simulation::new(model, integrator, Box::new(pd_damping::NoDamping), settings)
+            .unwrap();
+    let spec = pd_solver::SolverSpec {
+        method: pd_solver::SolverMethod::Newton,
+        ..pd_solver::SolverSpec::default()
+    };
+    sim.set_position_solver(spec.create().unwrap());
+    sim
+}
+
+/// Mean `-y` of the free end's vertices (x = 1 m), m.
+fn tip_sag(sim: &pd_solver::Simulation) -> f64 {
+    let rest = sim.model().rest_positions();
+    let tips: Vec<f64> = (0..rest.len())
+        .filter(|&v| (rest[v].x - 1.0).abs() < 1e-9)
+        .map(|v| rest[v].y - sim.state().positions[v].y)
+        .collect();
+    tips.iter().sum::<f64>() / tips.len() as f64
+}
+
+#[test]
+fn the_time_stepper_brings_the_strip_to_its_euler_bernoulli_sag() {
+    // Backward Euler's fixed point is the static equilibrium whatever the
+    // time step (v = 0 makes the step's objective the potential energy),
+    // and its numerical damping at h omega_1 = 2.5 (h = 10 s, omega_1 =
+    // 0.25 rad/s) brings the strip there in a few dozen steps: after 60
+    // steps the velocity has decayed by (1 + (h omega)^2)^(-30) ~ 1e-25.
+    // So the stepped sag equals the Newton equilibrium of the model's
+    // energy to the step's solve tolerance (1e-12 relative), and both are
+    // the Euler-Bernoulli sag rho_A g L^4 / (8 D) to the discretisation
+    // error measured above for 2 cells across (10.2%). Bounds: 1e-6 of the
+    // sag against the model's own equilibrium (room for the 60 steps'
+    // round-off; measured 1.6e-8), and 11% against Euler-Bernoulli
+    // (measured 10.2%).
+    let g = 1e-6 * GRAVITY;
+    let mut sim = stepped_strip(Box::new(pd_integrators::BackwardEuler), g, 10.0);
+    sim.run(60).unwrap();
+    let stepped = tip_sag(&sim);
+    let equilibrium = static_equilibrium(sim.model(), Point::new(0.0, -g, 0.0));
+    let rest = sim.model().rest_positions();
+    let tips: Vec<f64> = (0..rest.len())
+        .filter(|&v| (rest[v].x - 1.0).abs() < 1e-9)
+        .map(|v| rest[v].y - equilibrium[v].y)
+        .collect();
+    let newton = tips.iter().sum::<f64>() / tips.len() as f64;
+    let beam = 0.2 * g / (8.0 * 1e-3);
+    eprintln!("stepped sag {stepped:e} m, Newton {newton:e} m, Euler-Bernoulli {beam:e} m");
+    assert!(
+        (stepped - newton).abs() <= 1e-6 * newton,
+        "{stepped:e} vs {newton:e}"
+    );
+    assert!(
+        (stepped - beam).abs() <= 0.11 * beam,
+        "{stepped:e} vs {beam:e}"
+    );
+}
+
+#[test]
+fn the_time_stepper_swings_the_strip_at_its_euler_bernoulli_frequency() {
+    // Released from rest in the model's lowest mode shape (the rest
+    // Hessian's generalized eigenvector, computed above), tip amplitude
+    // 2.5e-4 m (geometric nonlinearity (2.5e-4)^2), no gravity: the strip
+    // swings at the mode's frequency. Implicit midpoint has no numerical
+    // damping and lengthens the period by (h omega)^2 / 12 = 1.9e-4 at
+    // h = 0.2 s. The period is read from the tip's zero crossings (linear
+    // interpolation, error (h omega)^2 / 8 of a step, negligible). Bounds:
+    // 1e-3 against the model's frequency (five times the elongation;
+    // measured -1.86e-4, the elongation itself), and the 2-cells-across
+    // discretisation error measured above, 4.9%, so 6%, against
+    // Euler-Bernoulli (measured -4.9%).
+    let dt = 0.2;
+    let mut sim = stepped_strip(Box::new(pd_integrators::ImplicitMidpoint), 0.0, dt);
+    let (model_omega, shape) = lowest_mode(sim.model(), |p| Point::new(0.0, p.x * p.x, 0.0));
+    let rest = sim.model().rest_positions().to_vec();
+    let tip = (0..rest.len())
+        .find(|&v| (rest[v].x - 1.0).abs() < 1e-9)
+        .unwrap();
+    let scale = 2.5e-4 / shape[tip].y;
+    let positions: Vec<Point> = rest
+        .iter()
+        .zip(&shape)
+        .map(|(x, s)| x + s * scale)
+        .collect();
+    let velocities = vec![Point::zeros(); rest.len()];
+    sim.set_state(pd_solver::State {
+        positions,
+        velocities,
+    })
+    .unwrap();
+    let mut crossings = Vec::new();
+    let mut previous = tip_sag(&sim);
+    // A little over one period (26.6 s): two crossings half a period apart.
+    for step in 1..=150 {
+        sim.step().unwrap();
+        let sag = tip_sag(&sim);
+        if previous.signum() != sag.signum() {
+            let fraction = previous / (previous - sag);
+            crossings.push((step as f64 - 1.0 + fraction) * dt);
+        }
+        previous = sag;
+    }
+    assert!(crossings.len() >= 2, "{crossings:?}");
+    let period =
+        2.0 * (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64;
+    let omega = 2.0 * std::f64::consts::PI / period;
+    let beta = 1.875_104_068_711_961_f64;
+    let beam = beta * beta * (1e-3 / 0.2_f64).sqrt();
+    eprintln!("stepped omega {omega} rad/s, model {model_omega}, Euler-Bernoulli {beam}");
+    assert!(
+        (omega - model_omega).abs() <= 1e-3 * model_omega,
+        "{omega} vs {model_omega}"
+    );
+    assert!((omega - beam).abs() <= 0.06 * beam, "{omega} vs {beam}");
 }

@@ -1,5 +1,5 @@
 //! Energy laws on quadratic, convex energies (zero-rest-length springs, hard
-//! pins, gravity), over random small scenes, masses, stiffnesses, time steps
+//! pins, attachments, gravity), over random small scenes, masses, stiffnesses, time steps
 //! and damping models.
 //!
 //! With zero-rest-length springs every projection is 0 (`L0 d/|d|` with
@@ -23,7 +23,8 @@
 //!   `1/2|v1|_M^2 - 1/2|v0|_M^2 = v_mid^T M (v1 - v0)`, so
 //!   `E1 - E0 = -h v_mid^T D v_mid`: exact conservation without damping, and
 //!   exactly that loss with a constant (or lagged, here constant) `D`.
-//! - BDF-2 has no per-step energy guarantee and is not tested here.
+//! - BDF-2 has no per-step energy guarantee; its law, G-stability, is
+//!   checked in `prop_bdf2_stability.rs`.
 //!
 //! Round-off bound, per step: the computed `x1` satisfies the step's
 //! equations up to a residual `rho` per row of about `u (|A| |x|)_i`
@@ -76,16 +77,26 @@ fn absolute_energy(sim: &Simulation) -> f64 {
 }
 
 /// Runs [`STEPS`] steps and records each step's energy change.
+#[allow(clippy::too_many_arguments)]
 fn run(
     scene: &Scene,
     integrator: Box<dyn Integrator>,
     choice: DampingChoice,
     pinned: bool,
+    attached: bool,
     gravity: bool,
     dt: f64,
     iterations: usize,
 ) -> Result<Vec<StepRecord>, TestCaseError> {
-    let model = scene.model(Material::ZeroLengthSprings, pinned);
+    let mut model = scene.model(Material::ZeroLengthSprings, pinned);
+    if attached {
+        // The first body's last vertex, softly held at its rest position: a
+        // zero-rest-length spring to a fixed point, quadratic and convex.
+        let last = model.bodies()[0].vertices().len() - 1;
+        model
+            .add_attachments(pd_solver::BodyId(0), &[last], 0.5 * scene.stiffness)
+            .unwrap();
+    }
     let n = model.num_vertices();
     let max_mass = model.masses().iter().copied().fold(0.0, f64::max);
     let laplacian = laplacian_norm(&model);
@@ -171,11 +182,12 @@ proptest! {
         scene in scene(1e0..1e4, 3.0),
         choice in dissipative_damping(),
         pinned: bool,
+        attached: bool,
         gravity: bool,
         dt in 1e-4..0.1f64,
         iterations in 1usize..=4,
     ) {
-        let records = run(&scene, Box::new(BackwardEuler), choice, pinned, gravity, dt, iterations)?;
+        let records = run(&scene, Box::new(BackwardEuler), choice, pinned, attached, gravity, dt, iterations)?;
         for (step, r) in records.iter().enumerate() {
             prop_assert!(
                 r.after <= r.before + r.tolerance,
@@ -190,11 +202,12 @@ proptest! {
         scene in scene(1e0..1e4, 3.0),
         choice in matrix_damping(),
         pinned: bool,
+        attached: bool,
         gravity: bool,
         dt in 1e-4..0.1f64,
         iterations in 1usize..=4,
     ) {
-        let records = run(&scene, Box::new(ImplicitMidpoint), choice, pinned, gravity, dt, iterations)?;
+        let records = run(&scene, Box::new(ImplicitMidpoint), choice, pinned, attached, gravity, dt, iterations)?;
         for (step, r) in records.iter().enumerate() {
             let change = r.after - r.before;
             prop_assert!(
@@ -233,6 +246,7 @@ fn controls_fail_the_same_checks() {
             integrator,
             DampingChoice::None,
             false,
+            false,
             true,
             0.02,
             1,
@@ -255,6 +269,7 @@ fn controls_fail_the_same_checks() {
         &scene,
         Box::new(ImplicitMidpoint),
         damped,
+        false,
         false,
         true,
         0.02,

@@ -308,3 +308,87 @@ pub fn settings(dt: f64, iterations: usize, gravity: bool) -> Settings {
 pub fn max_norm(points: &[Point]) -> f64 {
     points.iter().map(|p| p.amax()).fold(0.0, f64::max)
 }
+
+/// An irregular tet mesh: a jittered box of `cells` cells (1 m x 0.7 m x
+/// 0.5 m, jitter 0.15 of a cell) from which each tet is kept with
+/// probability `keep` (deterministic in `seed`; at least one tet), and the
+/// vertices no kept tet uses are removed. The result can have several
+/// pieces, vertices of very different valence and thin parts.
+pub fn irregular_box(cells: [usize; 3], seed: u64, keep: f64) -> Mesh {
+    let full = jittered_box(cells, [1.0, 0.7, 0.5], 0.15, seed);
+    let mut state = seed ^ 0x9e37_79b9_7f4a_7c15;
+    let mut uniform = move || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut tets: Vec<[usize; 4]> = full
+        .tets()
+        .iter()
+        .copied()
+        .filter(|_| uniform() < keep)
+        .collect();
+    if tets.is_empty() {
+        tets.push(full.tets()[0]);
+    }
+    let mut index = vec![usize::MAX; full.num_vertices()];
+    let mut vertices = Vec::new();
+    for tet in &mut tets {
+        for v in tet.iter_mut() {
+            if index[*v] == usize::MAX {
+                index[*v] = vertices.len();
+                vertices.push(full.vertices()[*v]);
+            }
+            *v = index[*v];
+        }
+    }
+    Mesh::from_tets(vertices, tets).unwrap()
+}
+
+/// The TetGen armadillo beside the repository
+/// (`../shared/meshes/armadillo/armadillo.node` and `.ele`: 14,779
+/// vertices, a real mesh with elements of every size and shape), read once;
+/// `None` (with one line saying so) where it is absent.
+pub fn armadillo() -> Option<&'static Mesh> {
+    static MESH: std::sync::OnceLock<Option<Mesh>> = std::sync::OnceLock::new();
+    MESH.get_or_init(|| {
+        let base = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../../shared/meshes/armadillo/armadillo");
+        pd_io::tetgen::read_tetgen_base(&base)
+            .map_err(|e| println!("armadillo pieces skipped: {}: {e}", base.display()))
+            .ok()
+    })
+    .as_ref()
+}
+
+/// A piece of the armadillo: every tet whose four vertices lie within
+/// `radius` m of vertex `seed % n` (about 50 vertices at 0.08 m, 250 at
+/// 0.16 m; it can have several pieces), its unused vertices removed.
+/// `None` without the armadillo.
+pub fn armadillo_piece(seed: u64, radius: f64) -> Option<Mesh> {
+    let full = armadillo()?;
+    let centre = full.vertices()[(seed % full.num_vertices() as u64) as usize];
+    let near: Vec<bool> = (full.vertices().iter())
+        .map(|p| (p - centre).norm() <= radius)
+        .collect();
+    let mut tets: Vec<[usize; 4]> = (full.tets().iter())
+        .filter(|t| t.iter().all(|&v| near[v]))
+        .copied()
+        .collect();
+    if tets.is_empty() {
+        return None;
+    }
+    let mut index = vec![usize::MAX; full.num_vertices()];
+    let mut vertices = Vec::new();
+    for tet in &mut tets {
+        for v in tet.iter_mut() {
+            if index[*v] == usize::MAX {
+                index[*v] = vertices.len();
+                vertices.push(full.vertices()[*v]);
+            }
+            *v = index[*v];
+        }
+    }
+    Mesh::from_tets(vertices, tets).ok()
+}
