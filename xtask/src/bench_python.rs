@@ -49,7 +49,7 @@ pub fn measure(root: &Path, repeats: usize) -> PythonSection {
 /// Runs the script with the interpreter `python`.
 fn measure_with(python: &str, root: &Path, repeats: usize) -> PythonSection {
     let script = root.join("python/benchmarks/step_overhead.py");
-    let output = Command::new(&python)
+    let output = Command::new(python)
         .current_dir(root)
         .arg(&script)
         .args(["--repeats", &repeats.to_string(), "--json"])
