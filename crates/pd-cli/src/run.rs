@@ -96,7 +96,9 @@ pub(crate) fn load_scene(options: &SceneOptions) -> Result<LoadedScene, Failure>
 /// Builds the simulation of a scene; bad input is exit code 2.
 pub(crate) fn build(scene: &Scene) -> Result<Simulation, Failure> {
     let start = Instant::now();
-    let sim = scene.build().map_err(|e| Failure::Input(e.to_string()))?;
+    let (sim, achieved) = scene
+        .build_with_ratios()
+        .map_err(|e| Failure::Input(e.to_string()))?;
     info!(
         "{}: {} vertices ({} free), {} constraints, {} + {} damping; set up in {:.0} ms",
         scene.source.display(),
@@ -115,6 +117,25 @@ pub(crate) fn build(scene: &Scene) -> Result<Simulation, Failure> {
         info!(
             "damping coefficients: mass a1 = {:e} 1/s, Laplacian a2 = {:e} s, lagged a3 = {:e} s",
             d.mass, d.damping_laplacian, d.lagged_stiffness
+        );
+    }
+    if d.has_series() {
+        let terms: Vec<String> = d
+            .series_coefficients()
+            .iter()
+            .map(|a| format!("{a:e}"))
+            .collect();
+        info!(
+            "Caughey series a1, a2, a3, ... = [{}] (1/s, s, s^3, s^5, ...)",
+            terms.join(", ")
+        );
+    }
+    for a in achieved {
+        info!(
+            "damping ratio of mode {} ({:.4} Hz) with the fitted series: {:.5}",
+            a.mode,
+            a.omega / std::f64::consts::TAU,
+            a.ratio
         );
     }
     for (b, d) in sim

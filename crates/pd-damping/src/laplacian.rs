@@ -4,7 +4,8 @@
 use crate::error::non_negative;
 use crate::rotation_preserving::SpinKeeper;
 use crate::{
-    Damping, DampingError, DampingMatrix, DampingReport, DampingTargets, Point, StepContext,
+    Damping, DampingError, DampingMatrix, DampingReport, DampingTargets, HIGHER_SERIES_TERMS,
+    Point, StepContext,
 };
 
 /// The name scenes, the command line and the registry use for this model.
@@ -26,7 +27,7 @@ pub const NAME: &str = "laplacian";
 /// assert!(damping.preserves_rotation());
 /// assert_eq!(
 ///     damping.implicit_matrix(),
-///     DampingMatrix { mass: 0.0, damping_laplacian: 0.01, lagged_stiffness: 0.0 }
+///     DampingMatrix { mass: 0.0, damping_laplacian: 0.01, ..DampingMatrix::default() }
 /// );
 /// # Ok::<(), pd_damping::DampingError>(())
 /// ```
@@ -34,6 +35,8 @@ pub const NAME: &str = "laplacian";
 pub struct LaplacianDamping {
     stiffness: f64,
     mass: f64,
+    /// `a3, a4, ...` of the Caughey series, zero without one.
+    series: [f64; HIGHER_SERIES_TERMS],
     /// The rotation-preserving variant's state, when it is on.
     spin_keeper: Option<SpinKeeper>,
 }
@@ -51,7 +54,80 @@ impl LaplacianDamping {
         Ok(Self {
             stiffness: non_negative("stiffness", stiffness)?,
             mass: non_negative("mass", mass)?,
+            series: [0.0; HIGHER_SERIES_TERMS],
             spin_keeper: preserve_rotation.then(SpinKeeper::default),
+        })
+    }
+
+    /// Caughey series damping `D = mass M + stiffness L_d + higher[0] L_d
+    /// M^-1 L_d + higher[1] L_d (M^-1 L_d)^2 + ...` (`a1`, `a2`, `a3`, ...;
+    /// `docs/design/damping.md`, "Caughey series"); an empty `higher` is
+    /// [`LaplacianDamping::new`].
+    ///
+    /// With series terms, `stiffness` and the higher terms may be negative:
+    /// what must hold is that the polynomial `sum_k a_k s^(k-1)` is `>= 0`
+    /// over the spectrum of `M^-1 L_d`, which the solver checks when it
+    /// builds the global step (`mass`, its value at `s = 0`, stays `>= 0`).
+    ///
+    /// ```
+    /// use pd_damping::{Damping, LaplacianDamping};
+    /// let damping = LaplacianDamping::with_series(0.01, 0.1, false, &[1e-6])?;
+    /// assert_eq!(damping.implicit_matrix().series_coefficients(), vec![0.1, 0.01, 1e-6]);
+    /// # Ok::<(), pd_damping::DampingError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// As [`LaplacianDamping::new`] without series. With series:
+    /// [`DampingError::InvalidParameter`] naming `series` for a non-finite
+    /// term or more than [`HIGHER_SERIES_TERMS`] terms, `stiffness` for a
+    /// non-finite value, `mass` for a negative one; and
+    /// [`DampingError::Conflict`] naming `preserve_rotation`, which does not
+    /// combine with the series.
+    pub fn with_series(
+        stiffness: f64,
+        mass: f64,
+        preserve_rotation: bool,
+        higher: &[f64],
+    ) -> Result<Self, DampingError> {
+        if higher.iter().all(|a| *a == 0.0) {
+            return Self::new(stiffness, mass, preserve_rotation);
+        }
+        if higher.len() > HIGHER_SERIES_TERMS {
+            return Err(DampingError::InvalidParameter {
+                parameter: "series",
+                value: higher.len() as f64,
+                requirement: "at most 6 terms (a3 to a8)",
+            });
+        }
+        if let Some(bad) = higher.iter().find(|a| !a.is_finite()) {
+            return Err(DampingError::InvalidParameter {
+                parameter: "series",
+                value: *bad,
+                requirement: "finite coefficients",
+            });
+        }
+        if !stiffness.is_finite() {
+            return Err(DampingError::InvalidParameter {
+                parameter: "stiffness",
+                value: stiffness,
+                requirement: "finite",
+            });
+        }
+        if preserve_rotation {
+            return Err(DampingError::Conflict {
+                parameter: "preserve_rotation",
+                reason: "is not available with a Caughey series (three or more ratios, a \
+                         band, or series): only the a2 L_d term has a rotating anchor"
+                    .into(),
+            });
+        }
+        let mut series = [0.0; HIGHER_SERIES_TERMS];
+        series[..higher.len()].copy_from_slice(higher);
+        Ok(Self {
+            stiffness,
+            mass: non_negative("mass", mass)?,
+            series,
+            spin_keeper: None,
         })
     }
 }
@@ -66,6 +142,7 @@ impl Damping for LaplacianDamping {
             mass: self.mass,
             damping_laplacian: self.stiffness,
             lagged_stiffness: 0.0,
+            series: self.series,
         }
     }
 

@@ -55,8 +55,30 @@ use nalgebra::Vector3;
 /// A position, velocity or force of one vertex (SI units).
 pub type Point = Vector3<f64>;
 
+/// The most terms a Caughey series `a1 M + a2 L_d + a3 L_d M^-1 L_d + ...`
+/// may have (`a1` to `a8`).
+pub const MAX_SERIES_TERMS: usize = 8;
+
+/// The series terms beyond `a1 M + a2 L_d`: `a3` to `a8`.
+pub const HIGHER_SERIES_TERMS: usize = MAX_SERIES_TERMS - 2;
+
 /// Coefficients of an implicit damping matrix
-/// `D = mass M + damping_laplacian L_d + lagged_stiffness K(x_n)`.
+/// `D = mass M + damping_laplacian L_d + sum_j series_j L_d (M^-1 L_d)^(j+1)
+/// + lagged_stiffness K(x_n)` (`series_j` the entry `j` of `series`, from 0).
+///
+/// The `series` terms continue Laplacian damping into a Caughey series in
+/// `M^-1 L_d` (`docs/design/damping.md`, "Caughey series"): its entry 0 is
+/// `a3` (s^3) of `L_d M^-1 L_d`, entry 1 is `a4` (s^5) of
+/// `L_d M^-1 L_d M^-1 L_d`, and so on; all zero for every other model.
+/// `L_d` and `M` are restricted to the free vertices there.
+///
+/// ```
+/// use pd_damping::DampingMatrix;
+/// let d = DampingMatrix { mass: 0.1, damping_laplacian: 0.01, ..DampingMatrix::default() }
+///     .with_series(&[1e-6, 2e-9]);
+/// assert_eq!(d.series_powers(), 2);
+/// assert_eq!(d.series_coefficients(), vec![0.1, 0.01, 1e-6, 2e-9]);
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct DampingMatrix {
     /// `a1` in 1/s: mass-proportional (implicit ether) damping.
@@ -67,12 +89,62 @@ pub struct DampingMatrix {
     /// `a3` in s: times the elastic Hessian at the start of the step
     /// (lagged Rayleigh damping). Non-zero forces a refactorisation per step.
     pub lagged_stiffness: f64,
+    /// `a3, a4, ...`: the Caughey series' coefficients of
+    /// `L_d (M^-1 L_d)^(j+1)` (units s^(2j+3)), trailing zeros unused.
+    pub series: [f64; HIGHER_SERIES_TERMS],
 }
 
 impl DampingMatrix {
     /// Whether the matrix is zero (no implicit damping).
     pub fn is_zero(&self) -> bool {
-        self.mass == 0.0 && self.damping_laplacian == 0.0 && self.lagged_stiffness == 0.0
+        self.mass == 0.0
+            && self.damping_laplacian == 0.0
+            && self.lagged_stiffness == 0.0
+            && !self.has_series()
+    }
+
+    /// The same matrix with the series terms `a3, a4, ...` set to `higher`
+    /// (at most [`HIGHER_SERIES_TERMS`]; more are ignored).
+    pub fn with_series(mut self, higher: &[f64]) -> Self {
+        self.series = [0.0; HIGHER_SERIES_TERMS];
+        for (s, a) in self.series.iter_mut().zip(higher) {
+            *s = *a;
+        }
+        self
+    }
+
+    /// Whether the series has a term beyond `a2 L_d`.
+    pub fn has_series(&self) -> bool {
+        self.series.iter().any(|a| *a != 0.0)
+    }
+
+    /// How many products `M^-1 L_d` the highest series term holds: 0 without
+    /// series, 1 with `a3` the last non-zero term, 2 with `a4`, ...
+    pub fn series_powers(&self) -> usize {
+        self.series
+            .iter()
+            .rposition(|a| *a != 0.0)
+            .map_or(0, |j| j + 1)
+    }
+
+    /// The series' coefficients `[a1, a2, a3, ...]` up to the last non-zero
+    /// higher term (just `[a1, a2]` without series).
+    pub fn series_coefficients(&self) -> Vec<f64> {
+        let mut all = vec![self.mass, self.damping_laplacian];
+        all.extend_from_slice(&self.series[..self.series_powers()]);
+        all
+    }
+
+    /// The modal damping `sum_k a_k Q_k` (1/s) of a mode with series
+    /// quotients `quotients = [1, phi^T L_d phi, phi^T L_d M^-1 L_d phi,
+    /// ...]` (a mass-normalised `phi`, 1/s^(2k-2)); terms beyond the
+    /// quotients given count as 0. The lagged term is not included.
+    pub fn series_damping(&self, quotients: &[f64]) -> f64 {
+        self.series_coefficients()
+            .iter()
+            .zip(quotients)
+            .map(|(a, q)| a * q)
+            .sum()
     }
 
     /// Whether the matrix changes from step to step.

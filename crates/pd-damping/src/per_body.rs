@@ -67,6 +67,8 @@ impl PerBodyDamping {
     /// [`DampingError::Conflict`] naming `model` when a body's model has a
     /// lagged stiffness term (`rayleigh-lagged`): its matrix changes every
     /// step and is not scaled per body; use it in `[damping]` for every body.
+    /// [`DampingError::Conflict`] naming `ratios` when a body's model has
+    /// Caughey series terms (`a3`, ...), which are not scaled per body.
     pub fn new(models: Vec<Box<dyn Damping>>) -> Result<Self, DampingError> {
         let coefficients: Vec<DampingMatrix> = models.iter().map(|m| m.implicit_matrix()).collect();
         if let Some(b) = coefficients.iter().position(DampingMatrix::is_lagged) {
@@ -79,12 +81,22 @@ impl PerBodyDamping {
                 ),
             });
         }
+        if let Some(b) = coefficients.iter().position(DampingMatrix::has_series) {
+            return Err(DampingError::Conflict {
+                parameter: "ratios",
+                reason: format!(
+                    "body {b}'s Caughey series (three or more ratios, or band) is not available \
+                     per body next to other damping; give it in [damping] for all bodies"
+                ),
+            });
+        }
         let reference = coefficients
             .iter()
             .fold(DampingMatrix::default(), |r, c| DampingMatrix {
                 mass: r.mass.max(c.mass),
                 damping_laplacian: r.damping_laplacian.max(c.damping_laplacian),
                 lagged_stiffness: 0.0,
+                series: [0.0; crate::HIGHER_SERIES_TERMS],
             });
         let explicit = models.iter().any(|m| m.has_explicit_force());
         Ok(Self {

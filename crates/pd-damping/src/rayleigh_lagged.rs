@@ -18,7 +18,7 @@ pub const NAME: &str = "rayleigh-lagged";
 /// assert_eq!(damping.name(), "rayleigh-lagged");
 /// assert_eq!(
 ///     damping.implicit_matrix(),
-///     DampingMatrix { mass: 0.1, damping_laplacian: 0.0, lagged_stiffness: 0.01 }
+///     DampingMatrix { mass: 0.1, damping_laplacian: 0.0, lagged_stiffness: 0.01, ..Default::default() }
 /// );
 /// # Ok::<(), pd_damping::DampingError>(())
 /// ```
@@ -54,6 +54,7 @@ impl Damping for RayleighLagged {
             mass: self.mass,
             damping_laplacian: 0.0,
             lagged_stiffness: self.stiffness,
+            ..DampingMatrix::default()
         }
     }
 }

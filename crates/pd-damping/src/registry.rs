@@ -62,9 +62,42 @@ pub enum Value {
     Number(f64),
     /// A flag.
     Flag(bool),
-    /// A list of two numbers (`ratios = [0.02, 0.05]`), each in the
+    /// A list of numbers (`ratios = [0.02, 0.05]`), each in the
     /// parameter's unit.
-    Pair([f64; 2]),
+    List(Numbers),
+}
+
+/// A short list of numbers (up to [`Numbers::CAPACITY`]), the value of a
+/// list parameter (`ratios`, `modes`, `band`, `series`); `Copy` like the
+/// other values.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Numbers {
+    len: usize,
+    values: [f64; Numbers::CAPACITY],
+}
+
+impl Numbers {
+    /// The most numbers a list parameter holds.
+    pub const CAPACITY: usize = crate::MAX_SERIES_TERMS;
+
+    /// The list `values`, or `None` when it has more than
+    /// [`Numbers::CAPACITY`] entries.
+    pub fn new(values: &[f64]) -> Option<Self> {
+        if values.len() > Self::CAPACITY {
+            return None;
+        }
+        let mut stored = [0.0; Self::CAPACITY];
+        stored[..values.len()].copy_from_slice(values);
+        Some(Self {
+            len: values.len(),
+            values: stored,
+        })
+    }
+
+    /// The numbers.
+    pub fn as_slice(&self) -> &[f64] {
+        &self.values[..self.len]
+    }
 }
 
 impl Value {
@@ -73,7 +106,7 @@ impl Value {
         match self {
             Self::Number(_) => Kind::Number,
             Self::Flag(_) => Kind::Flag,
-            Self::Pair(_) => Kind::Pair,
+            Self::List(_) => Kind::List,
         }
     }
 }
@@ -85,8 +118,8 @@ pub enum Kind {
     Number,
     /// A `bool`.
     Flag,
-    /// Two `f64`s, written as a list.
-    Pair,
+    /// A list of `f64`s (at most [`Numbers::CAPACITY`]).
+    List,
 }
 
 impl Kind {
@@ -95,7 +128,7 @@ impl Kind {
         match self {
             Self::Number => "a number",
             Self::Flag => "true or false",
-            Self::Pair => "a list of two numbers",
+            Self::List => "a list of numbers",
         }
     }
 }
@@ -225,9 +258,9 @@ impl Arguments<'_> {
         }
     }
 
-    fn pair(&self, name: &str) -> Option<[f64; 2]> {
+    fn list(&self, name: &str) -> Option<Numbers> {
         match self.get(name)? {
-            Value::Pair(p) => Some(p),
+            Value::List(p) => Some(p),
             _ => None,
         }
     }
@@ -261,10 +294,10 @@ pub fn model_names() -> Vec<&'static str> {
 }
 
 /// Parameters added after the scene format's first version (damping by
-/// ratio). [`parameter_names`] lists them last, so that the positional form
+/// ratio, then the Caughey series). [`parameter_names`] lists them last, so that the positional form
 /// of a `[damping]` table (serde's JSON array) written before them still
 /// reads, and messages list the original keys first as before.
-pub const ADDED_PARAMETERS: &[&str] = &["ratio", "mode", "ratios", "modes"];
+pub const ADDED_PARAMETERS: &[&str] = &["ratio", "mode", "ratios", "modes", "band", "series"];
 
 /// Every parameter name of every model, each once, in registry order (the
 /// keys a scene's `[damping]` table may hold besides `model`), the

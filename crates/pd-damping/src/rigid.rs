@@ -462,7 +462,8 @@ mod tests {
         // Two points hold a door on its hinge, three collinear ones too,
         // one (or two within the tolerance) a pendulum, three in a triangle
         // hold it, however the scene is turned.
-        let sets: [(&[Point], fn(&RigidFreedom) -> bool); 4] = [
+        type HoldingSet<'a> = (&'a [Point], fn(&RigidFreedom) -> bool);
+        let sets: [HoldingSet<'_>; 4] = [
             (
                 &[Point::new(0.09, -0.05, 0.007), Point::new(1.13, 0.05, 0.28)],
                 |f| matches!(f, RigidFreedom::Hinge { .. }),

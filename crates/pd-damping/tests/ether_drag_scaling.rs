@@ -114,7 +114,8 @@ fn implicit_form_filters_nothing_and_gives_the_mass_matrix() {
             DampingMatrix {
                 mass: c,
                 damping_laplacian: 0.0,
-                lagged_stiffness: 0.0
+                lagged_stiffness: 0.0,
+                ..DampingMatrix::default()
             }
         );
     }

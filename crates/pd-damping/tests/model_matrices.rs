@@ -30,7 +30,8 @@ fn laplacian_is_constant_and_reports_rotation_preservation() {
             DampingMatrix {
                 mass: 0.3,
                 damping_laplacian: 0.02,
-                lagged_stiffness: 0.0
+                lagged_stiffness: 0.0,
+                ..DampingMatrix::default()
             }
         );
         assert!(!matrix.is_lagged());
@@ -47,7 +48,8 @@ fn rayleigh_lagged_is_lagged() {
         DampingMatrix {
             mass: 0.3,
             damping_laplacian: 0.0,
-            lagged_stiffness: 0.02
+            lagged_stiffness: 0.02,
+            ..DampingMatrix::default()
         }
     );
     assert!(matrix.is_lagged());

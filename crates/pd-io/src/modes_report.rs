@@ -29,11 +29,22 @@ pub fn modes_report(
     let per_body = sim.damping_body_coefficients().is_some();
     let implicit_only = damping_is_implicit(&scene.damping) && !per_body;
     let make = || scene.integrator.create();
+    // A Caughey series sums its terms over each mode's series quotients
+    // `phi^T L_d (M^-1 L_d)^(k-2) phi` (docs/design/damping.md).
+    let series = d
+        .has_series()
+        .then(|| pd_modes::SeriesOperator::new(sim.model()));
+    let terms = d.series_coefficients().len();
     let mut entries = Vec::new();
     for (i, mode) in analysis.modes.iter().enumerate() {
-        let c = d.mass
-            + d.damping_laplacian * mode.laplacian_quotient
-            + d.lagged_stiffness * mode.omega * mode.omega;
+        let c = match &series {
+            None => {
+                d.mass
+                    + d.damping_laplacian * mode.laplacian_quotient
+                    + d.lagged_stiffness * mode.omega * mode.omega
+            }
+            Some(operator) => d.series_damping(&operator.quotients(&mode.shape, terms)),
+        };
         let discrete = pd_modes::discrete_mode(&make, dt, mode.omega, c);
         let mut entry = serde_json::json!({
             "mode": i + 1,
@@ -62,6 +73,7 @@ pub fn modes_report(
             "mass_per_s": d.mass,
             "laplacian_stiffness_s": d.damping_laplacian,
             "lagged_stiffness_s": d.lagged_stiffness,
+            "series": d.series_coefficients()[2..].to_vec(),
         },
         "damping_ratios_note": if per_body {
             "null: per-body damping ([[body]] damping); each body's ratio is set for its own \

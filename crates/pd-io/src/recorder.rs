@@ -442,6 +442,10 @@ fn damping_coefficients(sim: &Simulation) -> serde_json::Value {
         "laplacian_stiffness_s": d.damping_laplacian,
         "lagged_stiffness_s": d.lagged_stiffness,
     });
+    // A Caughey series: a3, a4, ... (s^3, s^5, ...).
+    if d.has_series() {
+        json["series"] = d.series_coefficients()[2..].to_vec().into();
+    }
     // Per-body damping: the above are the largest; each body's own follow.
     if let Some(per_body) = sim.damping_body_coefficients() {
         json["per_body"] = per_body

@@ -138,7 +138,7 @@ fn toml_mistakes_keep_their_messages() {
         ),
         (
             "model = \"laplacian\"\nstiffness = 0.01\nfoo = 1",
-            "d.toml:8: damping.foo: unknown field `foo`, expected one of `model`, `factor`, `rate`, `implicit`, `mass`, `stiffness`, `preserve_rotation`, `ratio`, `mode`, `ratios`, `modes`",
+            "d.toml:8: damping.foo: unknown field `foo`, expected one of `model`, `factor`, `rate`, `implicit`, `mass`, `stiffness`, `preserve_rotation`, `ratio`, `mode`, `ratios`, `modes`, `band`, `series`",
         ),
         (
             "model = \"laplacian\"\nstiffness = 0.01\nmodel = \"pbd\"",
@@ -183,7 +183,7 @@ fn json_mistakes_keep_their_messages() {
         ),
         (
             "{\"model\":\"pbd\",\"factor\":0.1,\"zz\":1}",
-            "d.json:2: damping.zz: unknown field `zz`, expected one of `model`, `factor`, `rate`, `implicit`, `mass`, `stiffness`, `preserve_rotation`, `ratio`, `mode`, `ratios`, `modes`",
+            "d.json:2: damping.zz: unknown field `zz`, expected one of `model`, `factor`, `rate`, `implicit`, `mass`, `stiffness`, `preserve_rotation`, `ratio`, `mode`, `ratios`, `modes`, `band`, `series`",
         ),
     ];
     for (damping, expected) in cases {

@@ -41,9 +41,11 @@ mod lanczos;
 mod refine;
 mod response;
 mod scatter;
+mod series;
 mod subspace;
 
 pub use response::{DiscreteMode, discrete_mode};
+pub use series::SeriesOperator;
 
 use std::time::Instant;
 

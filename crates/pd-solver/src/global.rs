@@ -8,15 +8,18 @@ use std::sync::Arc;
 use crate::projection_scatter::ProjectionOperator;
 use crate::weights::combine_weighted;
 use crate::{SolverError, local::LocalStep};
-use pd_constraints::{CsrMatrix, assembly, assembly::LaplacianKind};
+use pd_constraints::{CsrMatrix, Triplet, assembly, assembly::LaplacianKind};
+use pd_damping::HIGHER_SERIES_TERMS;
 use pd_linalg::cholesky::{LowerPattern, NumericFactor, SymbolicFactor, dissection_candidates};
 
 /// Marks a fixed vertex in the free-vertex map.
 pub(crate) const FIXED: usize = usize::MAX;
 
 /// The coefficients that determine the global matrix
-/// `A = mass M + system L_sys + damping L_d`; a factorisation is cached per
-/// distinct value (compared bit for bit).
+/// `A = mass M + system L_sys + damping L_d + sum_j series[j] P_(j+1)`
+/// (`P_j = L_d (M^-1 L_d)^j` over the free vertices, the Caughey series'
+/// terms); a factorisation is cached per distinct value (compared bit for
+/// bit).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct MatrixCoefficients {
     pub mass: f64,
@@ -25,16 +28,23 @@ pub(crate) struct MatrixCoefficients {
     /// The part of `mass` that is damping, `c1 c2 gamma a1` (1/s^2): what
     /// per-body weights scale (`weights.rs`).
     pub mass_damping: f64,
+    /// `c1 c2 gamma a_(j+3)` of the series terms, zero without series.
+    pub series: [f64; HIGHER_SERIES_TERMS],
 }
 
 impl MatrixCoefficients {
-    fn bits(&self) -> [u64; 4] {
-        [
+    fn bits(&self) -> [u64; 4 + HIGHER_SERIES_TERMS] {
+        let mut bits = [0; 4 + HIGHER_SERIES_TERMS];
+        bits[..4].copy_from_slice(&[
             self.mass.to_bits(),
             self.system.to_bits(),
             self.damping.to_bits(),
             self.mass_damping.to_bits(),
-        ]
+        ]);
+        for (b, s) in bits[4..].iter_mut().zip(&self.series) {
+            *b = s.to_bits();
+        }
+        bits
     }
 }
 
@@ -72,21 +82,31 @@ pub(crate) struct GlobalSystem {
     pub order: Option<Vec<usize>>,
     /// Per-body damping weights, when the damping model has them.
     pub weights: Option<crate::weights::DampingWeights>,
+    /// The Caughey series' matrices `P_j = L_ff (M_f^-1 L_ff)^j`,
+    /// `j = 1, 2, ...` (`L_ff` the damping Laplacian among the free
+    /// vertices): rows of the free vertices, columns by vertex; empty
+    /// without series.
+    pub series_rows: Vec<CsrMatrix>,
+    /// Per pattern slot, for each `P_j`: its entry.
+    pub series_parts: Vec<Vec<f64>>,
     symbolic: SymbolicFactor,
-    cache: Vec<([u64; 4], NumericFactor)>,
+    cache: Vec<([u64; 4 + HIGHER_SERIES_TERMS], NumericFactor)>,
 }
 
 impl GlobalSystem {
     /// Assembles the operators and analyses the pattern (once per model).
     /// `rest` (the rest positions) steers the nested-dissection ordering;
     /// `threads` (the step's thread count) picks how `B p` is computed
-    /// (scatter or row gather: the same bits).
+    /// (scatter or row gather: the same bits). `series_powers` is the
+    /// highest power `j` of the Caughey series' `P_j` the damping needs (0
+    /// without series: then the pattern is that of `L_sys` alone).
     pub fn new(
         local: &LocalStep,
         masses: &[f64],
         fixed: &[bool],
         rest: &[pd_mesh::Point],
         threads: usize,
+        series_powers: usize,
     ) -> Result<Self, SolverError> {
         let n = masses.len();
         let mut free_index = vec![FIXED; n];
@@ -121,11 +141,17 @@ impl GlobalSystem {
         let anchoring_rows =
             assembly::laplacian(local.blocks(), n, LaplacianKind::Anchoring).into_rows(&free);
 
-        // Lower triangle over free vertices: diagonal plus every L_sys entry.
+        // Lower triangle over free vertices: diagonal plus every L_sys entry
+        // (and every entry of the series' P_j).
         let nf = free.len();
+        let series_rows = series_matrices(&damping_rows, &free, &free_index, masses, series_powers);
         let mut per_column: Vec<Vec<usize>> = (0..nf).map(|j| vec![j]).collect();
         let entries = |rows| free_entries(rows, &free_index);
-        for (fr, fc, _) in entries(&damping_rows).chain(entries(&anchoring_rows)) {
+        let series_entries = series_rows.iter().flat_map(&entries);
+        for (fr, fc, _) in entries(&damping_rows)
+            .chain(entries(&anchoring_rows))
+            .chain(series_entries)
+        {
             if fc != FIXED && fr > fc {
                 per_column[fc].push(fr);
             }
@@ -168,6 +194,18 @@ impl GlobalSystem {
                 }
             }
         }
+        let series_parts = series_rows
+            .iter()
+            .map(|rows| {
+                let mut part = vec![0.0; len];
+                for (fr, fc, value) in entries(rows) {
+                    if fc != FIXED && fr >= fc {
+                        part[slot(fr, fc)] += value;
+                    }
+                }
+                part
+            })
+            .collect();
         let free_rest: Vec<pd_mesh::Point> = free.iter().map(|&v| rest[v]).collect();
         let candidates = dissection_candidates(&pattern, &free_rest);
         drop(free_rest);
@@ -188,6 +226,8 @@ impl GlobalSystem {
             damping_part,
             order,
             weights: None,
+            series_rows,
+            series_parts,
             symbolic,
             cache: Vec::new(),
         })
@@ -263,6 +303,15 @@ impl GlobalSystem {
             [&self.mass_part, &self.system_part, &self.damping_part],
             self.weights.as_ref(),
         );
+        // The series' terms (none without series: the values above stay
+        // bit for bit what they were).
+        for (part, &a) in self.series_parts.iter().zip(&coefficients.series) {
+            if a != 0.0 {
+                for (value, p) in values.iter_mut().zip(part) {
+                    *value += a * p;
+                }
+            }
+        }
     }
 
     /// The global matrix for `coefficients` (free vertices, full symmetric).
@@ -294,4 +343,72 @@ pub(crate) fn combine(values: &mut [f64], coefficients: MatrixCoefficients, part
     for (((value, m), l), d) in values.iter_mut().zip(parts[0]).zip(parts[1]).zip(parts[2]) {
         *value = coefficients.mass * m + coefficients.system * l + coefficients.damping * d;
     }
+}
+
+/// The Caughey series' matrices `P_j = L_ff (M_f^-1 L_ff)^j` for
+/// `j = 1..=powers` (none for `powers = 0`), each as rows of the free
+/// vertices with columns by vertex, from `damping_rows` (the free vertices'
+/// rows of `L_d`, all columns).
+///
+/// `L_ff` drops the columns of fixed vertices: the damping velocity
+/// vanishes there, so `D v` on the free rows only reads `L_ff` (and the
+/// series is the one in `M_f^-1 L_ff`, the operator of the free modes).
+/// Each product is a row-by-row sparse product (Gustavson) with a dense
+/// accumulator over the free vertices; it widens the stencil by one ring
+/// of neighbours per power.
+fn series_matrices(
+    damping_rows: &CsrMatrix,
+    free: &[usize],
+    free_index: &[usize],
+    masses: &[f64],
+    powers: usize,
+) -> Vec<CsrMatrix> {
+    if powers == 0 {
+        return Vec::new();
+    }
+    let nf = free.len();
+    let n = free_index.len();
+    // L_ff by free index: (column, value) per row.
+    let lff: Vec<Vec<(usize, f64)>> = (0..nf)
+        .map(|f| {
+            damping_rows
+                .row(f)
+                .filter_map(|(c, x)| (free_index[c] != FIXED).then_some((free_index[c], x)))
+                .collect()
+        })
+        .collect();
+    let mut accumulator = vec![0.0; nf];
+    let mut marker = vec![usize::MAX; nf];
+    let mut touched = Vec::new();
+    let mut previous = lff.clone();
+    let mut out = Vec::with_capacity(powers);
+    for _ in 0..powers {
+        // next = L_ff M^-1 previous, row f: sum_k L_fk / m_k previous_k.
+        let mut next: Vec<Vec<(usize, f64)>> = Vec::with_capacity(nf);
+        for (f, row) in lff.iter().enumerate() {
+            touched.clear();
+            for &(k, l) in row {
+                let scale = l / masses[free[k]];
+                for &(c, p) in &previous[k] {
+                    if marker[c] != f {
+                        marker[c] = f;
+                        accumulator[c] = 0.0;
+                        touched.push(c);
+                    }
+                    accumulator[c] += scale * p;
+                }
+            }
+            touched.sort_unstable();
+            next.push(touched.iter().map(|&c| (c, accumulator[c])).collect());
+        }
+        marker.iter_mut().for_each(|m| *m = usize::MAX);
+        let triplets: Vec<Triplet> = next
+            .iter()
+            .enumerate()
+            .flat_map(|(f, row)| row.iter().map(move |&(c, x)| Triplet::new(f, free[c], x)))
+            .collect();
+        out.push(CsrMatrix::from_triplet_vec(nf, n, triplets));
+        previous = next;
+    }
+    out
 }

@@ -195,10 +195,29 @@ impl Simulation {
             ("damping.stiffness", d.damping_laplacian),
             ("damping.lagged_stiffness", d.lagged_stiffness),
         ] {
-            if !(value.is_finite() && value >= 0.0) {
+            // With a Caughey series only the whole polynomial must be
+            // positive (checked below): a2 may be negative.
+            let signed = d.has_series() && field == "damping.stiffness";
+            if !(value.is_finite() && (signed || value >= 0.0)) {
                 return Err(SolverError::InvalidSetting {
                     field,
                     reason: format!("must be finite and >= 0, got {value}"),
+                });
+            }
+        }
+        if d.has_series() {
+            if let Some(a) = d.series.iter().find(|a| !a.is_finite()) {
+                return Err(SolverError::InvalidSetting {
+                    field: "damping.series",
+                    reason: format!("must be finite, got {a}"),
+                });
+            }
+            if d.is_lagged() || damping.body_coefficients().is_some() {
+                return Err(SolverError::InvalidSetting {
+                    field: "damping.series",
+                    reason: "a Caughey series does not combine with a lagged or per-body \
+                             damping matrix"
+                        .into(),
                 });
             }
         }
@@ -232,7 +251,11 @@ impl Simulation {
             d.is_lagged(),
             pool.as_ref()
                 .map_or_else(rayon::current_num_threads, |p| p.current_num_threads()),
+            d.series_powers(),
         )?;
+        if d.has_series() {
+            global.check_series_positive(&d, model.masses())?;
+        }
         if let Some(per_body) = damping.body_coefficients() {
             let bodies: Vec<_> = model.bodies().iter().map(|b| b.vertices()).collect();
             global.set_damping_weights(per_body, d, &bodies)?;

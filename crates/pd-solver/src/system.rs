@@ -52,6 +52,7 @@ impl SystemCoefficients {
                 system: c.c1 * c.c2 * c.c2,
                 damping: damping_factor * d.damping_laplacian,
                 mass_damping: damping_factor * d.mass,
+                series: d.series.map(|a| damping_factor * a),
             },
             lagged_stiffness: damping_factor * d.lagged_stiffness,
         }
@@ -89,7 +90,8 @@ impl GlobalStep {
     /// Assembles the operators, analyses the pattern and, for a lagged
     /// damping model (`lagged`), the 3n system. Nothing is factorised yet:
     /// [`GlobalStep::prepare`] does that. `threads` is the step's thread
-    /// count ([`GlobalSystem::new`]).
+    /// count and `series_powers` the Caughey series' highest power
+    /// ([`GlobalSystem::new`]).
     pub fn new(
         local: &LocalStep,
         masses: &[f64],
@@ -97,8 +99,9 @@ impl GlobalStep {
         rest: &[Point],
         lagged: bool,
         threads: usize,
+        series_powers: usize,
     ) -> Result<Self, SolverError> {
-        let system = GlobalSystem::new(local, masses, fixed, rest, threads)?;
+        let system = GlobalSystem::new(local, masses, fixed, rest, threads, series_powers)?;
         let matrix = if lagged {
             StepMatrix::Lagged(Box::new(LaggedSystem::new(&system, local.blocks())?))
         } else {
@@ -130,6 +133,45 @@ impl GlobalStep {
             bodies,
         )?);
         Ok(())
+    }
+
+    /// Refuses a Caughey series `d` whose polynomial `sum_k a_k s^(k-1)`
+    /// is negative somewhere on `[0, bound]`, `bound` the Gershgorin bound
+    /// of the spectrum of `M_f^-1 L_ff` (`pd_damping::ratio::series_negative_at`):
+    /// `D` would be indefinite and add energy. `masses` per vertex, kg.
+    ///
+    /// # Errors
+    /// [`SolverError::InvalidSetting`] naming `damping.series`.
+    pub fn check_series_positive(
+        &self,
+        d: &DampingMatrix,
+        masses: &[f64],
+    ) -> Result<(), SolverError> {
+        let system = &self.system;
+        let bound = (0..system.free.len())
+            .map(|f| {
+                let v = system.free[f];
+                let row: f64 = system
+                    .damping_rows
+                    .row(f)
+                    .filter(|(c, _)| system.free_index[*c] != crate::global::FIXED)
+                    .map(|(c, x)| if c == v { x } else { x.abs() })
+                    .sum();
+                row / masses[v]
+            })
+            .fold(0.0, f64::max);
+        let coefficients = d.series_coefficients();
+        match pd_damping::ratio::series_negative_at(&coefficients, bound) {
+            None => Ok(()),
+            Some(s) => Err(SolverError::InvalidSetting {
+                field: "damping.series",
+                reason: format!(
+                    "the series {coefficients:?} (a1, a2, a3, ...) is negative at s = {s:e} \
+                     1/s^2, inside the spectrum bound {bound:e} of M^-1 L_d: the damping \
+                     matrix would be indefinite and add energy"
+                ),
+            }),
+        }
     }
 
     /// The per-body damping weights, if any.
@@ -273,6 +315,13 @@ impl GlobalStep {
                     .row_dot_relative(f, laplacian_anchor[v], laplacian_anchor)
                     * a;
             }
+            // The series' terms a_(j+3) P_(j+1) (x_hat - x_n), with the
+            // Laplacian's anchor (zero at fixed vertices).
+            for (rows, &a) in system.series_rows.iter().zip(&d.series) {
+                if a != 0.0 {
+                    b += rows.row_dot(f, laplacian_anchor) * (damping_factor * a);
+                }
+            }
             *out = b;
         });
         if let StepMatrix::Lagged(lagged) = &self.matrix {
@@ -350,6 +399,29 @@ impl GlobalStep {
                     Some(weights) => form * weights.laplacian[v],
                     None => form,
                 }
+            })
+            .sum()
+    }
+
+    /// `w^T P_j w` for each power `j = 1, 2, ...` of the Caughey series'
+    /// matrices (`P_j = L_ff (M^-1 L_ff)^j`), weighted by `series` (the
+    /// coefficients `a3, a4, ...`) and summed: the series' part of
+    /// `w^T D w`. `w` must vanish at fixed vertices. 0 without series.
+    pub fn series_form(&self, w: &[Point], series: &[f64]) -> f64 {
+        let system = &self.system;
+        system
+            .series_rows
+            .iter()
+            .zip(series)
+            .filter(|(_, a)| **a != 0.0)
+            .map(|(rows, a)| {
+                let form: f64 = system
+                    .free
+                    .iter()
+                    .enumerate()
+                    .map(|(f, &v)| w[v].dot(&rows.row_dot(f, w)))
+                    .sum();
+                a * form
             })
             .sum()
     }

@@ -3,7 +3,7 @@
 //! presets. Adding a model is one entry in `MODELS` here (and a preset in
 //! `PRESETS` if the comparisons should run it).
 
-use super::{Arguments, Kind, Model, Parameter, Preset, Requirement, Value};
+use super::{Arguments, Kind, Model, Numbers, Parameter, Preset, Requirement, Value};
 use crate::ratio::Quotient;
 use crate::{
     Damping, DampingError, EtherDrag, LaplacianDamping, NoDamping, PbdDamping, RayleighLagged,
@@ -143,30 +143,54 @@ const MODE: Parameter = number(
     "whole number >= 1: the elastic mode `ratio` is for (1 = lowest, the default)",
 );
 
-/// `ratios`: damping ratios of two modes, fitting a1 and a2.
+/// `ratios`: damping ratios of two modes, fitting a1 and a2 (or of three
+/// or more, fitting a Caughey series).
 const RATIOS: Parameter = Parameter {
     name: "ratios",
     unit: "1",
-    kind: Kind::Pair,
+    kind: Kind::List,
     requirement: Requirement::Optional,
     maximum: None,
-    doc: "[zeta_1, zeta_2] >= 0: damping ratios of the two `modes`; fits a1 and a2",
+    doc: "[zeta_1, zeta_2, ...] >= 0: damping ratios of the `modes`; two fit a1 and a2, \
+          three or more (laplacian) a Caughey series a1 M + a2 L_d + a3 L_d M^-1 L_d + ...",
 };
 
-/// `modes`: the two modes `ratios` are for.
+/// `modes`: the modes `ratios` are for.
 const MODES: Parameter = Parameter {
     name: "modes",
     unit: "1",
-    kind: Kind::Pair,
+    kind: Kind::List,
     requirement: Requirement::Optional,
     maximum: None,
-    doc: "[i, j], whole numbers >= 1: the elastic modes `ratios` are for",
+    doc: "[i, j, ...], whole numbers >= 1: the elastic modes `ratios` are for",
+};
+
+/// `band`: a frequency band over which `ratio` is fitted by a series.
+const BAND: Parameter = Parameter {
+    name: "band",
+    unit: "Hz",
+    kind: Kind::List,
+    requirement: Requirement::Optional,
+    maximum: None,
+    doc: "[f_lo, f_hi] in Hz, with ratio: a three-term Caughey series as flat at `ratio` as \
+          it can be over the elastic modes in the band (least squares)",
+};
+
+/// `series`: the Caughey series' terms beyond a2.
+const SERIES: Parameter = Parameter {
+    name: "series",
+    unit: "s^3, s^5, ...",
+    kind: Kind::List,
+    requirement: Requirement::Optional,
+    maximum: None,
+    doc: "[a3, a4, ...]: Caughey series terms a3 L_d M^-1 L_d + a4 L_d (M^-1 L_d)^2 + ... \
+          (usually fitted from ratios or band)",
 };
 
 /// The `stiffness` of a spec that gives it; a spec with a ratio must be
 /// resolved against the scene's modes first ([`super::DampingSpec::resolved`]).
 fn stiffness(arguments: &Arguments<'_>) -> Result<f64, DampingError> {
-    match crate::ratio::target(|n| arguments.number(n), |n| arguments.pair(n))? {
+    match crate::ratio::target(|n| arguments.number(n), |n| arguments.list(n))? {
         None => arguments.required("stiffness"),
         Some(_) => Err(DampingError::Conflict {
             parameter: "ratio",
@@ -207,7 +231,8 @@ const RAYLEIGH_LAGGED: Model = Model {
 
 const LAPLACIAN: Model = Model {
     name: laplacian::NAME,
-    summary: "the paper's Laplacian damping D = a2 L_d + a1 M, constant, factored once",
+    summary: "the paper's Laplacian damping D = a2 L_d + a1 M (+ a Caughey series \
+              a3 L_d M^-1 L_d + ...), constant, factored once",
     parameters: &[
         number(
             "stiffness",
@@ -225,14 +250,18 @@ const LAPLACIAN: Model = Model {
         MODE,
         RATIOS,
         MODES,
+        BAND,
+        SERIES,
     ],
     strength: Some("stiffness"),
     ratio: Some(Quotient::Laplacian),
     build: |arguments| {
-        Ok(Box::new(LaplacianDamping::new(
+        let series = arguments.list("series");
+        Ok(Box::new(LaplacianDamping::with_series(
             stiffness(arguments)?,
             arguments.required("mass")?,
             arguments.flag("preserve_rotation").unwrap_or(false),
+            series.as_ref().map_or(&[], Numbers::as_slice),
         )?))
     },
 };

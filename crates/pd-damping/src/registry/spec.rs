@@ -1,7 +1,7 @@
 //! [`DampingSpec`]: a model of the registry with validated parameters.
 
 use super::models::NONE;
-use super::{Arguments, Model, Requirement, Value, model, parameter_names};
+use super::{Arguments, Model, Numbers, Requirement, Value, model, parameter_names};
 use crate::ratio::{self, FittedCoefficients, RatioTarget};
 use crate::{Damping, DampingError, none};
 
@@ -104,27 +104,60 @@ impl DampingSpec {
             return Ok(None);
         }
         let view = self.view();
-        ratio::target(|n| view.number(n), |n| view.pair(n))
+        let target = ratio::target(|n| view.number(n), |n| view.list(n))?;
+        if target.as_ref().is_some_and(RatioTarget::is_series)
+            && self.model().ratio != Some(ratio::Quotient::Laplacian)
+        {
+            let parameter = if view.list("band").is_some() {
+                "band"
+            } else {
+                "ratios"
+            };
+            return Err(DampingError::Conflict {
+                parameter,
+                reason: format!(
+                    "a Caughey series (three or more ratios, or a band) is available for the \
+                     laplacian model only, not {}",
+                    self.model
+                ),
+            });
+        }
+        Ok(target)
     }
 
-    /// The same model with the fitted coefficients as `stiffness` and
-    /// `mass` in place of the ratio keys, validated and buildable.
+    /// The same model with the fitted coefficients as `stiffness`, `mass`
+    /// (and `series` for a Caughey series) in place of the ratio keys,
+    /// validated and buildable.
     ///
     /// # Errors
     /// As [`DampingSpec::new`] (a coefficient out of its domain).
     pub fn resolved(&self, coefficients: FittedCoefficients) -> Result<Self, DampingError> {
-        const RATIO_KEYS: [&str; 6] = ["ratio", "mode", "ratios", "modes", "stiffness", "mass"];
+        const RATIO_KEYS: [&str; 8] = [
+            "ratio",
+            "mode",
+            "ratios",
+            "modes",
+            "band",
+            "series",
+            "stiffness",
+            "mass",
+        ];
         let kept = self
             .arguments
             .iter()
             .filter(|(n, _)| !RATIO_KEYS.contains(n))
             .copied();
+        let higher = coefficients.higher_terms();
+        let series = (!higher.is_empty())
+            .then(|| Numbers::new(higher).map(|list| ("series", Value::List(list))))
+            .flatten();
         Self::new(
             self.model,
             kept.chain([
                 ("stiffness", Value::Number(coefficients.stiffness)),
                 ("mass", Value::Number(coefficients.mass)),
-            ]),
+            ])
+            .chain(series),
         )
     }
 

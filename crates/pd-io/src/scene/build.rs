@@ -21,13 +21,24 @@ impl Scene {
     /// range, an initial state that does not fit, or a model the solver
     /// rejects; each names the field.
     pub fn build(&self) -> Result<Simulation> {
+        self.build_with_ratios().map(|(simulation, _)| simulation)
+    }
+
+    /// [`Scene::build`], with the damping ratios a Caughey series fit
+    /// (`[damping]` with three or more `ratios`, or a `band`) achieves at
+    /// the modes it was fitted to; empty for any other damping.
+    ///
+    /// # Errors
+    /// As [`Scene::build`].
+    pub fn build_with_ratios(&self) -> Result<(Simulation, Vec<pd_damping::ratio::AchievedRatio>)> {
         let mut model = Model::new();
         for (b, body) in self.bodies.iter().enumerate() {
             self.add_body(&mut model, b, body)?;
         }
         self.check_probes(model.num_vertices())?;
         let offsets: Vec<_> = model.bodies().iter().map(|b| b.vertices()).collect();
-        let damping = self.damping_model(&model)?;
+        let mut achieved = Vec::new();
+        let damping = self.damping_model(&model, &mut achieved)?;
         let mut simulation = Simulation::new(
             model,
             self.integrator.create(),
@@ -75,7 +86,7 @@ impl Scene {
         if self.choose_method {
             self.choose_method(&mut simulation)?;
         }
-        Ok(simulation)
+        Ok((simulation, achieved))
     }
 
     /// Chooses the method for the scene's `accuracy` by measurement, from

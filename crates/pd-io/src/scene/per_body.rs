@@ -70,10 +70,17 @@ impl Scene {
     /// # Errors
     /// As [`Scene::resolve_damping`] and [`Scene::resolve_body_damping`];
     /// a body's lagged model (`rayleigh-lagged`) next to a different model
-    /// on another body, at `body[i].damping` (or `damping`).
-    pub(super) fn damping_model(&self, model: &Model) -> Result<Box<dyn Damping>> {
+    /// on another body, at `body[i].damping` (or `damping`). A Caughey
+    /// series fit of `[damping]` puts the ratios it achieves in `achieved`.
+    pub(super) fn damping_model(
+        &self,
+        model: &Model,
+        achieved: &mut Vec<pd_damping::ratio::AchievedRatio>,
+    ) -> Result<Box<dyn Damping>> {
         if !self.has_per_body_damping() {
-            let (spec, _) = self.resolve_damping(model)?;
+            let (spec, _, ratios) =
+                self.resolve_spec_with_ratios(&self.damping, model, "damping")?;
+            *achieved = ratios;
             return spec
                 .create()
                 .map_err(|e| super::field_error(&self.source, "damping", e));
@@ -105,6 +112,15 @@ impl Scene {
                          rayleigh-lagged damping (or use it in [damping] alone)",
                         spec.name()
                     ),
+                ));
+            }
+            if damping.implicit_matrix().has_series() {
+                return Err(super::field_error(
+                    &self.source,
+                    field(b),
+                    "a Caughey series (three or more ratios, a band, or series) cannot be \
+                     mixed with other damping per body (the per-body weights scale a2 L_d \
+                     only); give every body the same damping, or use it in [damping] alone",
                 ));
             }
             models.push(damping);

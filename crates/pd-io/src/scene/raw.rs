@@ -8,7 +8,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::LazyLock;
 
-use pd_damping::registry::{self, Kind, Value};
+use pd_damping::registry::{self, Kind, Numbers, Value};
 use serde::Deserialize;
 use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
 
@@ -139,16 +139,18 @@ impl<'de> Deserialize<'de> for Damping {
     }
 }
 
-/// A list-valued damping parameter (`ratios = [0.02, 0.05]`): exactly two
-/// numbers.
-struct Pair([f64; 2]);
+/// A list-valued damping parameter (`ratios = [0.02, 0.05]`): at most
+/// [`Numbers::CAPACITY`] numbers (how many a parameter takes is the
+/// registry's check).
+struct List(Numbers);
 
-impl<'de> Deserialize<'de> for Pair {
+impl<'de> Deserialize<'de> for List {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         let list = Vec::<f64>::deserialize(deserializer)?;
-        <[f64; 2]>::try_from(list.as_slice())
-            .map(Pair)
-            .map_err(|_| de::Error::invalid_length(list.len(), &"a list of two numbers"))
+        Numbers::new(&list).map(List).ok_or_else(|| {
+            let expected = format!("a list of at most {} numbers", Numbers::CAPACITY);
+            de::Error::invalid_length(list.len(), &expected.as_str())
+        })
     }
 }
 
@@ -187,7 +189,7 @@ impl DampingVisitor {
     fn value<'de, A: MapAccess<'de>>(map: &mut A, name: &str) -> Result<Option<Value>, A::Error> {
         Ok(match registry::parameter_kind(name) {
             Some(Kind::Flag) => map.next_value::<Option<bool>>()?.map(Value::Flag),
-            Some(Kind::Pair) => map.next_value::<Option<Pair>>()?.map(|p| Value::Pair(p.0)),
+            Some(Kind::List) => map.next_value::<Option<List>>()?.map(|p| Value::List(p.0)),
             _ => map.next_value::<Option<f64>>()?.map(Value::Number),
         })
     }
@@ -237,9 +239,9 @@ impl<'de> Visitor<'de> for DampingVisitor {
                 Some(Kind::Flag) => seq
                     .next_element::<Option<bool>>()?
                     .map(|v| v.map(Value::Flag)),
-                Some(Kind::Pair) => seq
-                    .next_element::<Option<Pair>>()?
-                    .map(|v| v.map(|p| Value::Pair(p.0))),
+                Some(Kind::List) => seq
+                    .next_element::<Option<List>>()?
+                    .map(|v| v.map(|p| Value::List(p.0))),
                 _ => seq
                     .next_element::<Option<f64>>()?
                     .map(|v| v.map(Value::Number)),

@@ -58,6 +58,16 @@ impl Simulation {
                 ),
             });
         }
+        if self.damping.implicit_matrix().has_series()
+            && !self.position_solver.handles_series_damping()
+        {
+            return Err(SolverError::Unsupported {
+                what: format!(
+                    "solver method \"{name}\" with a Caughey series damping (three or more \
+                     ratios, or band): use another method"
+                ),
+            });
+        }
         if self.global.damping_weights().is_some()
             && !self.position_solver.handles_per_body_damping()
         {

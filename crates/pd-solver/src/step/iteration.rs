@@ -73,6 +73,13 @@ pub trait PositionSolver: std::fmt::Debug + Send + Sync {
         true
     }
 
+    /// Whether the method runs with a Caughey series damping (`a3 L_d
+    /// M^-1 L_d + ...`), whose terms live only in the prefactored matrix's
+    /// wider pattern. The default says yes.
+    fn handles_series_damping(&self) -> bool {
+        true
+    }
+
     /// Whether the method's error estimate needs the local-global map's
     /// contraction measured by plain iterations (step/estimate.rs): its own
     /// ratios are its faster convergence, which says nothing of the slow

@@ -102,6 +102,7 @@ pub(crate) fn hessian_coefficients(
         system: elastic,
         damping: matrix.damping - elastic,
         mass_damping: matrix.mass_damping,
+        series: matrix.series,
     };
     (coefficients, elastic)
 }
@@ -176,6 +177,12 @@ impl PositionSolver for Newton {
     /// Its Hessian reuses `L_d` as the elastic part of `L_sys`, which
     /// per-body weights would scale too.
     fn handles_per_body_damping(&self) -> bool {
+        false
+    }
+
+    /// Its Hessian is built on the `L_sys` pattern from the three base
+    /// parts, without the series' terms.
+    fn handles_series_damping(&self) -> bool {
         false
     }
 

@@ -4,7 +4,8 @@
 //! `g(x) = 1/(2h^2) |x - y|_M^2 + c1 E(x_n + c2 dx)
 //!   + 1/2 c1 c2 gamma (x - x_hat)^T D (x - x_hat)`, `dx = x - x_n`,
 //!
-//! with `D = a1 M + a2 L_d + a3 K(x_n)` (the `L_d` term measured from its
+//! with `D = a1 M + a2 L_d + a3 K(x_n)` plus the Caughey series' terms
+//! `a_(j+3) L_d (M^-1 L_d)^(j+1)` (the `L_d` terms measured from their
 //! own anchor, which a damping model may move). Fixed vertices sit at `x_n`,
 //! where `x - x_hat` vanishes, so `L_d`'s rows of the free vertices suffice;
 //! their inertia term is a constant of the step.
@@ -54,12 +55,18 @@ pub(crate) fn objective_with(
         0.0
     };
     let blocks = problem.local.blocks();
+    let series_form = if d.has_series() {
+        problem.global.series_form(laplacian_offset, &d.series)
+    } else {
+        0.0
+    };
     let lagged_form = problem
         .global
         .lagged_stiffness_form(blocks, offset, product);
     let damping_form = d.mass * mass_form
         + d.damping_laplacian * laplacian_form
-        + d.lagged_stiffness * lagged_form;
+        + d.lagged_stiffness * lagged_form
+        + series_form;
     let elastic = elastic(problem.local, &b.q, &mut b.projections);
     inertia / (2.0 * h * h) + c.c1 * elastic + 0.5 * c.c1 * c.c2 * c.gamma * damping_form
 }
