@@ -363,14 +363,36 @@ impl GradientBackend for FiniteDifference<'_> {
         let start = Instant::now();
         let mut gradient = Vec::with_capacity(values.len());
         for i in 0..values.len() {
-            let side = |sign: f64| {
+            // `None` where the scene refuses the moved value (a ratio next
+            // to where the fitted damping would turn indefinite, say).
+            let side = |sign: f64| -> Result<Option<f64>, Failure> {
                 let mut moved = values.to_vec();
                 moved[i] *= (sign * FD_STEP).exp();
-                self.problem.forward(&moved)?.ok_or_else(diverged)
+                match self.problem.forward(&moved) {
+                    Ok(loss) => loss.ok_or_else(diverged).map(Some),
+                    Err(Failure::Input(message)) => {
+                        debug!("difference point refused: {message}");
+                        Ok(None)
+                    }
+                    Err(e) => Err(e),
+                }
             };
-            let (plus, minus) = (side(1.0)?, side(-1.0)?);
-            // d loss / d ln p, then per unit of p.
-            gradient.push((plus - minus) / (2.0 * FD_STEP) / values[i]);
+            // d loss / d ln p: central, or one-sided next to a value the
+            // scene refuses (first order, error FD_STEP/2 of the second
+            // log-derivative); then per unit of p.
+            let log_derivative = match (side(1.0)?, side(-1.0)?) {
+                (Some(plus), Some(minus)) => (plus - minus) / (2.0 * FD_STEP),
+                (Some(plus), None) => (plus - loss) / FD_STEP,
+                (None, Some(minus)) => (loss - minus) / FD_STEP,
+                (None, None) => {
+                    return Err(Failure::Input(format!(
+                        "{} cannot be moved by a factor exp(+-{FD_STEP}) at the parameters {}:                          the scene refuses both",
+                        self.problem.paths[i].text,
+                        self.problem.describe(values)
+                    )));
+                }
+            };
+            gradient.push(log_derivative / values[i]);
         }
         Ok(Evaluation {
             loss,
