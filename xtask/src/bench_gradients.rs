@@ -177,6 +177,6 @@ mod tests {
             "{md}"
         );
         // Newton: 1.8 s / 59 iterations = 30.5 ms, times 10 steps.
-        assert!(md.contains("(30.5 ms) would take 0.305 s"), "{md}");
+        assert!(md.contains("30.5 ms) would take 0.305 s"), "{md}");
     }
 }
