@@ -74,6 +74,11 @@ pub enum Parameter {
     /// `a2` (s), the coefficient of the damping Laplacian (Laplacian
     /// damping's `stiffness`).
     DampingStiffness,
+    /// `a_(k+3)` (s^(2k+3)), entry `k` of the Caughey series' higher terms:
+    /// the coefficient of `L_d (M^-1 L_d)^(k+1)` (the scene's
+    /// `damping.series[k]`; `docs/design/damping.md`, "Caughey series"). A
+    /// term the run's series does not have (zero) has a gradient too.
+    DampingSeries(usize),
     /// The stiffness of body `body`'s constraint group `constraint`, in the
     /// order the body's constraints were added (the scene's
     /// `body[body].constraints[constraint].stiffness`), in the group's unit
@@ -104,6 +109,7 @@ impl std::fmt::Display for Parameter {
         match self {
             Parameter::DampingMass => write!(f, "damping.mass"),
             Parameter::DampingStiffness => write!(f, "damping.stiffness"),
+            Parameter::DampingSeries(k) => write!(f, "damping.series[{k}]"),
             Parameter::ConstraintStiffness { body, constraint } => {
                 write!(f, "body[{body}].constraints[{constraint}].stiffness")
             }
@@ -120,7 +126,8 @@ impl std::str::FromStr for Parameter {
 
     /// A parameter by the path [`Parameter`]'s `Display` writes (the
     /// scene's field path for the scalar ones): `damping.mass`,
-    /// `damping.stiffness`, `body[i].constraints[j].stiffness`,
+    /// `damping.stiffness`, `damping.series[k]`,
+    /// `body[i].constraints[j].stiffness`,
     /// `body[i].density`, `initial positions`, `initial velocities`,
     /// `gravity`.
     ///
@@ -139,6 +146,11 @@ impl std::str::FromStr for Parameter {
             "initial positions" => Some(Parameter::InitialPositions),
             "initial velocities" => Some(Parameter::InitialVelocities),
             "gravity" => Some(Parameter::ExternalForce),
+            _ if text.starts_with("damping.series[") => text
+                .strip_prefix("damping.series[")
+                .and_then(|rest| rest.strip_suffix(']'))
+                .and_then(index)
+                .map(Parameter::DampingSeries),
             _ => text.strip_prefix("body[").and_then(|rest| {
                 let (body, rest) = rest.split_once(']')?;
                 let body = index(body)?;
@@ -157,7 +169,7 @@ impl std::str::FromStr for Parameter {
         parsed.ok_or_else(|| {
             format!(
                 "unknown parameter {text:?}: expected damping.mass, damping.stiffness, \
-                 body[i].constraints[j].stiffness, body[i].density, initial positions, initial \
+                 damping.series[k], body[i].constraints[j].stiffness, body[i].density, initial positions, initial \
                  velocities or gravity"
             )
         })
@@ -361,8 +373,9 @@ fn check_supported(sim: &Simulation) -> Result<(), AdjointError> {
 }
 
 /// Checks that the simulation's step matrix is the one the derivation
-/// assumes, `A = (1/h^2 + c1 c2 gamma a1) M + c1 c2^2 L_sys + c1 c2 gamma a2
-/// L_d` (docs/design/formulation.md, "The global step"), by one product with
+/// assumes, `A = (1/h^2 + c1 c2 gamma a1) M + c1 c2^2 L_sys + c1 c2 gamma (a2
+/// L_d + sum_j a_(j+2) L_ff (M_f^-1 L_ff)^j)` (docs/design/formulation.md,
+/// "The global step"; the series on the free vertices), by one product with
 /// a fixed vector: a damping term the adjoint does not know of (a new model's
 /// matrix) would change it, and is refused rather than differentiated wrongly.
 fn check_step_matrix(sim: &mut Simulation) -> Result<(), AdjointError> {
@@ -411,12 +424,29 @@ fn step_matrix_misfit(
     mask_fixed(&mut on_free, model.fixed());
     let damping = c.c1 * c.c2 * c.gamma;
     let mass = 1.0 / (h * h) + damping * d.mass;
+    // The series' terms, sum_j a_(j+2) L_ff z_j.
+    let powers = d.series_powers();
+    let chain = operators::series_chain(
+        &damping_laplacian,
+        model.masses(),
+        model.fixed(),
+        &on_free,
+        powers,
+    );
+    let mut series = vec![Point::zeros(); n];
+    for (zj, &a) in chain.iter().skip(1).zip(&d.series) {
+        let p = operators::laplacian_free(&damping_laplacian, model.fixed(), zj);
+        for (s, p) in series.iter_mut().zip(p) {
+            *s += p * a;
+        }
+    }
     let mut worst: f64 = 0.0;
     let mut scale: f64 = 0.0;
     for (f, &v) in free.iter().enumerate() {
         let expected = on_free[v] * (mass * model.masses()[v])
             + system.row_dot(v, &on_free) * (c.c1 * c.c2 * c.c2)
-            + damping_laplacian.row_dot(v, &on_free) * (damping * d.damping_laplacian);
+            + damping_laplacian.row_dot(v, &on_free) * (damping * d.damping_laplacian)
+            + series[v] * damping;
         let actual: Point = matrix
             .row(f)
             .map(|(g, value)| on_free[free[g]] * value)
@@ -431,6 +461,8 @@ fn step_matrix_misfit(
 enum Resolved {
     DampingMass,
     DampingStiffness,
+    /// Entry `k` of the series' higher terms (`a_(k+3)`).
+    DampingSeries(usize),
     /// The model's group index and its stiffness.
     Stiffness {
         group: usize,
@@ -456,6 +488,23 @@ fn resolve(sim: &Simulation, parameter: Parameter) -> Result<Resolved, AdjointEr
     Ok(match parameter {
         Parameter::DampingMass => Resolved::DampingMass,
         Parameter::DampingStiffness => Resolved::DampingStiffness,
+        Parameter::DampingSeries(k) => {
+            if k >= pd_damping::HIGHER_SERIES_TERMS {
+                return invalid(format!(
+                    "a Caughey series has at most {} higher terms (damping.series[0] to \
+                     damping.series[{}])",
+                    pd_damping::HIGHER_SERIES_TERMS,
+                    pd_damping::HIGHER_SERIES_TERMS - 1
+                ));
+            }
+            if sim.damping_name() != "laplacian" {
+                return invalid(format!(
+                    "the {} damping model has no Caughey series: use laplacian",
+                    sim.damping_name()
+                ));
+            }
+            Resolved::DampingSeries(k)
+        }
         Parameter::InitialPositions => Resolved::InitialPositions,
         Parameter::InitialVelocities => Resolved::InitialVelocities,
         Parameter::ExternalForce => Resolved::Gravity,
@@ -636,8 +685,17 @@ pub fn loss_and_gradient(
         model.masses().to_vec(),
         model.fixed().to_vec(),
         h,
-        (d.mass, d.damping_laplacian),
+        (d.mass, d.damping_laplacian, &d.series[..d.series_powers()]),
     );
+    // The series' powers the parameters' derivatives need: every term of
+    // the run's series, and each asked term.
+    let chain_powers = resolved
+        .iter()
+        .filter_map(|r| match r {
+            Resolved::DampingSeries(k) => Some(k + 1),
+            _ => None,
+        })
+        .fold(ops.series.len(), usize::max);
     // Each asked group's constraints, and its share of the damping
     // Laplacian (the weights scale it too) when the kind is in `L_d`.
     let group_blocks: Vec<_> = resolved
@@ -825,6 +883,16 @@ pub fn loss_and_gradient(
         let damping = energy * c.gamma;
         let (y, anchor) = targets(scheme, c, h, gravity, &states, k);
         let e: Vec<Point> = x.iter().zip(&anchor).map(|(x, a)| x - a).collect();
+        // The series' chains of `e` and `lambda`: z_m = (M_f^-1 L_ff)^m e_f,
+        // rl_m = (M_f^-1 L_ff)^m lambda_f.
+        let (z, rl) = if chain_powers > 0 {
+            (
+                ops.series_chain(&e, chain_powers),
+                ops.series_chain(&lambda, chain_powers),
+            )
+        } else {
+            (Vec::new(), Vec::new())
+        };
         for ((r, out), block) in resolved.iter().zip(scalars.iter_mut()).zip(&group_blocks) {
             match r {
                 Resolved::DampingMass => {
@@ -839,6 +907,11 @@ pub fn loss_and_gradient(
                         * (0..n)
                             .map(|i| lambda[i].dot(&ld.row_dot(i, &e)))
                             .sum::<f64>();
+                }
+                Resolved::DampingSeries(k) => {
+                    // d r / d a_(k+3) = c1 c2 gamma P_(k+1) e, P_(k+1) e =
+                    // L_ff z_(k+1).
+                    *out -= damping * dot(&lambda, &ops.laplacian_free(&z[k + 1]));
                 }
                 Resolved::Stiffness { stiffness, .. } => {
                     if let Some((block, group_laplacian)) = block {
@@ -856,6 +929,26 @@ pub fn loss_and_gradient(
                                     .map(|i| lambda[i].dot(&lg.row_dot(i, &e)))
                                     .sum::<f64>();
                         }
+                        // The series: P_j has j + 1 factors L_ff, each with
+                        // the group's share L_g, so lambda^T dP_j e =
+                        // sum_(i=0..j) rl_i^T L_g z_(j-i) (per unit weight).
+                        if let Some(lg) = group_laplacian {
+                            for (j, &a) in (1..).zip(&ops.series) {
+                                if a == 0.0 {
+                                    continue;
+                                }
+                                let part: f64 = (0..=j)
+                                    .map(|i| {
+                                        let zi = &z[j - i];
+                                        (0..n)
+                                            .filter(|&v| !ops.fixed[v])
+                                            .map(|v| rl[i][v].dot(&lg.row_dot(v, zi)))
+                                            .sum::<f64>()
+                                    })
+                                    .sum();
+                                sum += damping * a * part;
+                            }
+                        }
                         *out -= sum / stiffness;
                     }
                 }
@@ -868,6 +961,24 @@ pub fn loss_and_gradient(
                             unit_masses[i] * lambda[i].dot(&dr)
                         })
                         .sum::<f64>();
+                    // The series' M^-1: with G = d M^-1 / d rho = -U M^-2,
+                    // lambda^T dP_j e = sum_(i=1..j) (L rl_(i-1))^T G (L
+                    // z_(j-i)) = -sum_(i=1..j) sum_v u_v rl_i[v] . z_(j-i+1)[v]
+                    // (L_ff z_m = M z_(m+1) on the free vertices).
+                    for (j, &a) in (1..).zip(&ops.series) {
+                        if a == 0.0 {
+                            continue;
+                        }
+                        let part: f64 = (1..=j)
+                            .map(|i| {
+                                (0..n)
+                                    .filter(|&v| unit_masses[v] != 0.0 && !ops.fixed[v])
+                                    .map(|v| unit_masses[v] * rl[i][v].dot(&z[j - i + 1][v]))
+                                    .sum::<f64>()
+                            })
+                            .sum();
+                        *out += damping * a * part;
+                    }
                 }
                 Resolved::Gravity => {}
                 Resolved::InitialPositions | Resolved::InitialVelocities => {}
@@ -959,6 +1070,8 @@ mod tests {
         let all = [
             Parameter::DampingMass,
             Parameter::DampingStiffness,
+            Parameter::DampingSeries(0),
+            Parameter::DampingSeries(4),
             Parameter::ConstraintStiffness {
                 body: 3,
                 constraint: 12,
@@ -971,7 +1084,15 @@ mod tests {
         for p in all {
             assert_eq!(p.to_string().parse::<Parameter>(), Ok(p));
         }
-        for bad in ["body[x].density", "body[0].constraints[1]", "damping", ""] {
+        for bad in [
+            "body[x].density",
+            "body[0].constraints[1]",
+            "damping",
+            "",
+            "damping.series[",
+            "damping.series[x]",
+            "damping.series[1].5",
+        ] {
             assert!(bad.parse::<Parameter>().is_err(), "{bad}");
         }
     }

@@ -1,8 +1,10 @@
 //! The step objective's derivatives (docs/design/gradients.md): the exact
 //! elastic Hessian `K(q)` assembled from every constraint's element Hessian
 //! (not made positive semi-definite: the adjoint needs the true one), the
-//! damping Laplacian `L_d`, and the operators built from them, all over
-//! every vertex (the free ones are picked where the derivation needs them).
+//! damping Laplacian `L_d`, the Caughey series' powers `L_ff (M_f^-1
+//! L_ff)^j` on the free vertices, and the operators built from them, all
+//! over every vertex (the free ones are picked where the derivation needs
+//! them).
 
 use pd_constraints::assembly::{LaplacianKind, laplacian};
 use pd_constraints::{ConstraintBlock, CsrMatrix, Stencil};
@@ -23,6 +25,9 @@ pub(crate) struct Operators {
     /// `a1` in 1/s and `a2` in s.
     pub a1: f64,
     pub a2: f64,
+    /// The Caughey series' `a3, a4, ...` (s^3, s^5, ...), up to the last
+    /// non-zero one: `a_(j+2)` multiplies `P_j = L_ff (M_f^-1 L_ff)^j`.
+    pub series: Vec<f64>,
 }
 
 impl Operators {
@@ -31,7 +36,7 @@ impl Operators {
         masses: Vec<f64>,
         fixed: Vec<bool>,
         h: f64,
-        (a1, a2): (f64, f64),
+        (a1, a2, series): (f64, f64, &[f64]),
     ) -> Self {
         let n = masses.len();
         let damping_laplacian = laplacian(&blocks, n, LaplacianKind::Damping);
@@ -48,7 +53,25 @@ impl Operators {
             h,
             a1,
             a2,
+            series: series.to_vec(),
         }
+    }
+
+    /// The chain `z_0 = w_f`, `z_m = M_f^-1 L_ff z_(m-1)` for `m` up to
+    /// `powers` (zero at fixed vertices): `P_j w = L_ff z_j`.
+    pub fn series_chain(&self, w: &[Point], powers: usize) -> Vec<Vec<Point>> {
+        series_chain(
+            &self.damping_laplacian,
+            &self.masses,
+            &self.fixed,
+            w,
+            powers,
+        )
+    }
+
+    /// `L_ff z` (zero at fixed vertices) for `z` zero at fixed vertices.
+    pub fn laplacian_free(&self, z: &[Point]) -> Vec<Point> {
+        laplacian_free(&self.damping_laplacian, &self.fixed, z)
     }
 
     /// The elastic Hessian `K(q)`: every constraint's exact energy Hessian
@@ -68,7 +91,8 @@ impl Operators {
         ElementHessians { blocks }
     }
 
-    /// `out = (M/h^2 + c1 c2 gamma D) w` with `D = a1 M + a2 L_d` scaled by
+    /// `out = (M/h^2 + c1 c2 gamma D) w` with `D = a1 M + a2 L_d + sum_j
+    /// a_(j+2) P_j` (the series on the free vertices only) scaled by
     /// `scale`, added to `out`: the inertial and damping part `P w` of the
     /// step objective's Hessian (every vertex).
     pub fn add_inertia_damping(
@@ -87,6 +111,17 @@ impl Operators {
             let factor = scale * damping * self.a2;
             for (i, o) in out.iter_mut().enumerate() {
                 *o += self.damping_laplacian.row_dot(i, w) * factor;
+            }
+        }
+        if !self.series.is_empty() {
+            let chain = self.series_chain(w, self.series.len());
+            for (z, &a) in chain[1..].iter().zip(&self.series) {
+                if a != 0.0 {
+                    let factor = scale * damping * a;
+                    for (o, p) in out.iter_mut().zip(self.laplacian_free(z)) {
+                        *o += p * factor;
+                    }
+                }
             }
         }
     }
@@ -130,6 +165,46 @@ impl Operators {
 /// (`hessian_len` per constraint) and that length.
 pub(crate) struct ElementHessians {
     blocks: Vec<(Vec<f64>, usize)>,
+}
+
+/// The chain `z_0 = w_f`, `z_m = M_f^-1 L_ff z_(m-1)` (`m <= powers`) of
+/// the damping Laplacian `laplacian` restricted to the free vertices (zero
+/// at fixed ones): the Caughey series' `P_j w = L_ff z_j`.
+pub(crate) fn series_chain(
+    laplacian: &CsrMatrix,
+    masses: &[f64],
+    fixed: &[bool],
+    w: &[Point],
+    powers: usize,
+) -> Vec<Vec<Point>> {
+    let mut z = w.to_vec();
+    mask_fixed(&mut z, fixed);
+    let mut chain = Vec::with_capacity(powers + 1);
+    for _ in 0..powers {
+        let mut next = laplacian_free(laplacian, fixed, &z);
+        for (n, m) in next.iter_mut().zip(masses) {
+            if *m > 0.0 {
+                *n /= *m;
+            }
+        }
+        chain.push(std::mem::replace(&mut z, next));
+    }
+    chain.push(z);
+    chain
+}
+
+/// `L_ff z` over the free rows (zero at fixed vertices), for `z` zero at
+/// fixed vertices.
+pub(crate) fn laplacian_free(laplacian: &CsrMatrix, fixed: &[bool], z: &[Point]) -> Vec<Point> {
+    (0..z.len())
+        .map(|i| {
+            if fixed[i] {
+                Point::zeros()
+            } else {
+                laplacian.row_dot(i, z)
+            }
+        })
+        .collect()
 }
 
 /// Zeroes the entries of fixed vertices.
