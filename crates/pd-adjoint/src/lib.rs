@@ -195,7 +195,9 @@ pub struct AdjointOptions {
     /// bench beam it reaches 1e-10 9 times faster than Newton's method). A
     /// step it leaves short of [`AdjointOptions::forward_tolerance`] after
     /// [`AdjointOptions::forward_iterations`] is solved again from the same
-    /// state by Newton's method ([`LossGradient::forward_retries`]).
+    /// state by Newton's method ([`LossGradient::forward_retries`]), except
+    /// with a Caughey series damping, which Newton's method does not run
+    /// (the step counts in [`LossGradient::unconverged_steps`]).
     pub forward_method: SolverMethod,
     /// Newton iterations at most when Newton's method solves a step again.
     pub retry_iterations: usize,
@@ -645,7 +647,10 @@ pub fn loss_and_gradient(
     let mut schemes = Vec::with_capacity(steps);
     let mut unconverged_steps = 0;
     let mut loss_value = 0.0;
-    let retry = options.forward_method != SolverMethod::Newton;
+    // Newton's method does not run a Caughey series: a step of a series
+    // the forward method leaves short stays unconverged.
+    let retry = options.forward_method != SolverMethod::Newton
+        && !sim.damping_model().implicit_matrix().has_series();
     let mut forward_retries = 0;
     let mut forward_iterations = 0;
     for s in 1..=steps {

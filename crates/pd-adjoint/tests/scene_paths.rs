@@ -13,23 +13,26 @@ use pd_solver::Simulation;
 const STEPS: usize = 10;
 
 /// The scene's fields, in the order of [`PATHS`].
-const VALUES: [f64; 5] = [0.5, 0.01, 2e4, 50.0, 1000.0];
-const PATHS: [&str; 5] = [
+const VALUES: [f64; 6] = [0.5, 0.01, 2e4, 50.0, 1000.0, 2e-7];
+const PATHS: [&str; 6] = [
     "damping.mass",
     "damping.stiffness",
     "body[0].constraints[0].stiffness",
     "body[0].constraints[1].stiffness",
     "body[0].density",
+    "damping.series[0]",
 ];
 
 /// A clamped beam of 20 vertices with tet strain and two attachments
-/// (constraint groups 0 and 1), Laplacian damping, swinging down.
-fn scene(values: [f64; 5]) -> Simulation {
-    let [mass, stiffness, strain, attachment, density] = values;
+/// (constraint groups 0 and 1), a three-term Caughey series damping,
+/// swinging down.
+fn scene(values: [f64; 6]) -> Simulation {
+    let [mass, stiffness, strain, attachment, density, a3] = values;
     let text = format!(
         "[simulation]\ndt = 0.01\nsteps = {STEPS}\ngravity = [0.0, -9.81, 0.0]\n\
          integrator = \"backward-euler\"\n\n\
-         [damping]\nmodel = \"laplacian\"\nstiffness = {stiffness:?}\nmass = {mass:?}\n\n\
+         [damping]\nmodel = \"laplacian\"\nstiffness = {stiffness:?}\nmass = {mass:?}\n\
+         series = [{a3:?}]\n\n\
          [[body]]\nmesh = {{ generator = \"box\", size = [1.0, 0.2, 0.2], cells = [4, 1, 1] }}\n\
          density = {density:?}\n\
          constraints = [\n  {{ kind = \"tet-strain\", stiffness = {strain:?} }},\n  \

@@ -18,6 +18,7 @@ pub(crate) const SUPPORTED: &[&str] = &[
     "damping.mass",
     "damping.ratio",
     "damping.ratios[k]",
+    "damping.series[k]",
     "body[i].density",
     "body[i].vertex_mass",
     "body[i].constraints[j].stiffness",
@@ -207,6 +208,7 @@ mod tests {
         for ok in [
             "damping.stiffness",
             "damping.ratios[1]",
+            "damping.series[0]",
             "body[0].constraints[2].stiffness",
             "body[3].density",
             " body[1].damping.mass ",
