@@ -12,8 +12,9 @@
 //! `A` (the forward run's own Cholesky factor), with a dense LU or MINRES
 //! fallback. The
 //! result is the loss and its gradient with respect to each asked
-//! [`Parameter`]: the damping coefficients, a constraint group's stiffness,
-//! a body's density, the initial positions and velocities, and gravity.
+//! [`Parameter`]: the damping coefficients (a Caughey series' too), a
+//! constraint group's stiffness, a body's density, the initial positions
+//! and velocities, and gravity.
 //!
 //! Contact, velocity filters (PBD, explicit ether drag), rotation-preserving,
 //! per-body and lagged damping, and hyperelastic materials are refused with

@@ -129,11 +129,24 @@ fn invalid_arguments_are_named() {
             Parameter::Density { body: 1 },
             "body[1].density: the model has 1 bodies",
         ),
+        (
+            Parameter::DampingSeries(6),
+            "damping.series[6]: a Caughey series has at most 6 higher terms (damping.series[0] \
+             to damping.series[5])",
+        ),
     ];
     for (parameter, expected) in cases {
         let message = error(beam(laplacian(), None), &[parameter]);
         assert_eq!(message, format!("invalid {expected}"));
     }
+    // A series term of a model that has no series.
+    let drag = Box::new(EtherDrag::implicit(0.5).unwrap());
+    let message = error(beam(drag, None), &[Parameter::DampingSeries(0)]);
+    assert_eq!(
+        message,
+        "invalid damping.series[0]: the ether-drag damping model has no Caughey series: use \
+         laplacian"
+    );
     // Masses that are not one density times the lumped volumes.
     let masses = (0..20).map(|v| 1.0 + v as f64).collect();
     let message = error(
