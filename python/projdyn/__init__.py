@@ -12,8 +12,10 @@ crates: the same scene format and the same results, bit for bit.
 Build a model from arrays with :class:`Model` and simulate it with
 ``Simulation(model, dt=..., ...)``; keyword arguments are the scene's keys
 and tables, in its units (docs/reference/scene-format.md).
+:func:`gradient` differentiates a probe loss on a run by the adjoint
+method (docs/design/gradients.md).
 """
 
-from ._projdyn import DivergenceError, Model, Simulation, modes
+from ._projdyn import DivergenceError, Model, Simulation, gradient, modes
 
-__all__ = ["DivergenceError", "Model", "Simulation", "modes"]
+__all__ = ["DivergenceError", "Model", "Simulation", "gradient", "modes"]

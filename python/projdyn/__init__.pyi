@@ -142,3 +142,24 @@ class Simulation:
 
 def modes(sim_or_scene: Union[Simulation, _Path], count: int = 6) -> Dict[str, Any]:
     """The lowest elastic modes as `pd modes` reports them in modes.json."""
+
+def gradient(
+    sim: Simulation,
+    steps: int,
+    probes: Sequence[int],
+    targets: npt.ArrayLike,
+    parameters: Sequence[str],
+) -> Dict[str, Any]:
+    """The loss (mean squared distance of `probes` to `targets[s, p]` over
+    steps 1..steps, m^2) of a converged run from the simulation's current
+    state (the simulation itself is not stepped), and its gradient by the
+    adjoint method with respect to `parameters`, named as the scene names
+    them: "damping.mass", "damping.stiffness", "damping.series[k]",
+    "body[i].constraints[j].stiffness", "body[i].density",
+    "initial positions", "initial velocities", "gravity".
+
+    Returns {"loss", "gradients" (by name: float, or an (N, 3) / (3,)
+    array), "forward_s", "backward_s", "adjoint_iterations",
+    "forward_retries"}. Raises ValueError for malformed arguments and for
+    scenes the adjoint method does not differentiate (contact, materials,
+    velocity filters, lagged, per-body or rotation-preserving damping)."""

@@ -10,6 +10,7 @@
 
 mod convert;
 mod errors;
+mod gradient;
 mod model;
 mod simulation;
 
@@ -21,6 +22,7 @@ fn _projdyn(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<model::Model>()?;
     m.add_class::<simulation::Simulation>()?;
     m.add_function(wrap_pyfunction!(simulation::modes, m)?)?;
+    m.add_function(wrap_pyfunction!(gradient::gradient, m)?)?;
     m.add_function(wrap_pyfunction!(simulation::restore_simulation, m)?)?;
     m.add_function(wrap_pyfunction!(model::restore_model, m)?)?;
     m.add(

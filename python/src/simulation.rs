@@ -22,9 +22,9 @@ use crate::model::{Model, model_from_json, model_to_json};
 const MODEL_SOURCE: &str = "projdyn.Simulation";
 
 /// A simulation with the scene it was built from.
-struct Inner {
-    sim: pd_solver::Simulation,
-    scene: Scene,
+pub(crate) struct Inner {
+    pub(crate) sim: pd_solver::Simulation,
+    pub(crate) scene: Scene,
     /// The scene's text (for a model: the scene entries without meshes).
     text: SceneText,
     /// The model of a model-built simulation (for pickling).
@@ -97,7 +97,7 @@ pub struct Simulation {
 }
 
 impl Simulation {
-    fn lock(&self) -> PyResult<MutexGuard<'_, Inner>> {
+    pub(crate) fn lock(&self) -> PyResult<MutexGuard<'_, Inner>> {
         self.inner.lock().map_err(|_| {
             PyRuntimeError::new_err(
                 "this simulation stopped with an internal error earlier; its state cannot be used",
