@@ -21,6 +21,9 @@ impl<'a> Adjoint<'a> {
     /// it does not differentiate (contact, materials, velocity filters,
     /// lagged or per-body damping), found by one gradient at the start.
     pub(crate) fn new(problem: &'a Problem) -> Result<Self, String> {
+        if problem.has_decay_target() {
+            return Err("a decay target is not a loss on positions at each step".into());
+        }
         let parameters = problem
             .paths
             .iter()

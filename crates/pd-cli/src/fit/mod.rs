@@ -16,6 +16,7 @@
 //! unconverged steps jumps where the iteration count changes).
 
 mod adjoint;
+mod decay;
 mod lbfgs;
 mod paths;
 
@@ -112,8 +113,13 @@ pub(crate) struct Problem {
     pub start: Vec<f64>,
     /// The probed vertices.
     probes: Vec<usize>,
-    /// Target probe positions, `[step 1..=N][probe]`, m.
+    /// Target probe positions, `[step 1..=N][probe]`, m (empty for a
+    /// decay target).
     targets: Vec<Vec<Point>>,
+    /// A decay description instead of a recording.
+    decay: Option<decay::Decay>,
+    /// Steps of each forward run.
+    steps: usize,
     /// The iteration method of the forward runs.
     method: SolverMethod,
 }
@@ -145,8 +151,19 @@ impl Problem {
             .map(|p| p.read(&tree, scene))
             .collect::<Result<Vec<_>, _>>()
             .map_err(Failure::Input)?;
-        let track = ProbeTrack::read(target).map_err(|e| Failure::Input(e.to_string()))?;
-        let targets = check_target(&track, &parsed).map_err(Failure::Input)?;
+        // A `.toml` or `.json` target is a decay description; anything
+        // else is a recording (`probes.csv`).
+        let is_description = target
+            .extension()
+            .is_some_and(|e| e == "toml" || e == "json");
+        let (targets, decay) = if is_description {
+            let decay =
+                decay::Decay::read(target, parsed.output.probes.len()).map_err(Failure::Input)?;
+            (Vec::new(), Some(decay))
+        } else {
+            let track = ProbeTrack::read(target).map_err(|e| Failure::Input(e.to_string()))?;
+            (check_target(&track, &parsed).map_err(Failure::Input)?, None)
+        };
         let mut problem = Self {
             source: scene.to_path_buf(),
             tree,
@@ -154,6 +171,8 @@ impl Problem {
             start,
             probes: parsed.output.probes.clone(),
             targets,
+            decay,
+            steps: parsed.steps,
             method: SolverMethod::Newton,
         };
         // Newton's method where the scene allows it (it refuses contact,
@@ -216,6 +235,11 @@ impl Problem {
     /// The scene is invalid at `values`, or a step fails other than by
     /// diverging.
     pub(crate) fn forward(&self, values: &[f64]) -> Result<Option<f64>, Failure> {
+        if let Some(decay) = &self.decay {
+            return Ok(self
+                .simulated_decay(values)?
+                .map(|lost| (lost - decay.lost_per_cycle).powi(2)));
+        }
         let scene = self.scene_at(values)?;
         let mut sim = scene.build().map_err(|e| {
             Failure::Input(format!("at the parameters {}: {e}", self.describe(values)))
@@ -236,6 +260,41 @@ impl Problem {
                 .sum::<f64>();
         }
         Ok(Some(sum / (self.targets.len() * self.probes.len()) as f64))
+    }
+
+    /// The fraction of its amplitude the decay target's probe loses per
+    /// cycle in a run at `values` (`None` if it diverged).
+    ///
+    /// # Errors
+    /// As [`Problem::forward`]; a run too short for one cycle.
+    fn simulated_decay(&self, values: &[f64]) -> Result<Option<f64>, Failure> {
+        let Some(decay) = &self.decay else {
+            return Ok(None);
+        };
+        let scene = self.scene_at(values)?;
+        let mut sim = scene.build().map_err(|e| {
+            Failure::Input(format!("at the parameters {}: {e}", self.describe(values)))
+        })?;
+        let vertex = self.probes[decay.probe];
+        let mut track = vec![sim.state().positions[vertex]];
+        for _ in 0..self.steps {
+            match sim.step() {
+                Ok(_) => {}
+                Err(SolverError::Diverged { .. }) => return Ok(None),
+                Err(e) => return Err(Failure::Input(e.to_string())),
+            }
+            track.push(sim.state().positions[vertex]);
+        }
+        decay::lost_per_cycle(&track, decay.direction)
+            .map(Some)
+            .map_err(|e| {
+                Failure::Input(format!("at the parameters {}: {e}", self.describe(values)))
+            })
+    }
+
+    /// Whether the target is a decay description.
+    pub(crate) fn has_decay_target(&self) -> bool {
+        self.decay.is_some()
     }
 
     /// The probed vertices and the target positions `[step 1..=N][probe]`.
@@ -510,7 +569,7 @@ fn fit_with<B: GradientBackend>(
         "start: loss {:.6e} m^2 over {} steps and {} probes; {} ({backend_name} gradients, \
          forward runs converged by {} to {FIT_ACCURACY:e})",
         start.0,
-        problem.targets.len(),
+        problem.steps,
         problem.probes.len(),
         problem.describe(&problem.start),
         problem.method.name(),
@@ -577,7 +636,17 @@ fn fit_with<B: GradientBackend>(
             "loss_evaluations": objective.losses,
         },
         "fitted_scene": FITTED_SCENE,
+        "target_kind": if problem.decay.is_some() { "decay" } else { "recording" },
     });
+    let mut report = report;
+    if let Some(decay) = &problem.decay {
+        report["decay"] = json!({
+            "probe": decay.probe,
+            "direction": decay.direction.map(|d| [d.x, d.y, d.z]),
+            "lost_per_cycle": decay.lost_per_cycle,
+            "simulated_lost_per_cycle": problem.simulated_decay(&values)?,
+        });
+    }
     write_results(problem, &values, &report, out)
 }
 
