@@ -297,6 +297,12 @@ impl Problem {
         self.decay.is_some()
     }
 
+    /// The loss's unit in messages: m^2 for a recording, none for a decay
+    /// description (a squared fraction).
+    fn loss_unit(&self) -> &'static str {
+        if self.decay.is_some() { "" } else { " m^2" }
+    }
+
     /// The probed vertices and the target positions `[step 1..=N][probe]`.
     pub(crate) fn loss_data(&self) -> (&[usize], &[Vec<Point>]) {
         (&self.probes, &self.targets)
@@ -504,7 +510,7 @@ impl<B: GradientBackend> lbfgs::Objective for LogObjective<'_, B> {
     fn progress(&mut self, iteration: &lbfgs::Iteration) {
         let values: Vec<f64> = iteration.z.iter().map(|z| z.exp()).collect();
         info!(
-            "iteration {}: loss {:.6e} m^2, |gradient| {:.3e} m^2 (largest d loss / d ln p), \
+            "iteration {}: loss {:.6e}{unit}, |gradient| {:.3e}{unit} (largest d loss / d ln p), \
              ln p moved by up to {:.3e}; {}",
             iteration.number,
             iteration.value,
@@ -513,7 +519,8 @@ impl<B: GradientBackend> lbfgs::Objective for LogObjective<'_, B> {
                 .iter()
                 .fold(0.0_f64, |m, g| m.max(g.abs())),
             iteration.change,
-            self.problem.describe(&values)
+            self.problem.describe(&values),
+            unit = self.problem.loss_unit(),
         );
     }
 }
@@ -566,9 +573,10 @@ fn fit_with<B: GradientBackend>(
     let z0: Vec<f64> = problem.start.iter().map(|p| p.ln()).collect();
     let start = lbfgs::Objective::value_and_gradient(&mut objective, &z0)?;
     info!(
-        "start: loss {:.6e} m^2 over {} steps and {} probes; {} ({backend_name} gradients, \
+        "start: loss {:.6e}{} over {} steps and {} probes; {} ({backend_name} gradients, \
          forward runs converged by {} to {FIT_ACCURACY:e})",
         start.0,
+        problem.loss_unit(),
         problem.steps,
         problem.probes.len(),
         problem.describe(&problem.start),
@@ -589,10 +597,11 @@ fn fit_with<B: GradientBackend>(
         minimum.z.iter().map(|z| z.exp()).collect()
     };
     info!(
-        "stopped after {} iterations ({}): loss {:.6e} m^2; {}",
+        "stopped after {} iterations ({}): loss {:.6e}{}; {}",
         minimum.iterations,
         minimum.stop.describe(),
         minimum.value,
+        problem.loss_unit(),
         problem.describe(&values)
     );
     let evaluations = &objective.evaluations;
