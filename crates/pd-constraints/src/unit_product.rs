@@ -31,9 +31,8 @@
 /// differ in the last bits, as at the rest shape (`F = I` up to rounding).
 /// Taking the limit instead errs by about `|s_a - s_b|` times the second
 /// derivative of `c`; the two errors are both about `sqrt(u)` at the
-/// switch. Without the switch the Hessian at rest jumped with the rounding
-/// of the positions: moving a resting tet by 0.17 m changed its volume
-/// Hessian by a fifth of its weight.
+/// switch, and the Hessian at rest does not depend on where the element
+/// sits (`tests/hessian_at_rest.rs`).
 pub(crate) fn flip_slope(c: [f64; 2], s: [f64; 2], at_equal: f64) -> f64 {
     let gap = s[0] - s[1];
     if gap.abs() <= f64::EPSILON.sqrt() * s[0].abs().max(s[1].abs()) {

@@ -129,11 +129,10 @@ impl RigidFreedom {
     /// first point and the point farthest from it, and every point's
     /// distance from it is compared with the tolerance. Distances are
     /// computed to about `u size`, far inside the tolerance, so the answer
-    /// does not depend on how the body is oriented. (An eigen-decomposition
-    /// of the points' spread, compared with the tolerance squared, did: its
+    /// does not depend on how the body is oriented (an eigenvalue of the
+    /// points' spread compared with the tolerance squared would: its
     /// round-off, about `u` times the largest eigenvalue, is far above
-    /// `(1e-9 size)^2`, and two holding points were a hinge in one
-    /// orientation and held in another.)
+    /// `(1e-9 size)^2`).
     pub fn of_held_points(held: &[Point], size: f64) -> Self {
         let Some(&first) = held.first() else {
             return Self::Free;

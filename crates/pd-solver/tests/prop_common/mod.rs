@@ -332,18 +332,7 @@ pub fn irregular_box(cells: [usize; 3], seed: u64, keep: f64) -> Mesh {
     if tets.is_empty() {
         tets.push(full.tets()[0]);
     }
-    let mut index = vec![usize::MAX; full.num_vertices()];
-    let mut vertices = Vec::new();
-    for tet in &mut tets {
-        for v in tet.iter_mut() {
-            if index[*v] == usize::MAX {
-                index[*v] = vertices.len();
-                vertices.push(full.vertices()[*v]);
-            }
-            *v = index[*v];
-        }
-    }
-    Mesh::from_tets(vertices, tets).unwrap()
+    kept_tets(full, tets).unwrap()
 }
 
 /// The TetGen armadillo beside the repository
@@ -379,6 +368,12 @@ pub fn armadillo_piece(seed: u64, radius: f64) -> Option<Mesh> {
     if tets.is_empty() {
         return None;
     }
+    kept_tets(full, tets).ok()
+}
+
+/// The mesh of `tets` (a subset of `full`'s), with the vertices no kept
+/// tet uses removed and the rest renumbered in order of first use.
+fn kept_tets(full: &Mesh, mut tets: Vec<[usize; 4]>) -> Result<Mesh, pd_mesh::MeshError> {
     let mut index = vec![usize::MAX; full.num_vertices()];
     let mut vertices = Vec::new();
     for tet in &mut tets {
@@ -390,5 +385,5 @@ pub fn armadillo_piece(seed: u64, radius: f64) -> Option<Mesh> {
             *v = index[*v];
         }
     }
-    Mesh::from_tets(vertices, tets).ok()
+    Mesh::from_tets(vertices, tets)
 }
