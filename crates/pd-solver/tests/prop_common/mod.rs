@@ -332,7 +332,7 @@ pub fn irregular_box(cells: [usize; 3], seed: u64, keep: f64) -> Mesh {
     if tets.is_empty() {
         tets.push(full.tets()[0]);
     }
-    kept_tets(full, tets).unwrap()
+    kept_tets(&full, tets).unwrap()
 }
 
 /// The TetGen armadillo beside the repository
@@ -361,7 +361,7 @@ pub fn armadillo_piece(seed: u64, radius: f64) -> Option<Mesh> {
     let near: Vec<bool> = (full.vertices().iter())
         .map(|p| (p - centre).norm() <= radius)
         .collect();
-    let mut tets: Vec<[usize; 4]> = (full.tets().iter())
+    let tets: Vec<[usize; 4]> = (full.tets().iter())
         .filter(|t| t.iter().all(|&v| near[v]))
         .copied()
         .collect();
