@@ -10,6 +10,11 @@
 # `#N DONE cov: ... ft: ...` line of the log is the run's summary.
 # CARGO_TARGET_DIR (default: the repository's target/) is used with a
 # `fuzz` subfolder.
+#
+# With FUZZ_WITH=cargo-fuzz the target is built and run by cargo-fuzz on the
+# nightly toolchain instead (`cargo +nightly fuzz run`, AddressSanitizer,
+# debug assertions, optimised), with the same corpus, options and log; it
+# needs `cargo install cargo-fuzz` and a nightly toolchain.
 set -eu
 if [ $# -lt 2 ]; then
     echo "usage: $0 TARGET SECONDS [libFuzzer options...]" >&2
@@ -28,9 +33,24 @@ scene | tetgen | obj | gmsh | medit | checkpoint | state) ;;
     ;;
 esac
 
-"$here/build.sh" --bin "$target"
-triple=$(rustc -vV | sed -n 's/^host: //p')
-binary="${CARGO_TARGET_DIR:-$root/target}/fuzz/$triple/release/$target"
+with=${FUZZ_WITH:-build.sh}
+case $with in
+build.sh)
+    "$here/build.sh" --bin "$target"
+    triple=$(rustc -vV | sed -n 's/^host: //p')
+    binary="${CARGO_TARGET_DIR:-$root/target}/fuzz/$triple/release/$target"
+    ;;
+cargo-fuzz)
+    export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target}/cargo-fuzz"
+    (cd "$here" && cargo +nightly fuzz build --sanitizer address --debug-assertions "$target")
+    triple=$(rustc +nightly -vV | sed -n 's/^host: //p')
+    binary="$CARGO_TARGET_DIR/$triple/release/$target"
+    ;;
+*)
+    echo "$0: FUZZ_WITH must be build.sh or cargo-fuzz, not '$with'" >&2
+    exit 2
+    ;;
+esac
 
 corpus="$here/corpus/$target"
 artifacts="$here/artifacts/$target"

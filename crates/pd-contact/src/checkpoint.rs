@@ -20,6 +20,10 @@ pub struct SavedContact {
     pub force: [f64; 3],
     /// The contact normal (unit).
     pub normal: [f64; 3],
+    /// A collider contact that began in the saved step as an impact
+    /// without restitution: the next step still belongs to the impact
+    /// ([`ContactState::stopped`]). Always `false` between bodies.
+    pub impact: bool,
 }
 
 /// The contact state a checkpoint carries: empty without contact.
@@ -44,6 +48,7 @@ fn saved(vertex: usize, other: usize, force: &Point, normal: &Point) -> SavedCon
         other,
         force: (*force).into(),
         normal: (*normal).into(),
+        impact: false,
     }
 }
 
@@ -52,7 +57,10 @@ impl ContactState {
     pub fn save(&self) -> ContactCheckpoint {
         let colliders = (self.slots.iter().enumerate())
             .filter_map(|(v, s)| s.filter(Slot::active).map(|s| (v, s)))
-            .map(|(v, s)| saved(v, s.collider, &s.force, &s.hit.normal))
+            .map(|(v, s)| SavedContact {
+                impact: s.impact && !s.warm,
+                ..saved(v, s.collider, &s.force, &s.hit.normal)
+            })
             .collect();
         let pairs = self.bodies.as_ref().map_or_else(Vec::new, |b| {
             (b.pairs.iter().enumerate())
@@ -104,8 +112,10 @@ impl ContactState {
                 force: Point::from(c.force),
                 lift: 0.0,
                 bounce: 0.0,
+                // As if just detected, so that `begin_step` carries it on.
+                impact: c.impact,
                 projected: false,
-                warm: true,
+                warm: !c.impact,
             });
         }
         if let Some(bodies) = &mut self.bodies {

@@ -14,6 +14,9 @@ pub(crate) struct RawSaved {
     other: usize,
     force: [f64; 3],
     normal: [f64; 3],
+    /// Written only when true; files without it load as false.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    impact: bool,
 }
 
 /// The `contact` table.
@@ -30,6 +33,7 @@ fn raw(c: &SavedContact) -> RawSaved {
         other: c.other,
         force: c.force,
         normal: c.normal,
+        impact: c.impact,
     }
 }
 
@@ -39,6 +43,7 @@ fn saved(c: &RawSaved) -> SavedContact {
         other: c.other,
         force: c.force,
         normal: c.normal,
+        impact: c.impact,
     }
 }
 

@@ -323,6 +323,19 @@ impl Simulation {
                 reason: format!("position of vertex {v} is not finite"),
             });
         }
+        // A stop without restitution: the step's velocity is the one-step
+        // `(x_{n+1} - x_n) / h` (a multistep method restarts; one-step
+        // methods are unaffected). With a bounce as well, the bounce's
+        // placement assumed the integrator's own end velocity: kept.
+        #[cfg(feature = "contact")]
+        let impact = self
+            .contact
+            .as_ref()
+            .map_or((false, false), |c| (c.bounced(), c.stopped()));
+        #[cfg(feature = "contact")]
+        if impact == (false, true) {
+            self.integrator.reset();
+        }
         self.integrator
             .finish(h, x_n, v_n, &s.iterate, &mut s.velocities);
         zero_fixed(&mut s.velocities, fixed);
@@ -346,13 +359,14 @@ impl Simulation {
                 zero_fixed(velocities, fixed);
             });
         stats.spin_axes_left = report.spin_axes_left;
-        // A bounce sets its vertices' end velocity from the restitution,
-        // not from the motion a multistep history remembers: that history
-        // would carry the approach velocity into the next steps and lift
-        // the body above the bounce (BDF-2: 0.31 m instead of 0.05 m for
-        // e = 0.5 from 0.2 m), so the integrator starts afresh.
+        // An impact sets its vertices' end velocity (from the restitution,
+        // or to rest against the collider), not the motion a multistep
+        // history remembers: that history would carry the approach velocity
+        // into the next steps and lift the body above the bounce (BDF-2:
+        // 0.31 m instead of 0.05 m for e = 0.5 from 0.2 m), so the
+        // integrator starts afresh.
         #[cfg(feature = "contact")]
-        if self.contact.as_ref().is_some_and(|c| c.bounced()) {
+        if impact.0 || impact.1 {
             self.integrator.reset();
         }
         let elastic =
