@@ -9,7 +9,7 @@ use nalgebra::{DMatrix, DVector};
 use pd_integrators::StepCoefficients;
 use pd_mesh::Point;
 
-use crate::operators::{ElementHessians, Operators, dot, mask_fixed};
+use crate::operators::{ElasticHessian, Operators, dot, mask_fixed};
 
 /// `z = A^{-1} r` over full-length vectors (zero at fixed vertices).
 type Preconditioner<'a> =
@@ -45,7 +45,7 @@ pub(crate) enum SolveFailure {
 pub(crate) fn solve(
     ops: &Operators,
     c: StepCoefficients,
-    k: &ElementHessians,
+    k: &ElasticHessian,
     free: &[usize],
     g: &[Point],
     lambda: &mut [Point],
@@ -155,7 +155,7 @@ pub(crate) fn solve(
 /// `|g - H lambda|` over the free vertices.
 fn true_residual(
     ops: &Operators,
-    (c, k): (StepCoefficients, &ElementHessians),
+    (c, k): (StepCoefficients, &ElasticHessian),
     g: &[Point],
     lambda: &[Point],
 ) -> f64 {
@@ -175,7 +175,7 @@ fn true_residual(
 /// returns the iterations and whether it converged.
 fn minres(
     ops: &Operators,
-    (c, k): (StepCoefficients, &ElementHessians),
+    (c, k): (StepCoefficients, &ElasticHessian),
     g: &[Point],
     lambda: &mut [Point],
     (tolerance, max_iterations): (f64, usize),
@@ -247,7 +247,7 @@ fn minres(
 fn dense_solve(
     ops: &Operators,
     c: StepCoefficients,
-    k: &ElementHessians,
+    k: &ElasticHessian,
     free: &[usize],
     g: &[Point],
     lambda: &mut [Point],
