@@ -790,7 +790,7 @@ pub fn loss_and_gradient(
                 .collect(),
             _ => x.clone(),
         };
-        let stiffness = ops.elastic_hessian(&q);
+        let stiffness = ops.elastic_hessian(&q, c);
         let mut g = xbar[s].clone();
         mask_fixed(&mut g, &ops.fixed);
         let before = solved.then(|| lambda.clone());

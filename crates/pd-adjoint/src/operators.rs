@@ -18,6 +18,10 @@ pub(crate) struct Operators {
     stencils: Vec<Vec<Stencil>>,
     /// Where the elastic Hessian's 3 x 3 blocks are.
     pattern: BlockPattern,
+    /// The diagonal block of each vertex and the block of each entry of
+    /// `damping_laplacian` (row by row), when the pattern has them all: the
+    /// step Hessian (but the series) is then assembled whole.
+    whole: Option<(Vec<usize>, Vec<usize>)>,
     pub masses: Vec<f64>,
     pub fixed: Vec<bool>,
     /// The damping Laplacian `L_d` (n x n, symmetric).
@@ -47,10 +51,21 @@ impl Operators {
             .map(|b| (0..b.len()).map(|i| b.stencil(i)).collect())
             .collect::<Vec<Vec<Stencil>>>();
         let pattern = BlockPattern::new(&stencils, n);
+        let diagonal: Option<Vec<usize>> = (0..n).map(|v| pattern.slot(v, v)).collect();
+        let laplacian_slots: Option<Vec<usize>> = (0..n)
+            .flat_map(|row| {
+                let pattern = &pattern;
+                damping_laplacian
+                    .row(row)
+                    .map(move |(column, _)| pattern.slot(row, column))
+            })
+            .collect();
+        let whole = diagonal.zip(laplacian_slots);
         Self {
             blocks,
             stencils,
             pattern,
+            whole,
             masses,
             fixed,
             damping_laplacian,
@@ -82,8 +97,12 @@ impl Operators {
     /// at `q` (3 STENCIL x 3 STENCIL each), assembled into 3 x 3 blocks
     /// (one per pair of vertices sharing a constraint). The element
     /// Hessians are evaluated a batch at a time into a small buffer and
-    /// added into the blocks, so no per-element storage is kept.
-    pub fn elastic_hessian(&self, q: &[Point]) -> ElasticHessian {
+    /// added into the blocks, so no per-element storage is kept. With it,
+    /// when the pattern allows, the step objective's Hessian for the step
+    /// coefficients `c` but the series' terms, `M/h^2 + c1 c2^2 K + c1 c2
+    /// gamma (a1 M + a2 L_d)`, in the same blocks: one pass over the blocks
+    /// then applies it ([`Operators::hessian_product`]).
+    pub fn elastic_hessian(&self, q: &[Point], c: StepCoefficients) -> ElasticHessian {
         /// Elements evaluated per call of `hessian_range`.
         const BATCH: usize = 64;
         let pattern = &self.pattern;
@@ -119,7 +138,33 @@ impl Operators {
                 first += batch;
             }
         }
-        ElasticHessian { values }
+        let step = self.whole.as_ref().map(|(diagonal, laplacian_slots)| {
+            let damping = c.c1 * c.c2 * c.gamma;
+            let elastic = c.c1 * c.c2 * c.c2;
+            let mut step: Vec<[f64; 9]> = values
+                .iter()
+                .map(|block| block.map(|v| v * elastic))
+                .collect();
+            let mass = 1.0 / (self.h * self.h) + damping * self.a1;
+            for (&slot, m) in diagonal.iter().zip(&self.masses) {
+                for i in [0, 4, 8] {
+                    step[slot][i] += mass * m;
+                }
+            }
+            if self.a2 != 0.0 {
+                let factor = damping * self.a2;
+                let mut slots = laplacian_slots.iter();
+                for row in 0..self.masses.len() {
+                    for ((_, value), &slot) in self.damping_laplacian.row(row).zip(&mut slots) {
+                        for i in [0, 4, 8] {
+                            step[slot][i] += factor * value;
+                        }
+                    }
+                }
+            }
+            step
+        });
+        ElasticHessian { values, step }
     }
 
     /// `out = (M/h^2 + c1 c2 gamma D) w` with `D = a1 M + a2 L_d + sum_j
@@ -144,6 +189,13 @@ impl Operators {
                 *o += self.damping_laplacian.row_dot(i, w) * factor;
             }
         }
+        self.add_series(c, w, scale, out);
+    }
+
+    /// `out += scale c1 c2 gamma sum_j a_(j+2) P_j w`: the series' part of
+    /// [`Operators::add_inertia_damping`].
+    fn add_series(&self, c: StepCoefficients, w: &[Point], scale: f64, out: &mut [Point]) {
+        let damping = c.c1 * c.c2 * c.gamma;
         if !self.series.is_empty() {
             let chain = self.series_chain(w, self.series.len());
             for (z, &a) in chain[1..].iter().zip(&self.series) {
@@ -159,11 +211,16 @@ impl Operators {
 
     /// `out += scale K w`.
     pub fn add_elastic(&self, k: &ElasticHessian, w: &[Point], scale: f64, out: &mut [Point]) {
+        self.add_blocks(&k.values, w, scale, out);
+    }
+
+    /// `out += scale B w` for the blocks `values` of the pattern.
+    fn add_blocks(&self, values: &[[f64; 9]], w: &[Point], scale: f64, out: &mut [Point]) {
         let pattern = &self.pattern;
         for (row, o) in out.iter_mut().enumerate() {
             let range = pattern.row_start[row]..pattern.row_start[row + 1];
             let mut sum = [0.0; 3];
-            for (m, &column) in k.values[range.clone()].iter().zip(&pattern.columns[range]) {
+            for (m, &column) in values[range.clone()].iter().zip(&pattern.columns[range]) {
                 let x = w[column];
                 sum[0] += m[0] * x.x + m[1] * x.y + m[2] * x.z;
                 sum[1] += m[3] * x.x + m[4] * x.y + m[5] * x.z;
@@ -174,7 +231,8 @@ impl Operators {
     }
 
     /// `out = H w` over every vertex, `H = M/h^2 + c1 c2^2 K + c1 c2 gamma D`
-    /// the Hessian of the step objective with respect to the new positions.
+    /// the Hessian of the step objective with respect to the new positions
+    /// (`c` the coefficients `k` was evaluated with).
     pub fn hessian_product(
         &self,
         c: StepCoefficients,
@@ -183,15 +241,23 @@ impl Operators {
         out: &mut [Point],
     ) {
         out.iter_mut().for_each(|o| *o = Point::zeros());
-        self.add_inertia_damping(c, w, 1.0, out);
-        self.add_elastic(k, w, c.c1 * c.c2 * c.c2, out);
+        if let Some(step) = &k.step {
+            self.add_blocks(step, w, 1.0, out);
+            self.add_series(c, w, 1.0, out);
+        } else {
+            self.add_inertia_damping(c, w, 1.0, out);
+            self.add_elastic(k, w, c.c1 * c.c2 * c.c2, out);
+        }
     }
 }
 
 /// The elastic Hessian at one point, assembled: one row-major 3 x 3 block
-/// per entry of the operators' [`BlockPattern`].
+/// per entry of the operators' [`BlockPattern`], and the step Hessian.
 pub(crate) struct ElasticHessian {
     values: Vec<[f64; 9]>,
+    /// The step Hessian but the series, in the same blocks, when the
+    /// pattern holds every vertex's diagonal and every entry of `L_d`.
+    step: Option<Vec<[f64; 9]>>,
 }
 
 /// Where the 3 x 3 blocks of the elastic Hessian are: block rows by vertex
@@ -231,11 +297,13 @@ impl BlockPattern {
             columns.extend_from_slice(row);
             row_start.push(columns.len());
         }
-        let slot = |a: usize, b: usize| {
-            let row = &columns[row_start[a]..row_start[a + 1]];
-            // Every stencil pair was entered above.
-            row_start[a] + row.binary_search(&b).unwrap_or(0)
+        let mut pattern = Self {
+            row_start,
+            columns,
+            slots: Vec::new(),
         };
+        // Every stencil pair was entered above.
+        let slot = |a: usize, b: usize| pattern.slot(a, b).unwrap_or(0);
         let slots = stencils
             .iter()
             .map(|block| {
@@ -250,11 +318,14 @@ impl BlockPattern {
                 slots
             })
             .collect();
-        Self {
-            row_start,
-            columns,
-            slots,
-        }
+        pattern.slots = slots;
+        pattern
+    }
+
+    /// The block of row `a`, column `b`, if the pattern has it.
+    fn slot(&self, a: usize, b: usize) -> Option<usize> {
+        let row = &self.columns[self.row_start[a]..self.row_start[a + 1]];
+        row.binary_search(&b).ok().map(|i| self.row_start[a] + i)
     }
 }
 
