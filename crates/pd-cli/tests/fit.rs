@@ -633,6 +633,9 @@ probes = [1]
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The `[damping]` lines for given ratios, the fitted paths and the start.
+type RatioCase<'a> = (&'a dyn Fn(&[f64]) -> String, &'a [&'a str], Vec<f64>);
+
 /// The gradient with respect to one, two and three damping ratios, which
 /// `pd fit` takes from the adjoint method through the ratios' fit to
 /// coefficients, against central differences of `pd run` outputs, at a
@@ -648,7 +651,6 @@ fn ratio_gradients_by_the_adjoint_match_central_differences_of_pd_run() {
         ),
         &dir.join("truth"),
     );
-    // (the `[damping]` lines for given ratios, the fitted paths, the start)
     let one = |z: &[f64]| format!("ratio = {:e}", z[0]);
     let two = |z: &[f64]| format!("ratios = [{:e}, {:e}]\nmodes = [1, 3]", z[0], z[1]);
     let three = |z: &[f64]| {
@@ -657,7 +659,7 @@ fn ratio_gradients_by_the_adjoint_match_central_differences_of_pd_run() {
             z[0], z[1], z[2]
         )
     };
-    let cases: [(&dyn Fn(&[f64]) -> String, &[&str], Vec<f64>); 3] = [
+    let cases: [RatioCase; 3] = [
         (&one, &["damping.ratio"], vec![0.08]),
         (
             &two,
