@@ -725,6 +725,10 @@ pub fn loss_and_gradient(
     let mut scalars = vec![0.0; resolved.len()];
     let mut gravity_bar = Point::zeros();
     let mut lambda = zeros.clone();
+    // The adjoint of the step solved before `lambda`'s (the next step in
+    // time), once there is one: the solve extrapolates from the two.
+    let mut earlier: Option<Vec<Point>> = None;
+    let mut solved = false;
     let mut work = zeros.clone();
     let mut vb = zeros.clone();
     let mut adjoint_iterations = 0;
@@ -786,9 +790,10 @@ pub fn loss_and_gradient(
                 .collect(),
             _ => x.clone(),
         };
-        let stiffness = ops.elastic_hessian(&q);
+        let stiffness = ops.elastic_hessian(&q, c);
         let mut g = xbar[s].clone();
         mask_fixed(&mut g, &ops.fixed);
+        let before = solved.then(|| lambda.clone());
         let report = {
             let mut precondition = |r: &mut [Point]| sim.solve_step_matrix(c, r);
             solve::solve(
@@ -798,6 +803,7 @@ pub fn loss_and_gradient(
                 &free,
                 &g,
                 &mut lambda,
+                earlier.as_deref(),
                 (
                     options.tolerance,
                     options.max_iterations,
@@ -831,6 +837,8 @@ pub fn loss_and_gradient(
             }
         };
         adjoint_iterations += report.iterations;
+        earlier = before;
+        solved = true;
         fallback_steps += usize::from(report.fallback);
         adjoint_residual = adjoint_residual.max(report.residual);
 

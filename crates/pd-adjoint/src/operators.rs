@@ -16,6 +16,12 @@ pub(crate) struct Operators {
     pub blocks: Vec<Box<dyn ConstraintBlock>>,
     /// Each block's stencils.
     stencils: Vec<Vec<Stencil>>,
+    /// Where the elastic Hessian's 3 x 3 blocks are.
+    pattern: BlockPattern,
+    /// The diagonal block of each vertex and the block of each entry of
+    /// `damping_laplacian` (row by row), when the pattern has them all: the
+    /// step Hessian (but the series) is then assembled whole.
+    whole: Option<(Vec<usize>, Vec<usize>)>,
     pub masses: Vec<f64>,
     pub fixed: Vec<bool>,
     /// The damping Laplacian `L_d` (n x n, symmetric).
@@ -43,10 +49,23 @@ impl Operators {
         let stencils = blocks
             .iter()
             .map(|b| (0..b.len()).map(|i| b.stencil(i)).collect())
+            .collect::<Vec<Vec<Stencil>>>();
+        let pattern = BlockPattern::new(&stencils, n);
+        let diagonal: Option<Vec<usize>> = (0..n).map(|v| pattern.slot(v, v)).collect();
+        let laplacian_slots: Option<Vec<usize>> = (0..n)
+            .flat_map(|row| {
+                let pattern = &pattern;
+                damping_laplacian
+                    .row(row)
+                    .map(move |(column, _)| pattern.slot(row, column))
+            })
             .collect();
+        let whole = diagonal.zip(laplacian_slots);
         Self {
             blocks,
             stencils,
+            pattern,
+            whole,
             masses,
             fixed,
             damping_laplacian,
@@ -75,20 +94,77 @@ impl Operators {
     }
 
     /// The elastic Hessian `K(q)`: every constraint's exact energy Hessian
-    /// at `q` (3 STENCIL x 3 STENCIL each), kept per element and applied
-    /// without assembly.
-    pub fn elastic_hessian(&self, q: &[Point]) -> ElementHessians {
-        let blocks = self
-            .blocks
-            .iter()
-            .map(|block| {
-                let len = block.hessian_len();
-                let mut values = vec![0.0; len * block.len()];
-                block.hessian_range(q, 0, false, &mut values);
-                (values, len)
-            })
-            .collect();
-        ElementHessians { blocks }
+    /// at `q` (3 STENCIL x 3 STENCIL each), assembled into 3 x 3 blocks
+    /// (one per pair of vertices sharing a constraint). The element
+    /// Hessians are evaluated a batch at a time into a small buffer and
+    /// added into the blocks, so no per-element storage is kept. With it,
+    /// when the pattern allows, the step objective's Hessian for the step
+    /// coefficients `c` but the series' terms, `M/h^2 + c1 c2^2 K + c1 c2
+    /// gamma (a1 M + a2 L_d)`, in the same blocks: one pass over the blocks
+    /// then applies it ([`Operators::hessian_product`]).
+    pub fn elastic_hessian(&self, q: &[Point], c: StepCoefficients) -> ElasticHessian {
+        /// Elements evaluated per call of `hessian_range`.
+        const BATCH: usize = 64;
+        let pattern = &self.pattern;
+        let mut values = vec![[0.0; 9]; pattern.columns.len()];
+        let mut buffer = Vec::new();
+        for ((block, stencils), slots) in self.blocks.iter().zip(&self.stencils).zip(&pattern.slots)
+        {
+            let len = block.hessian_len();
+            let count = block.len();
+            buffer.resize(len * BATCH.min(count), 0.0);
+            let mut first = 0;
+            while first < count {
+                let batch = BATCH.min(count - first);
+                let element_hessians = &mut buffer[..len * batch];
+                block.hessian_range(q, first, false, element_hessians);
+                for (i, h) in element_hessians.chunks_exact(len).enumerate() {
+                    let element = first + i;
+                    let s = stencils[element].len();
+                    let size = 3 * s;
+                    let element_slots = &slots[slots_start(element, s)..][..s * s];
+                    for a in 0..s {
+                        for b in 0..s {
+                            let v = &mut values[element_slots[a * s + b]];
+                            for row in 0..3 {
+                                let source = &h[(3 * a + row) * size + 3 * b..][..3];
+                                for (v, h) in v[3 * row..3 * row + 3].iter_mut().zip(source) {
+                                    *v += h;
+                                }
+                            }
+                        }
+                    }
+                }
+                first += batch;
+            }
+        }
+        let step = self.whole.as_ref().map(|(diagonal, laplacian_slots)| {
+            let damping = c.c1 * c.c2 * c.gamma;
+            let elastic = c.c1 * c.c2 * c.c2;
+            let mut step: Vec<[f64; 9]> = values
+                .iter()
+                .map(|block| block.map(|v| v * elastic))
+                .collect();
+            let mass = 1.0 / (self.h * self.h) + damping * self.a1;
+            for (&slot, m) in diagonal.iter().zip(&self.masses) {
+                for i in [0, 4, 8] {
+                    step[slot][i] += mass * m;
+                }
+            }
+            if self.a2 != 0.0 {
+                let factor = damping * self.a2;
+                let mut slots = laplacian_slots.iter();
+                for row in 0..self.masses.len() {
+                    for ((_, value), &slot) in self.damping_laplacian.row(row).zip(&mut slots) {
+                        for i in [0, 4, 8] {
+                            step[slot][i] += factor * value;
+                        }
+                    }
+                }
+            }
+            step
+        });
+        ElasticHessian { values, step }
     }
 
     /// `out = (M/h^2 + c1 c2 gamma D) w` with `D = a1 M + a2 L_d + sum_j
@@ -113,6 +189,13 @@ impl Operators {
                 *o += self.damping_laplacian.row_dot(i, w) * factor;
             }
         }
+        self.add_series(c, w, scale, out);
+    }
+
+    /// `out += scale c1 c2 gamma sum_j a_(j+2) P_j w`: the series' part of
+    /// [`Operators::add_inertia_damping`].
+    fn add_series(&self, c: StepCoefficients, w: &[Point], scale: f64, out: &mut [Point]) {
+        let damping = c.c1 * c.c2 * c.gamma;
         if !self.series.is_empty() {
             let chain = self.series_chain(w, self.series.len());
             for (z, &a) in chain[1..].iter().zip(&self.series) {
@@ -127,44 +210,123 @@ impl Operators {
     }
 
     /// `out += scale K w`.
-    pub fn add_elastic(&self, k: &ElementHessians, w: &[Point], scale: f64, out: &mut [Point]) {
-        for ((values, len), stencils) in k.blocks.iter().zip(&self.stencils) {
-            for (h, stencil) in values.chunks_exact(*len).zip(stencils) {
-                let size = 3 * stencil.len();
-                for (a, &va) in stencil.iter().enumerate() {
-                    let mut sum = Point::zeros();
-                    for (b, &vb) in stencil.iter().enumerate() {
-                        let wb = w[vb];
-                        for i in 0..3 {
-                            let row = &h[(3 * a + i) * size + 3 * b..][..3];
-                            sum[i] += row[0] * wb.x + row[1] * wb.y + row[2] * wb.z;
-                        }
-                    }
-                    out[va] += sum * scale;
-                }
+    pub fn add_elastic(&self, k: &ElasticHessian, w: &[Point], scale: f64, out: &mut [Point]) {
+        self.add_blocks(&k.values, w, scale, out);
+    }
+
+    /// `out += scale B w` for the blocks `values` of the pattern.
+    fn add_blocks(&self, values: &[[f64; 9]], w: &[Point], scale: f64, out: &mut [Point]) {
+        let pattern = &self.pattern;
+        for (row, o) in out.iter_mut().enumerate() {
+            let range = pattern.row_start[row]..pattern.row_start[row + 1];
+            let mut sum = [0.0; 3];
+            for (m, &column) in values[range.clone()].iter().zip(&pattern.columns[range]) {
+                let x = w[column];
+                sum[0] += m[0] * x.x + m[1] * x.y + m[2] * x.z;
+                sum[1] += m[3] * x.x + m[4] * x.y + m[5] * x.z;
+                sum[2] += m[6] * x.x + m[7] * x.y + m[8] * x.z;
             }
+            *o += Point::new(sum[0], sum[1], sum[2]) * scale;
         }
     }
 
     /// `out = H w` over every vertex, `H = M/h^2 + c1 c2^2 K + c1 c2 gamma D`
-    /// the Hessian of the step objective with respect to the new positions.
+    /// the Hessian of the step objective with respect to the new positions
+    /// (`c` the coefficients `k` was evaluated with).
     pub fn hessian_product(
         &self,
         c: StepCoefficients,
-        k: &ElementHessians,
+        k: &ElasticHessian,
         w: &[Point],
         out: &mut [Point],
     ) {
         out.iter_mut().for_each(|o| *o = Point::zeros());
-        self.add_inertia_damping(c, w, 1.0, out);
-        self.add_elastic(k, w, c.c1 * c.c2 * c.c2, out);
+        if let Some(step) = &k.step {
+            self.add_blocks(step, w, 1.0, out);
+            self.add_series(c, w, 1.0, out);
+        } else {
+            self.add_inertia_damping(c, w, 1.0, out);
+            self.add_elastic(k, w, c.c1 * c.c2 * c.c2, out);
+        }
     }
 }
 
-/// The exact element Hessians of every block at one point: values
-/// (`hessian_len` per constraint) and that length.
-pub(crate) struct ElementHessians {
-    blocks: Vec<(Vec<f64>, usize)>,
+/// The elastic Hessian at one point, assembled: one row-major 3 x 3 block
+/// per entry of the operators' [`BlockPattern`], and the step Hessian.
+pub(crate) struct ElasticHessian {
+    values: Vec<[f64; 9]>,
+    /// The step Hessian but the series, in the same blocks, when the
+    /// pattern holds every vertex's diagonal and every entry of `L_d`.
+    step: Option<Vec<[f64; 9]>>,
+}
+
+/// Where the 3 x 3 blocks of the elastic Hessian are: block rows by vertex
+/// (compressed, columns sorted), and where each constraint's stencil pairs
+/// land.
+struct BlockPattern {
+    /// Row `i`'s blocks are `row_start[i]..row_start[i + 1]`.
+    row_start: Vec<usize>,
+    /// Each block's column vertex.
+    columns: Vec<usize>,
+    /// Per constraint block, the block index of each constraint's stencil
+    /// pair `(a, b)`: entry `slots_start(i, s) + a s + b` for constraint `i`
+    /// of stencil size `s`.
+    slots: Vec<Vec<usize>>,
+}
+
+/// Where constraint `element`'s slots start in a block of stencil size `s`
+/// (every constraint of a block has the same stencil size).
+fn slots_start(element: usize, s: usize) -> usize {
+    element * s * s
+}
+
+impl BlockPattern {
+    fn new(stencils: &[Vec<Stencil>], n: usize) -> Self {
+        let mut neighbours: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for stencil in stencils.iter().flatten() {
+            for &a in stencil.iter() {
+                neighbours[a].extend(stencil.iter().copied());
+            }
+        }
+        let mut row_start = Vec::with_capacity(n + 1);
+        row_start.push(0);
+        let mut columns = Vec::new();
+        for row in &mut neighbours {
+            row.sort_unstable();
+            row.dedup();
+            columns.extend_from_slice(row);
+            row_start.push(columns.len());
+        }
+        let mut pattern = Self {
+            row_start,
+            columns,
+            slots: Vec::new(),
+        };
+        // Every stencil pair was entered above.
+        let slot = |a: usize, b: usize| pattern.slot(a, b).unwrap_or(0);
+        let slots = stencils
+            .iter()
+            .map(|block| {
+                let mut slots = Vec::new();
+                for stencil in block {
+                    for &a in stencil.iter() {
+                        for &b in stencil.iter() {
+                            slots.push(slot(a, b));
+                        }
+                    }
+                }
+                slots
+            })
+            .collect();
+        pattern.slots = slots;
+        pattern
+    }
+
+    /// The block of row `a`, column `b`, if the pattern has it.
+    fn slot(&self, a: usize, b: usize) -> Option<usize> {
+        let row = &self.columns[self.row_start[a]..self.row_start[a + 1]];
+        row.binary_search(&b).ok().map(|i| self.row_start[a] + i)
+    }
 }
 
 /// The chain `z_0 = w_f`, `z_m = M_f^-1 L_ff z_(m-1)` (`m <= powers`) of

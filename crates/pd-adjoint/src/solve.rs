@@ -9,7 +9,7 @@ use nalgebra::{DMatrix, DVector};
 use pd_integrators::StepCoefficients;
 use pd_mesh::Point;
 
-use crate::operators::{ElementHessians, Operators, dot, mask_fixed};
+use crate::operators::{ElasticHessian, Operators, dot, mask_fixed};
 
 /// `z = A^{-1} r` over full-length vectors (zero at fixed vertices).
 type Preconditioner<'a> =
@@ -39,16 +39,18 @@ pub(crate) enum SolveFailure {
 }
 
 /// Solves `H lambda = g` (full-length vectors, zero at fixed vertices) into
-/// `lambda`, starting from the `lambda` given. `precondition` solves `A z = r` in place over the free
+/// `lambda`, starting from the `lambda` given or its extrapolation from
+/// `earlier` (the adjoint before it, zero at fixed vertices). `precondition` solves `A z = r` in place over the free
 /// vertices' entries (one point per free vertex).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn solve(
     ops: &Operators,
     c: StepCoefficients,
-    k: &ElementHessians,
+    k: &ElasticHessian,
     free: &[usize],
     g: &[Point],
     lambda: &mut [Point],
+    earlier: Option<&[Point]>,
     (tolerance, max_iterations, dense_limit, minres_iterations): (f64, usize, usize, usize),
     precondition: &mut dyn FnMut(&mut [Point]) -> Result<(), pd_solver::SolverError>,
 ) -> Result<SolveReport, SolveFailure> {
@@ -58,18 +60,40 @@ pub(crate) fn solve(
         lambda.iter_mut().for_each(|l| *l = Point::zeros());
         return Ok(SolveReport::default());
     }
-    // The iteration starts from the `lambda` given (the previous step's
-    // adjoint: successive steps' systems and right-hand sides differ by
-    // little), or from zero when that is the better start.
+    // The iteration starts from whichever of the `lambda` given (the
+    // previous step's adjoint: successive steps' systems and right-hand
+    // sides differ by little), its linear extrapolation `2 lambda - earlier`
+    // from the adjoint before it, and zero has the smallest residual.
     mask_fixed(lambda, &ops.fixed);
     let mut hp = vec![Point::zeros(); n];
-    ops.hessian_product(c, k, lambda, &mut hp);
-    mask_fixed(&mut hp, &ops.fixed);
-    let mut r: Vec<Point> = g.iter().zip(&hp).map(|(g, h)| g - h).collect();
-    if dot(&r, &r) >= g_norm * g_norm {
+    let mut residual_of = |start: &[Point], r: &mut Vec<Point>| {
+        ops.hessian_product(c, k, start, &mut hp);
+        mask_fixed(&mut hp, &ops.fixed);
+        r.clear();
+        r.extend(g.iter().zip(&hp).map(|(g, h)| g - h));
+        dot(r, r)
+    };
+    let mut r = Vec::with_capacity(n);
+    let mut best = residual_of(lambda, &mut r);
+    if let Some(earlier) = earlier {
+        let extrapolated: Vec<Point> = lambda
+            .iter()
+            .zip(earlier)
+            .map(|(l, e)| l * 2.0 - e)
+            .collect();
+        let mut r_extrapolated = Vec::with_capacity(n);
+        let norm = residual_of(&extrapolated, &mut r_extrapolated);
+        if norm < best {
+            best = norm;
+            lambda.copy_from_slice(&extrapolated);
+            r = r_extrapolated;
+        }
+    }
+    if best >= g_norm * g_norm {
         lambda.iter_mut().for_each(|l| *l = Point::zeros());
         r.copy_from_slice(g);
     }
+    let mut hp = vec![Point::zeros(); n];
     let mut z = vec![Point::zeros(); n];
     let mut p = vec![Point::zeros(); n];
     let mut buffer = vec![Point::zeros(); free.len()];
@@ -155,7 +179,7 @@ pub(crate) fn solve(
 /// `|g - H lambda|` over the free vertices.
 fn true_residual(
     ops: &Operators,
-    (c, k): (StepCoefficients, &ElementHessians),
+    (c, k): (StepCoefficients, &ElasticHessian),
     g: &[Point],
     lambda: &[Point],
 ) -> f64 {
@@ -175,7 +199,7 @@ fn true_residual(
 /// returns the iterations and whether it converged.
 fn minres(
     ops: &Operators,
-    (c, k): (StepCoefficients, &ElementHessians),
+    (c, k): (StepCoefficients, &ElasticHessian),
     g: &[Point],
     lambda: &mut [Point],
     (tolerance, max_iterations): (f64, usize),
@@ -247,7 +271,7 @@ fn minres(
 fn dense_solve(
     ops: &Operators,
     c: StepCoefficients,
-    k: &ElementHessians,
+    k: &ElasticHessian,
     free: &[usize],
     g: &[Point],
     lambda: &mut [Point],
