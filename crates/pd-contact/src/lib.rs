@@ -38,6 +38,7 @@ mod candidates;
 mod checkpoint;
 mod clearance;
 mod collider_force;
+mod delassus;
 mod end_plane;
 mod error;
 mod geometry;
@@ -123,6 +124,9 @@ pub struct ContactState {
     frozen: bool,
     /// The step's collider clearances (`clearance.rs`).
     clearance: clearance::Clearance,
+    /// The Delassus solve of the collider contacts, with an accuracy
+    /// target (`delassus.rs`).
+    delassus: delassus::Delassus,
 }
 
 /// What the contacts of a finished step measured.
@@ -161,6 +165,7 @@ impl ContactState {
             occupied: Vec::new(),
             frozen: false,
             clearance: clearance::Clearance::default(),
+            delassus: delassus::Delassus::default(),
         }
     }
 
@@ -273,6 +278,11 @@ impl ContactState {
                 };
                 self.slots[v] = Some(slot);
                 self.clearance.hold(v);
+            }
+            // With the Delassus solve, the forces are found after the
+            // solve without them ([`ContactState::solve_contacts`]).
+            if self.delassus.on {
+                continue;
             }
             // Updated in place (no copy of the slot in and out).
             let Some(slot) = &mut self.slots[v] else {
