@@ -32,6 +32,13 @@
 //! normal velocity of every contact is clamped to `[0, bounce]`. Contact
 //! between bodies and self-contact are vertex-triangle pairs in the same
 //! framework (`bodies.rs`).
+//!
+//! With an accuracy target the solver turns on the Delassus solve
+//! ([`ContactState::set_delassus`], `delassus.rs`): each iteration solves
+//! without the collider forces, finds them by projected Gauss-Seidel on the
+//! contacts' Delassus operator (columns of the global matrix's inverse the
+//! solver provides), and solves again; the one Uzawa step can cycle with
+//! the elastic iteration under a large frictional load.
 
 mod bodies;
 mod candidates;

@@ -89,7 +89,7 @@ pub(crate) struct GlobalStep {
     columns: InverseColumns,
 }
 
-/// Columns of `A^-1` kept beyond twice the current contacts'
+/// Columns of `A^-1` kept beyond the current contacts'
 /// ([`GlobalStep::keep_columns`]).
 const SPARE_COLUMNS: usize = 64;
 
@@ -427,13 +427,12 @@ impl GlobalStep {
         columns.by_row.get(&f).map(|column| column[g])
     }
 
-    /// Once [`GlobalStep::inverse_entry`] holds more than twice `rows`
-    /// columns (plus [`SPARE_COLUMNS`]), drops those whose row `keep`
-    /// refuses: a contact that ends and starts again within a few steps
-    /// keeps its column, and the columns held stay within about twice those
-    /// of the current contacts.
+    /// Once [`GlobalStep::inverse_entry`] holds more than `rows` +
+    /// [`SPARE_COLUMNS`] columns, drops those whose row `keep` refuses: a
+    /// contact that ends and starts again soon may keep its column, and the
+    /// columns held stay within [`SPARE_COLUMNS`] of the current contacts'.
     pub fn keep_columns(&mut self, rows: usize, keep: impl Fn(usize) -> bool) {
-        if self.columns.by_row.len() > 2 * rows + SPARE_COLUMNS {
+        if self.columns.by_row.len() > rows + SPARE_COLUMNS {
             self.columns.by_row.retain(|&f, _| keep(f));
         }
     }

@@ -47,8 +47,8 @@ fn mass_distance(sim: &Simulation, a: &[Point], b: &[Point]) -> f64 {
 /// Through the landing (20 steps), with `accuracy = 1e-6`, each step
 /// converges, and its positions `x` lie within `2e-6 |y - x*|_M` of the
 /// reference step's `x*` (the fixed-iteration mode's Uzawa iteration to a
-/// relative residual of 1e-12, restored to the same state; `y = x_n + h v_n
-/// + h^2 g` the inertial prediction of backward Euler): the definition of
+/// relative residual of 1e-12, restored to the same state;
+/// `y = x_n + h v_n + h^2 g` the inertial prediction of backward Euler): the definition of
 /// the relative error, against a solution found by another iteration of
 /// the same contact law.
 ///

@@ -345,10 +345,10 @@ impl StepProblem<'_> {
         }
         self.global.solve(&b.rhs);
         #[cfg(feature = "contact")]
-        if let Some(contact) = self.contact.as_deref_mut() {
-            if contact.delassus() {
-                solve_contacts(contact, self.global, x_n, b);
-            }
+        if let Some(contact) = self.contact.as_deref_mut()
+            && contact.delassus()
+        {
+            solve_contacts(contact, self.global, x_n, b);
         }
         let change = if next_q {
             tail::take_solution_and_q(
