@@ -563,8 +563,8 @@ fn drop(simulation: &str) -> Option<Run> {
 /// check"), which a 1% error keeps to a small fraction of a step's energy;
 /// 1% is the figure at which `pd run` warns (its 10-iteration run does).
 ///
-/// Ignored: it takes minutes (103 s in release on the loaded 2-core
-/// machine, 53 s of CPU; the dev profile is several times slower), and it
+/// Ignored: it takes minutes (103-150 s in release on the loaded 2-core
+/// machine, 53-60 s of CPU; the dev profile is several times slower), and it
 /// fails, for a reason that is the integrator's, not the solve's.
 /// Measured (80 steps, local-global, the only method that runs colliders;
 /// the collider contacts solved against the Delassus operator,
