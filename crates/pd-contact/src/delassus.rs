@@ -31,7 +31,10 @@ use pd_mesh::Point;
 
 use crate::{ContactState, collider_force};
 
-/// Most Gauss-Seidel sweeps over the contacts in one iteration.
+/// Most Gauss-Seidel sweeps over the contacts in one iteration. On the
+/// armadillo drop (docs/design/contact.md) 4 sweeps took 4,038 iterations
+/// and 53-60 s of CPU, 20 sweeps 3,586 iterations and 61 s: the sweeps a
+/// step leaves undone, the next iterations do, at less cost.
 pub(crate) const SWEEPS: usize = 4;
 
 /// A sweep that moves no contact by more than this fraction of the largest
