@@ -60,11 +60,14 @@ pub(crate) struct Delassus {
 impl ContactState {
     /// Whether every iteration solves the collider contacts against the
     /// Delassus operator ([`ContactState::solve_contacts`]) instead of one
-    /// projected Uzawa step per contact. The solver turns it on for a step
-    /// with an accuracy target and a constant global matrix; off, the step
-    /// is the fixed-iteration mode's, bit for bit.
+    /// projected Uzawa step per contact. The solver sets it at the start of
+    /// every step: on for a step with an accuracy target and a constant
+    /// global matrix; off, the step is the fixed-iteration mode's, bit for
+    /// bit. The operator is rebuilt in the step's first iteration (the matrix
+    /// may have changed with the step's coefficients).
     pub fn set_delassus(&mut self, on: bool) {
         self.delassus.on = on;
+        self.delassus.built.clear();
     }
 
     /// Whether [`ContactState::set_delassus`] turned the Delassus solve on
