@@ -32,12 +32,20 @@
 //! normal velocity of every contact is clamped to `[0, bounce]`. Contact
 //! between bodies and self-contact are vertex-triangle pairs in the same
 //! framework (`bodies.rs`).
+//!
+//! With an accuracy target the solver turns on the Delassus solve
+//! ([`ContactState::set_delassus`], `delassus.rs`): each iteration solves
+//! without the collider forces, finds them by projected Gauss-Seidel on the
+//! contacts' Delassus operator (columns of the global matrix's inverse the
+//! solver provides), and solves again; the one Uzawa step can cycle with
+//! the elastic iteration under a large frictional load.
 
 mod bodies;
 mod candidates;
 mod checkpoint;
 mod clearance;
 mod collider_force;
+mod delassus;
 mod end_plane;
 mod error;
 mod geometry;
@@ -126,6 +134,9 @@ pub struct ContactState {
     frozen: bool,
     /// The step's collider clearances (`clearance.rs`).
     clearance: clearance::Clearance,
+    /// The Delassus solve of the collider contacts, with an accuracy
+    /// target (`delassus.rs`).
+    delassus: delassus::Delassus,
 }
 
 /// What the contacts of a finished step measured.
@@ -164,6 +175,7 @@ impl ContactState {
             occupied: Vec::new(),
             frozen: false,
             clearance: clearance::Clearance::default(),
+            delassus: delassus::Delassus::default(),
         }
     }
 
@@ -282,6 +294,11 @@ impl ContactState {
                 };
                 self.slots[v] = Some(slot);
                 self.clearance.hold(v);
+            }
+            // With the Delassus solve, the forces are found after the
+            // solve without them ([`ContactState::solve_contacts`]).
+            if self.delassus.on {
+                continue;
             }
             // Updated in place (no copy of the slot in and out).
             let Some(slot) = &mut self.slots[v] else {

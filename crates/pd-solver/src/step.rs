@@ -236,6 +236,11 @@ impl Simulation {
         if let Some(contact) = &mut self.contact {
             let g = (h, self.integrator.end_velocity(h), self.settings.gravity);
             contact.begin_step(x_n, v_n, &s.targets.anchor_displacement, g);
+            // With an accuracy target, the collider contacts are solved
+            // against the constant matrix's response (docs/design/contact.md,
+            // "Friction with an accuracy target"); a fixed iteration count
+            // keeps the one Uzawa step per iteration.
+            contact.set_delassus(self.settings.accuracy > 0.0 && self.global.is_constant());
         }
     }
 

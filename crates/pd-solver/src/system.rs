@@ -84,6 +84,24 @@ pub(crate) struct RhsInput<'a> {
 pub(crate) struct GlobalStep {
     system: GlobalSystem,
     matrix: StepMatrix,
+    /// Columns of the constant matrix's inverse, for the contact solve of
+    /// steps with an accuracy target.
+    columns: InverseColumns,
+}
+
+/// Columns of `A^-1` kept beyond the current contacts'
+/// ([`GlobalStep::keep_columns`]).
+const SPARE_COLUMNS: usize = 64;
+
+/// Columns of `A^-1` (free indices), each computed by one solve with the
+/// cached factor `factor`: the response of the whole body to a unit force
+/// on a contact vertex (pd-contact's Delassus solve,
+/// docs/design/contact.md, "Friction with an accuracy target").
+#[derive(Debug, Default)]
+struct InverseColumns {
+    factor: usize,
+    by_row: std::collections::HashMap<usize, Vec<f64>>,
+    scratch: Vec<Point>,
 }
 
 impl GlobalStep {
@@ -110,7 +128,11 @@ impl GlobalStep {
                 rhs: vec![Point::zeros(); system.free.len()],
             }
         };
-        Ok(Self { system, matrix })
+        Ok(Self {
+            system,
+            matrix,
+            columns: InverseColumns::default(),
+        })
     }
 
     /// Scales the damping terms per body (a per-body damping model:
@@ -371,6 +393,47 @@ impl GlobalStep {
                 self.system.solve_points(*factor, points);
             }
             StepMatrix::Lagged(lagged) => lagged.solve(rhs),
+        }
+    }
+
+    /// Whether the step's matrix is the constant, prefactored one (not the
+    /// lagged system refactorised every step).
+    pub fn is_constant(&self) -> bool {
+        matches!(self.matrix, StepMatrix::Constant { .. })
+    }
+
+    /// `[A^-1]_fg` of the constant matrix (free indices), from column `f`,
+    /// which costs one solve the first time it is asked for and is kept
+    /// until [`GlobalStep::keep_columns`] drops it. `None` for a lagged
+    /// matrix. Requires a [`GlobalStep::prepare`] since the last change of
+    /// coefficients.
+    pub fn inverse_entry(&mut self, f: usize, g: usize) -> Option<f64> {
+        let StepMatrix::Constant { factor, .. } = &self.matrix else {
+            return None;
+        };
+        let columns = &mut self.columns;
+        if columns.factor != *factor {
+            columns.by_row.clear();
+            columns.factor = *factor;
+        }
+        if !columns.by_row.contains_key(&f) {
+            let e = &mut columns.scratch;
+            e.clear();
+            e.resize(self.system.free.len(), Point::zeros());
+            e[f].x = 1.0;
+            self.system.solve_points(*factor, e);
+            columns.by_row.insert(f, e.iter().map(|p| p.x).collect());
+        }
+        columns.by_row.get(&f).map(|column| column[g])
+    }
+
+    /// Once [`GlobalStep::inverse_entry`] holds more than `rows` +
+    /// [`SPARE_COLUMNS`] columns, drops those whose row `keep` refuses: a
+    /// contact that ends and starts again soon may keep its column, and the
+    /// columns held stay within [`SPARE_COLUMNS`] of the current contacts'.
+    pub fn keep_columns(&mut self, rows: usize, keep: impl Fn(usize) -> bool) {
+        if self.columns.by_row.len() > rows + SPARE_COLUMNS {
+            self.columns.by_row.retain(|&f, _| keep(f));
         }
     }
 

@@ -554,31 +554,30 @@ fn drop(simulation: &str) -> Option<Run> {
 /// largest kinetic plus elastic energy, by the summary and by the energies
 /// recorded here.
 ///
-/// Why 1%: implicit midpoint with a damping model, friction and inelastic
-/// contact only dissipate, so the converged run's total never rises; an
+/// Why 1%: a damping model, friction and inelastic contact only
+/// dissipate, and implicit midpoint conserves the energy of quadratic
+/// elastic energies, so the converged run's total should not rise (this
+/// drop's does, below: its strain energy is far from quadratic); an
 /// unconverged implicit-midpoint step changes the total by
 /// `2 grad g(x) . (x - x_n)` (docs/design/solver.md, "The end-of-step
 /// check"), which a 1% error keeps to a small fraction of a step's energy;
 /// 1% is the figure at which `pd run` warns (its 10-iteration run does).
 ///
-/// Ignored: it takes 9 minutes in the dev profile on the loaded 2-core
-/// machine, and it fails, for a reason that is the contact solver's, not
-/// the estimate's. Measured (80 steps, the method chosen: local-global,
-/// the only one that runs colliders): the free-fall steps stop at once
-/// (round-off rule); after landing, with friction 0.5, 19 of the 80
-/// steps stop short of the target (the first at 0.36 s: the relative
-/// residual stalls at 1e-4 to 3e-4 while the estimate stays at 0.94-0.99,
-/// and the step stops after 200 iterations without a new smallest change;
-/// without friction the same step reaches 0.8% in 300 iterations); the
-/// median step's estimate is 0.0099 at 272 iterations, and the run
-/// creates 16.8 J, 1.65% of its largest kinetic plus elastic energy
-/// (1,018 J), over the 1% bound, and warns that it did. In release the
-/// same run takes 163 s on the loaded machine (24,275 iterations). The
-/// stalled steps are a limit cycle of the contact forces and the
-/// positions, not slow convergence (docs/design/contact.md, "Friction with
-/// an accuracy target", with the remedies measured).
+/// Ignored: it takes minutes (103-150 s in release on the loaded 2-core
+/// machine, 53-60 s of CPU; the dev profile is several times slower), and it
+/// fails, for a reason that is the integrator's, not the solve's.
+/// Measured (80 steps, local-global, the only method that runs colliders;
+/// the collider contacts solved against the Delassus operator,
+/// docs/design/contact.md, "Friction with an accuracy target"): every step
+/// meets the target (median 24 iterations, 4,038 in all), and the run
+/// creates 14.5 J, 1.43% of its largest kinetic plus elastic energy
+/// (1,013 J), at the rebound (steps 50-51). The same run at `accuracy =
+/// 0.001` creates 14.8 J: it is the converged implicit-midpoint
+/// trajectory's own energy error with the corotational strain of the
+/// squashed body, not the steps' error; at dt 0.005 s the drop creates
+/// none (to 0.8 s).
 #[test]
-#[ignore = "9 minutes (dev profile), and fails: frictional contact steps stall short of the target (19 of 80), and the drop creates 1.65% (warned)"]
+#[ignore = "minutes, and fails: the converged implicit-midpoint drop creates 1.43% at dt 0.01 s (every step meets the target; 1.46% at accuracy 0.001, none at dt 0.005 s)"]
 fn armadillo_drop_with_accuracy_creates_no_energy() {
     let Some(run) = drop(ACCURACY) else { return };
     let (rise, largest) = run.energy_rise();

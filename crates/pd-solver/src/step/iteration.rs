@@ -194,6 +194,10 @@ pub(crate) struct IterationBuffers {
     /// Implicit midpoint's end-of-step check of plain PD's predicted steps
     /// (step/ray.rs); empty until first used.
     pub ray: RayCheck,
+    /// The collider contacts' displacements in the solve without their
+    /// forces (the Delassus contact solve); empty until first used.
+    #[cfg(feature = "contact")]
+    pub contact_free: Vec<Point>,
 }
 
 impl IterationBuffers {
@@ -208,6 +212,8 @@ impl IterationBuffers {
             spare_projections: Vec::new(),
             partials: Vec::new(),
             ray: RayCheck::default(),
+            #[cfg(feature = "contact")]
+            contact_free: Vec::new(),
         }
     }
 }
@@ -338,6 +344,12 @@ impl StepProblem<'_> {
             contact.apply(x_n, self.masses, &b.displacement, &mut b.rhs);
         }
         self.global.solve(&b.rhs);
+        #[cfg(feature = "contact")]
+        if let Some(contact) = self.contact.as_deref_mut()
+            && contact.delassus()
+        {
+            solve_contacts(contact, self.global, x_n, b);
+        }
         let change = if next_q {
             tail::take_solution_and_q(
                 self.global,
@@ -405,4 +417,29 @@ impl StepProblem<'_> {
             }
         }
     }
+}
+
+/// With the Delassus contact solve (pd-contact's `delassus.rs`): the
+/// global step has just been solved without the collider forces; finds
+/// them against the matrix's response and solves again with them.
+#[cfg(feature = "contact")]
+fn solve_contacts(
+    contact: &mut crate::contact::ContactState,
+    global: &mut GlobalStep,
+    x_n: &[Point],
+    b: &mut IterationBuffers,
+) {
+    contact.collect_contact_rows();
+    b.contact_free.clear();
+    b.contact_free
+        .extend(contact.contact_rows().map(|f| global.solution(f)));
+    // `inverse_entry` answers for the constant matrix, which
+    // `ContactState::set_delassus` requires.
+    let mut entry = |f: usize, g: usize| global.inverse_entry(f, g).unwrap_or(0.0);
+    if contact.solve_contacts(x_n, &b.contact_free, &mut entry, &mut b.rhs) {
+        global.solve(&b.rhs);
+    }
+    global.keep_columns(contact.contact_rows().count(), |f| {
+        contact.is_contact_row(f)
+    });
 }
