@@ -50,6 +50,7 @@ mod projection_scatter;
 mod settings;
 mod simulation;
 mod step;
+mod rotation;
 mod system;
 mod weights;
 

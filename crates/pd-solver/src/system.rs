@@ -17,6 +17,7 @@ use rayon::prelude::*;
 use crate::SolverError;
 use crate::global::{GlobalSystem, MatrixCoefficients};
 use crate::lagged::LaggedSystem;
+use crate::rotation::{RotationProjection, StepMotion};
 use crate::local::LocalStep;
 use crate::weights::DampingWeights;
 
@@ -84,6 +85,9 @@ pub(crate) struct RhsInput<'a> {
 pub(crate) struct GlobalStep {
     system: GlobalSystem,
     matrix: StepMatrix,
+    /// The rotation-preserving damping's projection, when the damping model
+    /// asks for it (`rotation.rs`).
+    rotation: Option<RotationProjection>,
 }
 
 impl GlobalStep {
@@ -110,7 +114,73 @@ impl GlobalStep {
                 rhs: vec![Point::zeros(); system.free.len()],
             }
         };
-        Ok(Self { system, matrix })
+        Ok(Self {
+            system,
+            matrix,
+            rotation: None,
+        })
+    }
+
+    /// Makes the step damp `(I - P)^T L_d (I - P)` instead of `L_d` for the
+    /// components among `rigid` for which `projected` says yes
+    /// (`rotation.rs`); each step then builds `P` at its start
+    /// ([`GlobalStep::prepare_rotation`]).
+    ///
+    /// # Errors
+    /// [`SolverError::Unsupported`] naming `damping.preserve_rotation` for a
+    /// lagged step matrix or constraints coupling components.
+    pub fn set_rotation_projection(
+        &mut self,
+        rigid: &[pd_damping::rigid::RigidBody],
+        projected: impl Fn(usize) -> bool,
+    ) -> Result<(), SolverError> {
+        if matches!(self.matrix, StepMatrix::Lagged(_)) {
+            return Err(SolverError::Unsupported {
+                what: "damping.preserve_rotation with a lagged damping term: the projection \
+                       needs the prefactored step matrix"
+                    .into(),
+            });
+        }
+        self.rotation = Some(RotationProjection::new(&self.system, rigid, projected)?);
+        Ok(())
+    }
+
+    /// Whether the step damps the projected `L_d` (a rotation-preserving
+    /// damping model).
+    pub fn projects_rotations(&self) -> bool {
+        self.rotation.is_some()
+    }
+
+    /// Builds this step's projection from `motion` for the step matrix
+    /// `coefficients` (prepared). Does nothing without
+    /// [`GlobalStep::set_rotation_projection`].
+    pub fn prepare_rotation(
+        &mut self,
+        rigid: &[pd_damping::rigid::RigidBody],
+        motion: StepMotion<'_>,
+        coefficients: SystemCoefficients,
+    ) {
+        let Some(rotation) = &mut self.rotation else {
+            return;
+        };
+        let StepMatrix::Constant { factor, .. } = &self.matrix else {
+            return;
+        };
+        let factor = *factor;
+        let system = &mut self.system;
+        let weights = system.weights.as_ref();
+        let solves = rotation.begin_update(
+            system,
+            rigid,
+            motion,
+            coefficients.matrix.damping,
+            |v| weights.map_or(1.0, |w| w.laplacian[v]),
+        );
+        if let Some([m, l]) = solves {
+            system.solve_points(factor, m);
+            system.solve_points(factor, l);
+            rotation.finish_update();
+        }
     }
 
     /// Scales the damping terms per body (a per-body damping model:
@@ -324,6 +394,10 @@ impl GlobalStep {
             }
             *out = b;
         });
+        if use_damping_laplacian && let Some(rotation) = &self.rotation {
+            // The projected operator: c (I - P)^T L_d (I - P) on the anchor.
+            rotation.add_product_correction(system, laplacian_anchor, out);
+        }
         if let StepMatrix::Lagged(lagged) = &self.matrix {
             // + c1 c2 gamma a3 K(x_n) (x_hat - x_n), on every vertex, then
             // gathered to the free ones.
@@ -369,6 +443,9 @@ impl GlobalStep {
             } => {
                 points.copy_from_slice(rhs);
                 self.system.solve_points(*factor, points);
+                if let Some(rotation) = &self.rotation {
+                    rotation.correct_solution(points);
+                }
             }
             StepMatrix::Lagged(lagged) => lagged.solve(rhs),
         }
@@ -380,6 +457,24 @@ impl GlobalStep {
         match &self.matrix {
             StepMatrix::Constant { rhs, .. } => rhs[f],
             StepMatrix::Lagged(lagged) => lagged.solution(f),
+        }
+    }
+
+    /// `w <- (I - P) w` (`w` by vertex) with the rotation-preserving
+    /// damping's projection of this step; nothing without one.
+    pub fn project_rotations(&self, w: &mut [Point]) {
+        if let Some(rotation) = &self.rotation {
+            rotation.project(w);
+        }
+    }
+
+    /// `out <- out - c U C U^T w` on the free rows: turns a product `A w`
+    /// (one point per free vertex; `w` by vertex, zero at fixed vertices)
+    /// into the projected step matrix's `A' w`; nothing without a
+    /// rotation-preserving damping.
+    pub fn correct_product(&self, w: &[Point], out: &mut [Point]) {
+        if let Some(rotation) = &self.rotation {
+            rotation.add_product_correction(&self.system, w, out);
         }
     }
 

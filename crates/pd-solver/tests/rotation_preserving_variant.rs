@@ -37,7 +37,7 @@ fn pendulum(damping: Box<dyn Damping>) -> Simulation {
     model.add_attachments(body, &[corner], 1e7).unwrap();
     let settings = Settings {
         dt: 0.005,
-        iterations: 30,
+        iterations: std::env::var("ITS").map_or(30, |s| s.parse().unwrap()),
         ..Settings::default()
     };
     Simulation::new(model, Box::new(ImplicitMidpoint), damping, settings).unwrap()
@@ -55,21 +55,13 @@ fn centre_of_mass(sim: &Simulation) -> Point {
         / total
 }
 
-/// Regression pin on a partial fix, not the property the variant is for.
-/// Before the fix, a body held by an attachment counted as free: its spin
-/// was reset every step and the block did not swing at all (its centre of
-/// mass 0.317 m from the undamped one's after 0.6 s, the whole swing, as with
-/// plain Laplacian damping). Now the `L_d` anchor follows the rotation the
-/// step predicts about the pivot: measured gap 0.167 m at a2 = 0.01 s,
-/// 0.096 m at 1e-3 s, 0.026 m at 1e-4 s. It is not zero because the stiff
-/// damping term (`a2 / (2h) L_d` here outweighs the inertia) makes the body
-/// follow the predicted, explicit rotation rather than the implicit one; the
-/// exact remedy (damping `(I - P)^T L_d (I - P)` with `P` the projection on
-/// the rigid rotations, a rank-3 update of the prefactored system) is noted
-/// in docs/design/damping.md. The bound 0.6 x the plain model's gap fails on the
-/// old code (ratio 1.0) and holds now (0.53).
+/// The projected damping `(I - P)^T L_d (I - P)` exerts no torque about
+/// the pivot on a body turning rigidly about it, so the block swings with
+/// the undamped block's rigid motion; only its strain rate is damped.
+/// With plain Laplacian damping the block hardly swings at all (its centre
+/// of mass ends the whole swing, 0.317 m, from the undamped one's).
 #[test]
-fn a_body_hanging_from_an_attachment_swings_more_freely_than_with_plain_laplacian() {
+fn a_body_hanging_from_an_attachment_swings_with_the_undamped_one() {
     let mut undamped = pendulum(Box::new(NoDamping));
     let mut variant = pendulum(Box::new(LaplacianDamping::new(0.01, 0.0, true).unwrap()));
     let mut plain = pendulum(Box::new(LaplacianDamping::new(0.01, 0.0, false).unwrap()));
@@ -82,10 +74,9 @@ fn a_body_hanging_from_an_attachment_swings_more_freely_than_with_plain_laplacia
     assert!(swing > 0.3, "the undamped block swings: {swing} m");
     let gap = (centre_of_mass(&variant) - reference).norm();
     let plain_gap = (centre_of_mass(&plain) - reference).norm();
-    assert!(
-        gap <= 0.6 * plain_gap,
-        "variant gap {gap:.3e} m against plain Laplacian {plain_gap:.3e} m"
-    );
+    eprintln!("gap {gap:.4e} m, plain {plain_gap:.4e} m, swing {swing:.4e} m");
+    assert!(plain_gap > 0.25, "plain Laplacian damping stops the swing: {plain_gap} m");
+    assert!(gap < 0.01, "variant gap {gap:.3e} m (plain Laplacian {plain_gap:.3e} m)");
 }
 
 /// A free block spinning at 3 rad/s about z (no gravity), corotational
@@ -113,67 +104,92 @@ fn spinning_block(
     sim
 }
 
-/// BDF-2: the variant moves the `L_d` anchor by the damping
-/// velocity BDF-2 itself gives a rigid rotation (`x - (4 x_n - x_{n-1}) / 3`
-/// on the rotating trajectory, the integrator's damping stencil). The old
-/// shift, the rotation over `1 / gamma`, is exact for one-step methods only:
-/// under BDF-2 it misses a centripetal term `(4/9) (h omega)^2 r` every step,
-/// and on this stiff spinning block (1e9 Pa, h omega = 0.04) the damping
-/// then strained the body to 18.4 J of elastic energy, seven times its
-/// kinetic energy, total energy +726% after 1 s. Measured now: elastic
-/// 6.1e-4 J, total +0.21%. What remains is stated: the restoration keeps the
-/// spin exactly, including the 0.20% that undamped BDF-2 loses to its own
-/// numerical damping of the rotation, so the energy ends slightly above the
-/// start. Bounds: elastic below 1e-3 of the kinetic energy (measured 2.4e-4,
-/// old 7.3), total energy within 0.5% of the start (measured +0.21%).
-#[test]
-fn bdf2_spin_is_kept_without_straining_the_body() {
-    let mut variant = spinning_block(
-        Box::new(Bdf2::new()),
-        Box::new(LaplacianDamping::new(0.01, 0.0, true).unwrap()),
-        1e9,
-    );
-    let j0 = spin_of(&variant).z;
-    let e0 = variant.energies().total();
-    variant.run(100).unwrap();
-    // Restored every step: round-off of 100 rigid fits (1e-14 each).
-    assert!((spin_of(&variant).z / j0 - 1.0).abs() < 1e-11);
-    let energies = variant.energies();
-    assert!(
-        energies.elastic < 1e-3 * energies.kinetic,
-        "elastic {:.3e} J, kinetic {:.3e} J",
-        energies.elastic,
-        energies.kinetic
-    );
-    let drift = energies.total() / e0 - 1.0;
-    assert!(drift.abs() < 0.005, "energy drift {drift:.3e}");
+/// Spin (|angular momentum about the centre of mass|, kg m^2/s) and
+/// kinetic energy (J) after each step of a free block of `stiffness` Pa
+/// spun about an axis off its principal axes, no gravity, `a2 = 0.01 s`,
+/// h = 5 ms, solved to a tolerance of 1e-10.
+fn spin_history(
+    integrator: Box<dyn Integrator>,
+    damping: Box<dyn Damping>,
+    steps: usize,
+) -> Vec<(f64, f64)> {
+    let mesh = jittered_box([4, 2, 2], [0.4, 0.2, 0.1], 0.1, 5);
+    let masses = mesh.lumped_masses(500.0).unwrap();
+    let mut model = Model::new();
+    let body = model.add_body(mesh, masses).unwrap();
+    model.add_tet_strain(body, 1e6, None).unwrap();
+    let settings = Settings {
+        dt: 0.005,
+        iterations: 500,
+        tolerance: 1e-10,
+        gravity: Point::zeros(),
+        ..Settings::default()
+    };
+    let mut sim = Simulation::new(model, integrator, damping, settings).unwrap();
+    sim.add_rigid_velocity(0, Point::new(0.5, 0.2, 0.0), Point::new(0.5, 1.0, 4.0))
+        .unwrap();
+    let mut history = vec![(spin_of(&sim).norm(), sim.energies().kinetic)];
+    for _ in 0..steps {
+        sim.step().unwrap();
+        history.push((spin_of(&sim).norm(), sim.energies().kinetic));
+    }
+    history
 }
 
+/// The projected damping exerts no torque on the rotation the body
+/// performs, so a free spinning body keeps the spin and kinetic energy of
+/// the undamped run (which each integrator changes by its own numerical
+/// damping: backward Euler strongly, BDF-2 a little, implicit midpoint not
+/// at all), under every integrator, within 0.2% after 1.5 s, and never
+/// gains either above its start.
 #[test]
-fn the_mass_term_still_damps_spin() {
-    let a1 = 0.5;
-    let mut variant = spinning_block(
-        Box::new(ImplicitMidpoint),
-        Box::new(LaplacianDamping::new(0.01, a1, true).unwrap()),
-        1e7,
-    );
-    let j0 = spin_of(&variant).z;
-    let steps = 50;
-    variant.run(steps).unwrap();
-    let h = 0.01;
-    let factor: f64 = (1.0 - a1 * h / 2.0) / (1.0 + a1 * h / 2.0);
-    let predicted = j0 * factor.powi(steps as i32);
-    // Implicit midpoint solved to 1e-10 conserves the spin of a free body
-    // up to the mass term, whose exact recurrence is `(1 - a1 h/2) / (1 +
-    // a1 h/2)` per step (StepContext::mass_damping_factor). 1e-6 relative
-    // leaves four orders for 50 steps of solver residual; measured 1e-8.
-    // Before the fix the restoration gave back what a1 took: J stayed J0,
-    // 28% above the prediction.
-    let spin = spin_of(&variant).z;
-    assert!(
-        (spin / predicted - 1.0).abs() < 1e-6,
-        "spin {spin:.9e}, predicted {predicted:.9e}"
-    );
+fn a_free_spinning_body_keeps_the_undamped_spin_and_energy_under_every_integrator() {
+    let integrators: [(&str, fn() -> Box<dyn Integrator>); 3] = [
+        ("backward-euler", || Box::new(pd_integrators::BackwardEuler)),
+        ("implicit-midpoint", || Box::new(ImplicitMidpoint)),
+        ("bdf2", || Box::new(Bdf2::new())),
+    ];
+    let steps = 300;
+    for (name, integrator) in integrators {
+        let undamped = spin_history(integrator(), Box::new(NoDamping), steps);
+        let variant = spin_history(
+            integrator(),
+            Box::new(LaplacianDamping::new(0.01, 0.0, true).unwrap()),
+            steps,
+        );
+        let plain = spin_history(
+            integrator(),
+            Box::new(LaplacianDamping::new(0.01, 0.0, false).unwrap()),
+            steps,
+        );
+        let (j0, k0) = variant[0];
+        let (j, k) = variant[steps];
+        let (ju, ku) = undamped[steps];
+        let (jp, _) = plain[steps];
+        let highest_j = variant.iter().map(|p| p.0).fold(0.0, f64::max);
+        let highest_k = variant.iter().map(|p| p.1).fold(0.0, f64::max);
+        eprintln!(
+            "{name}: spin {:.3e} of undamped, kinetic {:.3e}; plain spin {:.3e}; \
+             highest spin {:.3e}, kinetic {:.3e} of the start",
+            j / ju - 1.0,
+            k / ku - 1.0,
+            jp / ju,
+            highest_j / j0 - 1.0,
+            highest_k / k0 - 1.0
+        );
+        // Plain Laplacian damping takes most of the spin: the scene damps.
+        assert!(jp < 0.5 * ju, "{name}: plain kept {} of the spin", jp / ju);
+        assert!((j / ju - 1.0).abs() < 2e-3, "{name}: spin {j} against {ju}");
+        assert!((k / ku - 1.0).abs() < 2e-3, "{name}: kinetic {k} against {ku}");
+        // Not above the start: the projection is built on the rotation the
+        // step predicts, so the deformation between those lever arms and
+        // the step's own leaves a torque of either sign, measured at most
+        // 3.6e-7 of the spin (implicit midpoint); 1e-5 bounds it with
+        // room, far below the 2e-3 above. BDF-2's and backward Euler's own
+        // damping of the spin dominates it.
+        assert!(highest_j <= j0 * (1.0 + 1e-5), "{name}: spin rose to {highest_j} from {j0}");
+        assert!(highest_k <= k0 * (1.0 + 1e-5), "{name}: kinetic rose to {highest_k} from {k0}");
+    }
 }
 
 /// Deformation energy: elastic plus the kinetic energy of the velocities
