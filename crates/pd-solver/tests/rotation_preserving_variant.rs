@@ -1,7 +1,7 @@
-//! What a user of the rotation-preserving Laplacian variant sees:
-//! it damps the strain rate and leaves the rigid motion of free bodies alone,
-//! exactly for each integrator; bodies held by attachments are not free; the
-//! mass term `a1 M` still damps spin.
+//! What a user of the rotation-preserving Laplacian variant sees: it damps
+//! the strain rate and leaves alone the rigid rotation each body can
+//! perform (a free body's spin under every integrator, a pendulum's swing
+//! about its attachment); the mass term `a1 M` still damps spin.
 
 mod common;
 
@@ -37,7 +37,7 @@ fn pendulum(damping: Box<dyn Damping>) -> Simulation {
     model.add_attachments(body, &[corner], 1e7).unwrap();
     let settings = Settings {
         dt: 0.005,
-        iterations: std::env::var("ITS").map_or(30, |s| s.parse().unwrap()),
+        iterations: 30,
         ..Settings::default()
     };
     Simulation::new(model, Box::new(ImplicitMidpoint), damping, settings).unwrap()
@@ -81,29 +81,6 @@ fn a_body_hanging_from_an_attachment_swings_with_the_undamped_one() {
 
 /// A free block spinning at 3 rad/s about z (no gravity), corotational
 /// strain `stiffness` Pa.
-fn spinning_block(
-    integrator: Box<dyn Integrator>,
-    damping: Box<dyn Damping>,
-    stiffness: f64,
-) -> Simulation {
-    let mesh = jittered_box([4, 2, 2], [0.4, 0.2, 0.2], 0.1, 5);
-    let masses = mesh.lumped_masses(1000.0).unwrap();
-    let mut model = Model::new();
-    let body = model.add_body(mesh, masses).unwrap();
-    model.add_tet_strain(body, stiffness, None).unwrap();
-    let settings = Settings {
-        dt: 0.01,
-        iterations: 50,
-        tolerance: 1e-10,
-        gravity: Point::zeros(),
-        ..Settings::default()
-    };
-    let mut sim = Simulation::new(model, integrator, damping, settings).unwrap();
-    sim.add_rigid_velocity(0, Point::zeros(), Point::new(0.0, 0.0, 4.0))
-        .unwrap();
-    sim
-}
-
 /// Spin (|angular momentum about the centre of mass|, kg m^2/s) and
 /// kinetic energy (J) after each step of a free block of `stiffness` Pa
 /// spun about an axis off its principal axes, no gravity, `a2 = 0.01 s`,
@@ -192,6 +169,44 @@ fn a_free_spinning_body_keeps_the_undamped_spin_and_energy_under_every_integrato
     }
 }
 
+/// The mass term `a1 M` keeps its own anchor and damps spin as ether drag
+/// does; the projected `L_d` term adds nothing to that: the spin follows
+/// the run with `a1` alone (implicit midpoint, 0.5 s). Bound 2e-3 as for the
+/// undamped comparison above (measured 7.2e-7).
+#[test]
+fn the_mass_term_still_damps_spin() {
+    let a1 = 0.5;
+    let steps = 100;
+    let variant = spin_history(
+        Box::new(ImplicitMidpoint),
+        Box::new(LaplacianDamping::new(0.01, a1, true).unwrap()),
+        steps,
+    );
+    let mass_only = spin_history(
+        Box::new(ImplicitMidpoint),
+        Box::new(LaplacianDamping::new(0.0, a1, false).unwrap()),
+        steps,
+    );
+    let (j0, j, reference) = (variant[0].0, variant[steps].0, mass_only[steps].0);
+    eprintln!(
+        "spin {:.4} of the start, {:.3e} from the a1-only run",
+        j / j0,
+        j / reference - 1.0
+    );
+    // Summing the step's equations over a free body, `a1 M` alone scales its
+    // spin by `(1 - a1 h/2) / (1 + a1 h/2)` per implicit-midpoint step
+    // (docs/design/damping.md): 0.7788 after 100 steps. 1e-6 relative is
+    // far above a solve to 1e-10 (measured 2e-9 for the a1-only run).
+    let h = 0.005;
+    let predicted = ((1.0 - a1 * h / 2.0) / (1.0 + a1 * h / 2.0)).powi(steps as i32);
+    assert!(
+        (reference / j0 / predicted - 1.0).abs() < 1e-6,
+        "a1 alone kept {} of the spin, predicted {predicted}",
+        reference / j0
+    );
+    assert!((j / reference - 1.0).abs() < 2e-3, "spin {j:.6e}, a1 alone {reference:.6e}");
+}
+
 /// Deformation energy: elastic plus the kinetic energy of the velocities
 /// minus their rigid fit (J).
 fn deformation_energy(sim: &Simulation) -> f64 {
@@ -263,9 +278,12 @@ fn a_spinning_vibrating_body_keeps_its_spin_and_its_vibration_decays_as_without_
         deformation_energy(&variant) / d0,
         deformation_energy(&still) / s0,
     );
-    // Converged implicit midpoint keeps a free body's spin; the restoration
-    // gives back what L_d took: round-off of 100 rigid fits.
-    assert!((kept - 1.0).abs() < 1e-9, "spin kept {kept}");
+    // Converged implicit midpoint keeps a free body's spin, and the
+    // projected damping exerts no torque on the rotation the step predicts;
+    // the vibration (faster than the step) moves the lever arms away from
+    // that prediction, which leaves a small torque: measured 1.9e-4 of the
+    // spin over 0.2 s, bound 1e-3 (plain Laplacian damping takes it all).
+    assert!((kept - 1.0).abs() < 1e-3, "spin kept {kept}");
     assert!(
         decay_still < 0.1,
         "plain Laplacian damping damps: {decay_still}"
