@@ -47,10 +47,10 @@ mod method_choice;
 mod model;
 mod phases;
 mod projection_scatter;
+mod rotation;
 mod settings;
 mod simulation;
 mod step;
-mod rotation;
 mod system;
 mod weights;
 

@@ -327,11 +327,7 @@ impl RotationProjection {
                 }
             }
             let w = weight(vertices.first().copied().unwrap_or(0));
-            body.coefficient = if body.used == 0 {
-                0.0
-            } else {
-                coefficient * w
-            };
+            body.coefficient = if body.used == 0 { 0.0 } else { coefficient * w };
         }
         self.solve_m.iter_mut().for_each(|p| *p = Point::zeros());
         self.solve_l.iter_mut().for_each(|p| *p = Point::zeros());
@@ -379,9 +375,7 @@ impl RotationProjection {
             let t_lr_ym = cross_gram(lr, ym);
             let c = body.coefficient;
             let mut k = Capacitance::identity();
-            let form = |t: &Matrix3<f64>, j: usize, l: usize| {
-                body.axes[j].dot(&(t * body.axes[l]))
-            };
+            let form = |t: &Matrix3<f64>, j: usize, l: usize| body.axes[j].dot(&(t * body.axes[l]));
             for j in 0..body.used {
                 let gj = body.inverse_inertia[j];
                 for l in 0..body.used {

@@ -17,8 +17,8 @@ use rayon::prelude::*;
 use crate::SolverError;
 use crate::global::{GlobalSystem, MatrixCoefficients};
 use crate::lagged::LaggedSystem;
-use crate::rotation::{RotationProjection, StepMotion};
 use crate::local::LocalStep;
+use crate::rotation::{RotationProjection, StepMotion};
 use crate::weights::DampingWeights;
 
 /// The matrix of the coming step and its factorisation.
@@ -169,13 +169,10 @@ impl GlobalStep {
         let factor = *factor;
         let system = &mut self.system;
         let weights = system.weights.as_ref();
-        let solves = rotation.begin_update(
-            system,
-            rigid,
-            motion,
-            coefficients.matrix.damping,
-            |v| weights.map_or(1.0, |w| w.laplacian[v]),
-        );
+        let solves =
+            rotation.begin_update(system, rigid, motion, coefficients.matrix.damping, |v| {
+                weights.map_or(1.0, |w| w.laplacian[v])
+            });
         if let Some([m, l]) = solves {
             system.solve_points(factor, m);
             system.solve_points(factor, l);

@@ -75,12 +75,21 @@ fn a_body_hanging_from_an_attachment_swings_with_the_undamped_one() {
     let gap = (centre_of_mass(&variant) - reference).norm();
     let plain_gap = (centre_of_mass(&plain) - reference).norm();
     eprintln!("gap {gap:.4e} m, plain {plain_gap:.4e} m, swing {swing:.4e} m");
-    assert!(plain_gap > 0.25, "plain Laplacian damping stops the swing: {plain_gap} m");
-    assert!(gap < 0.01, "variant gap {gap:.3e} m (plain Laplacian {plain_gap:.3e} m)");
+    assert!(
+        plain_gap > 0.25,
+        "plain Laplacian damping stops the swing: {plain_gap} m"
+    );
+    assert!(
+        gap < 0.01,
+        "variant gap {gap:.3e} m (plain Laplacian {plain_gap:.3e} m)"
+    );
 }
 
 /// A free block spinning at 3 rad/s about z (no gravity), corotational
 /// strain `stiffness` Pa.
+/// Builds a fresh integrator.
+type MakeIntegrator = fn() -> Box<dyn Integrator>;
+
 /// Spin (|angular momentum about the centre of mass|, kg m^2/s) and
 /// kinetic energy (J) after each step of a free block of `stiffness` Pa
 /// spun about an axis off its principal axes, no gravity, `a2 = 0.01 s`,
@@ -121,7 +130,7 @@ fn spin_history(
 /// gains either above its start.
 #[test]
 fn a_free_spinning_body_keeps_the_undamped_spin_and_energy_under_every_integrator() {
-    let integrators: [(&str, fn() -> Box<dyn Integrator>); 3] = [
+    let integrators: [(&str, MakeIntegrator); 3] = [
         ("backward-euler", || Box::new(pd_integrators::BackwardEuler)),
         ("implicit-midpoint", || Box::new(ImplicitMidpoint)),
         ("bdf2", || Box::new(Bdf2::new())),
@@ -157,15 +166,24 @@ fn a_free_spinning_body_keeps_the_undamped_spin_and_energy_under_every_integrato
         // Plain Laplacian damping takes most of the spin: the scene damps.
         assert!(jp < 0.5 * ju, "{name}: plain kept {} of the spin", jp / ju);
         assert!((j / ju - 1.0).abs() < 2e-3, "{name}: spin {j} against {ju}");
-        assert!((k / ku - 1.0).abs() < 2e-3, "{name}: kinetic {k} against {ku}");
+        assert!(
+            (k / ku - 1.0).abs() < 2e-3,
+            "{name}: kinetic {k} against {ku}"
+        );
         // Not above the start: the projection is built on the rotation the
         // step predicts, so the deformation between those lever arms and
         // the step's own leaves a torque of either sign, measured at most
         // 3.6e-7 of the spin (implicit midpoint); 1e-5 bounds it with
         // room, far below the 2e-3 above. BDF-2's and backward Euler's own
         // damping of the spin dominates it.
-        assert!(highest_j <= j0 * (1.0 + 1e-5), "{name}: spin rose to {highest_j} from {j0}");
-        assert!(highest_k <= k0 * (1.0 + 1e-5), "{name}: kinetic rose to {highest_k} from {k0}");
+        assert!(
+            highest_j <= j0 * (1.0 + 1e-5),
+            "{name}: spin rose to {highest_j} from {j0}"
+        );
+        assert!(
+            highest_k <= k0 * (1.0 + 1e-5),
+            "{name}: kinetic rose to {highest_k} from {k0}"
+        );
     }
 }
 
@@ -204,7 +222,10 @@ fn the_mass_term_still_damps_spin() {
         "a1 alone kept {} of the spin, predicted {predicted}",
         reference / j0
     );
-    assert!((j / reference - 1.0).abs() < 2e-3, "spin {j:.6e}, a1 alone {reference:.6e}");
+    assert!(
+        (j / reference - 1.0).abs() < 2e-3,
+        "spin {j:.6e}, a1 alone {reference:.6e}"
+    );
 }
 
 /// Deformation energy: elastic plus the kinetic energy of the velocities
