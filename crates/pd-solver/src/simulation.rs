@@ -717,10 +717,9 @@ impl Simulation {
         {
             self.setup.factorisations += 1;
         }
-        self.global.solve(rhs);
-        for (f, out) in rhs.iter_mut().enumerate() {
-            *out = self.global.solution(f);
-        }
+        // `A` itself: a rotation-preserving damping's projection belongs to
+        // the step's own coefficients.
+        self.global.solve_unprojected(rhs);
         Ok(())
     }
 }

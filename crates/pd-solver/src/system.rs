@@ -429,6 +429,23 @@ impl GlobalStep {
             .rhs(constant, projections, energy_factor, out);
     }
 
+    /// Solves with the step matrix `A` alone, without the rotation-preserving
+    /// damping's projection (for another matrix than the step's, whose
+    /// projection would not match), in place; as [`GlobalStep::solve`]
+    /// otherwise. Constant matrices only: a lagged one is solved as
+    /// [`GlobalStep::solve`] does.
+    pub fn solve_unprojected(&mut self, rhs: &mut [Point]) {
+        match &mut self.matrix {
+            StepMatrix::Constant { factor, .. } => self.system.solve_points(*factor, rhs),
+            StepMatrix::Lagged(lagged) => {
+                lagged.solve(rhs);
+                for (f, out) in rhs.iter_mut().enumerate() {
+                    *out = lagged.solution(f);
+                }
+            }
+        }
+    }
+
     /// Solves the step's system for `rhs` (one point per free vertex);
     /// [`GlobalStep::solution`] reads the result. Requires a
     /// [`GlobalStep::prepare`] since the last change of coefficients.

@@ -99,8 +99,10 @@ fn a_body_hanging_from_an_attachment_swings_with_the_undamped_one() {
 /// products with the step matrix. Solved to 1e-10, 40 steps of the
 /// swinging block agree with local-global to 1e-6 m (the tolerance's
 /// displacement error, about 1e-10 of a 0.1 m step summed over the
-/// steps, is far below; measured 4e-9 to 4e-8 m); without the correction L-BFGS
-/// follows the plain step matrix's gradient. Newton refuses.
+/// steps, is far below; measured 4e-9 to 4e-8 m). Newton refuses. (L-BFGS
+/// stops on the local-global residual and ends on a local-global iterate,
+/// so its product correction shapes its directions, not where it ends:
+/// this test does not see that correction.)
 #[test]
 fn every_method_takes_the_same_projected_step_and_newton_refuses() {
     let run = |method: SolverMethod| {
@@ -258,12 +260,14 @@ fn the_mass_term_still_damps_spin() {
     );
     // Summing the step's equations over a free body, `a1 M` alone scales its
     // spin by `(1 - a1 h/2) / (1 + a1 h/2)` per implicit-midpoint step
-    // (docs/design/damping.md): 0.7788 after 100 steps. 1e-6 relative is
-    // far above a solve to 1e-10 (measured 2e-9 for the a1-only run).
+    // (StepContext::mass_damping_factor): 0.7788 after 100 steps. The sum
+    // takes the damping force's torque on the midpoint lever arms, which
+    // the stretched, spinning body moves by O(h^2) per step: measured
+    // 2.1e-5 relative for the a1-only run, bound 1e-4.
     let h = 0.005;
     let predicted = ((1.0 - a1 * h / 2.0) / (1.0 + a1 * h / 2.0)).powi(steps as i32);
     assert!(
-        (reference / j0 / predicted - 1.0).abs() < 1e-6,
+        (reference / j0 / predicted - 1.0).abs() < 1e-4,
         "a1 alone kept {} of the spin, predicted {predicted}",
         reference / j0
     );
