@@ -22,15 +22,17 @@
 //! `A` is a scalar matrix per vertex pair (the same on x, y and z), so
 //! `A^-1` commutes with the cross product by a fixed axis: `Z`'s columns are
 //! `a_j x Y_L` and `a_j x Y_M / lambda_j` with `Y_L = A^-1 L r` and
-//! `Y_M = A^-1 M r` (one solve of points each, for every body at once, as
-//! `A` does not couple different bodies). A solve then costs `O(n)` more.
+//! `Y_M = A^-1 M r` (one solve of points for every body at once, as `A`
+//! does not couple different bodies; where nothing anchors a body, `A =
+//! alpha M + s L` on it gives `Y_L = (r - alpha Y_M) / s`, otherwise a
+//! second solve). A solve then costs `O(n)` more.
 
 use nalgebra::{Matrix3, SMatrix, SVector, SymmetricEigen};
 use pd_damping::rigid::{INERTIA_RELATIVE_CUTOFF, RigidBody, RigidFreedom};
 use pd_mesh::Point;
 
 use crate::SolverError;
-use crate::global::{FIXED, GlobalSystem};
+use crate::global::{FIXED, GlobalSystem, MatrixCoefficients};
 
 /// Rows and columns of a body's Woodbury system: `2 k`, `k <= 3` rotation
 /// axes; unused axes get an identity row.
@@ -92,6 +94,13 @@ struct ProjectedBody {
     coefficient: f64,
     /// `T(r, L r)`, whose form on the axes is `S = R^T L_ff R`.
     laplacian_gram: Matrix3<f64>,
+    /// Whether an anchoring constraint (an attachment) acts on the body:
+    /// then `A^-1 L_ff r` takes a solve of its own.
+    anchored: bool,
+    /// `A`'s coefficients on this body, `A = alpha M + stiffness L_ff`
+    /// where nothing anchors it.
+    alpha: f64,
+    stiffness: f64,
     /// LU factors of `K` (identity rows for unused axes).
     capacitance: Option<nalgebra::linalg::LU<f64, nalgebra::U6, nalgebra::U6>>,
 }
@@ -164,8 +173,10 @@ impl RotationProjection {
                 continue;
             }
             let start = projection.vertex.len();
+            let mut anchored = false;
             for &v in &body.vertices {
                 let f = system.free_index[v];
+                anchored |= system.anchoring_rows.row(f).next().is_some();
                 for rows in [&system.damping_rows, &system.anchoring_rows] {
                     for (c, _) in rows.row(f) {
                         if system.free_index[c] != FIXED && owner[c] != b {
@@ -190,6 +201,9 @@ impl RotationProjection {
                 used: 0,
                 inverse_inertia: [0.0; 3],
                 coefficient: 0.0,
+                anchored,
+                alpha: 0.0,
+                stiffness: 0.0,
                 laplacian_gram: Matrix3::zeros(),
                 capacitance: None,
             });
@@ -222,21 +236,22 @@ impl RotationProjection {
         sum
     }
 
-    /// Starts this step's projection at `positions` (`x_n`, m) with the
-    /// lumped `masses` (kg), `coefficient` the `c` of `L_d` in the step
-    /// matrix and `weight(v)` the per-body damping weight of vertex `v`.
-    /// Returns the two right-hand sides `M r` and `L_ff r` (one point per
-    /// free vertex) the caller solves with `A` in place before
+    /// Starts this step's projection from `motion`.
+    /// Returns the right-hand sides `M r` and, when an attachment acts on a
+    /// projected body, `L_ff r` on those bodies (one point per free vertex)
+    /// for the caller to solve with `A` in place before
     /// [`RotationProjection::finish_update`], or `None` when nothing is
-    /// projected this step.
+    /// projected this step. `coefficients` are the step matrix's, `weight(v)`
+    /// the per-body damping weights (mass, Laplacian) of vertex `v`.
     pub fn begin_update(
         &mut self,
         system: &GlobalSystem,
         rigid: &[RigidBody],
         motion: StepMotion<'_>,
-        coefficient: f64,
-        weight: impl Fn(usize) -> f64,
-    ) -> Option<[&mut [Point]; 2]> {
+        coefficients: MatrixCoefficients,
+        weight: impl Fn(usize) -> (f64, f64),
+    ) -> Option<(&mut [Point], Option<&mut [Point]>)> {
+        let coefficient = coefficients.damping;
         let StepMotion {
             positions,
             masses,
@@ -326,31 +341,53 @@ impl RotationProjection {
                     }
                 }
             }
-            let w = weight(vertices.first().copied().unwrap_or(0));
-            body.coefficient = if body.used == 0 { 0.0 } else { coefficient * w };
+            let (w_mass, w_laplacian) = weight(vertices.first().copied().unwrap_or(0));
+            body.coefficient = if body.used == 0 {
+                0.0
+            } else {
+                coefficient * w_laplacian
+            };
+            // A = (1/h^2 + c a1 W1) M + c1 c2^2 L_sys + c W2 L_d on the body
+            // (weights.rs), L_sys = L_d where nothing anchors it.
+            body.alpha = coefficients.mass + coefficients.mass_damping * (w_mass - 1.0);
+            body.stiffness = coefficients.system + coefficient * w_laplacian;
         }
         self.solve_m.iter_mut().for_each(|p| *p = Point::zeros());
         self.solve_l.iter_mut().for_each(|p| *p = Point::zeros());
-        for k in 0..self.vertex.len() {
-            let (v, f) = (self.vertex[k], self.free[k]);
-            self.lr[k] = Self::laplacian_at(system, f, &self.r_by_vertex);
-            self.mass[k] = masses[v];
-            self.solve_m[f] = self.r[k] * masses[v];
-            self.solve_l[f] = self.lr[k];
+        let mut second = false;
+        for body in &self.bodies {
+            for k in body.start..body.end {
+                let (v, f) = (self.vertex[k], self.free[k]);
+                self.lr[k] = Self::laplacian_at(system, f, &self.r_by_vertex);
+                self.mass[k] = masses[v];
+                self.solve_m[f] = self.r[k] * masses[v];
+                if body.anchored {
+                    self.solve_l[f] = self.lr[k];
+                    second = true;
+                }
+            }
         }
         for k in 0..self.vertex.len() {
             self.r_by_vertex[self.vertex[k]] = Point::zeros();
         }
-        Some([&mut self.solve_m, &mut self.solve_l])
+        Some((&mut self.solve_m, second.then_some(&mut self.solve_l[..])))
     }
 
     /// Ends [`RotationProjection::begin_update`] once its right-hand sides
     /// hold `A^-1 M r` and `A^-1 L_ff r`: the capacitance matrices.
     pub fn finish_update(&mut self) {
-        for k in 0..self.vertex.len() {
-            let f = self.free[k];
-            self.ym[k] = self.solve_m[f];
-            self.yl[k] = self.solve_l[f];
+        for body in &self.bodies {
+            for k in body.start..body.end {
+                let f = self.free[k];
+                self.ym[k] = self.solve_m[f];
+                // Where nothing anchors the body, `A r = alpha M r +
+                // stiffness L_ff r` gives `A^-1 L_ff r` without a solve.
+                self.yl[k] = if body.anchored {
+                    self.solve_l[f]
+                } else {
+                    (self.r[k] - self.ym[k] * body.alpha) / body.stiffness
+                };
+            }
         }
         for body in &mut self.bodies {
             body.capacitance = None;

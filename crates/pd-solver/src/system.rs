@@ -169,13 +169,14 @@ impl GlobalStep {
         let factor = *factor;
         let system = &mut self.system;
         let weights = system.weights.as_ref();
-        let solves =
-            rotation.begin_update(system, rigid, motion, coefficients.matrix.damping, |v| {
-                weights.map_or(1.0, |w| w.laplacian[v])
-            });
-        if let Some([m, l]) = solves {
+        let solves = rotation.begin_update(system, rigid, motion, coefficients.matrix, |v| {
+            weights.map_or((1.0, 1.0), |w| (w.mass[v], w.laplacian[v]))
+        });
+        if let Some((m, l)) = solves {
             system.solve_points(factor, m);
-            system.solve_points(factor, l);
+            if let Some(l) = l {
+                system.solve_points(factor, l);
+            }
             rotation.finish_update();
         }
     }
