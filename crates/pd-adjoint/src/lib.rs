@@ -341,8 +341,8 @@ fn check_supported(sim: &Simulation) -> Result<(), AdjointError> {
     }
     if damping.preserves_rotation() {
         return refuse(format!(
-            "rotation-preserving {name} damping (preserve_rotation = true): its spin restoration \
-             is not differentiated; use preserve_rotation = false"
+            "rotation-preserving {name} damping (preserve_rotation = true): its projection of \
+             the rigid rotations is not differentiated; use preserve_rotation = false"
         ));
     }
     if damping.has_explicit_force() {

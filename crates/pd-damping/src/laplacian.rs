@@ -2,11 +2,7 @@
 //! is factored once with the rest of the global step.
 
 use crate::error::non_negative;
-use crate::rotation_preserving::SpinKeeper;
-use crate::{
-    Damping, DampingError, DampingMatrix, DampingReport, DampingTargets, HIGHER_SERIES_TERMS,
-    Point, StepContext,
-};
+use crate::{Damping, DampingError, DampingMatrix, HIGHER_SERIES_TERMS};
 
 /// The name scenes, the command line and the registry use for this model.
 pub const NAME: &str = "laplacian";
@@ -16,9 +12,11 @@ pub const NAME: &str = "laplacian";
 /// constraints.
 ///
 /// `L_d` damps rigid rotation too (`v^T L_d v > 0` for `v = omega x r`). With
-/// `preserve_rotation` it leaves each free body's rigid rotation alone: the
-/// damping anchor turns with the body, and the spin is given back at the end
-/// of the step (`rotation_preserving.rs`, `docs/design/damping.md`).
+/// `preserve_rotation` the step damps `(I - P)^T L_d (I - P)` instead, `P`
+/// the mass-orthogonal projection on the rigid rotations each body may
+/// perform (about its centre of mass when free, about its pivot or hinge
+/// when held there): the rigid rotation then feels no damping force and no
+/// torque (the solver builds `P` each step, `docs/design/damping.md`).
 ///
 /// ```
 /// use pd_damping::{Damping, DampingMatrix, LaplacianDamping};
@@ -37,15 +35,15 @@ pub struct LaplacianDamping {
     mass: f64,
     /// `a3, a4, ...` of the Caughey series, zero without one.
     series: [f64; HIGHER_SERIES_TERMS],
-    /// The rotation-preserving variant's state, when it is on.
-    spin_keeper: Option<SpinKeeper>,
+    /// Whether the rigid rotations are projected out of the `L_d` term.
+    preserve_rotation: bool,
 }
 
 impl LaplacianDamping {
     /// Laplacian damping with coefficient `stiffness` (`a2`, in s) on the
     /// damping Laplacian and `mass` (`a1`, in 1/s) on the mass matrix;
-    /// `preserve_rotation` asks the solver to give back the angular momentum
-    /// the damping removes.
+    /// `preserve_rotation` asks the solver to leave the bodies' rigid
+    /// rotations out of the `L_d` term.
     ///
     /// # Errors
     /// [`DampingError::InvalidParameter`] naming `stiffness` or `mass` unless
@@ -55,7 +53,7 @@ impl LaplacianDamping {
             stiffness: non_negative("stiffness", stiffness)?,
             mass: non_negative("mass", mass)?,
             series: [0.0; HIGHER_SERIES_TERMS],
-            spin_keeper: preserve_rotation.then(SpinKeeper::default),
+            preserve_rotation,
         })
     }
 
@@ -117,7 +115,7 @@ impl LaplacianDamping {
             return Err(DampingError::Conflict {
                 parameter: "preserve_rotation",
                 reason: "is not available with a Caughey series (three or more ratios, a \
-                         band, or series): only the a2 L_d term has a rotating anchor"
+                         band, or series): only the a2 L_d term is projected"
                     .into(),
             });
         }
@@ -127,7 +125,7 @@ impl LaplacianDamping {
             stiffness,
             mass: non_negative("mass", mass)?,
             series,
-            spin_keeper: None,
+            preserve_rotation: false,
         })
     }
 }
@@ -147,31 +145,6 @@ impl Damping for LaplacianDamping {
     }
 
     fn preserves_rotation(&self) -> bool {
-        self.spin_keeper.is_some()
-    }
-
-    fn begin_step(
-        &mut self,
-        step: &StepContext<'_>,
-        positions: &[Point],
-        velocities: &[Point],
-        targets: DampingTargets<'_>,
-    ) {
-        if let Some(keeper) = &mut self.spin_keeper {
-            keeper.begin_step(self.mass, step, positions, velocities, targets);
-        }
-    }
-
-    fn end_step(
-        &mut self,
-        step: &StepContext<'_>,
-        positions: &[Point],
-        velocities: &mut [Point],
-    ) -> DampingReport {
-        let mut report = DampingReport::default();
-        if let Some(keeper) = &self.spin_keeper {
-            report.spin_axes_left = keeper.end_step(step, positions, velocities);
-        }
-        report
+        self.preserve_rotation
     }
 }

@@ -10,12 +10,14 @@
 //!    `a3 K(x_n)` ([`DampingMatrix::lagged_stiffness`]), which makes the
 //!    solver assemble the elastic Hessian and refactorise every step;
 //! 3. at the **start of the step** ([`Damping::begin_step`]): an explicit
-//!    force folded into the inertial target ([`Damping::add_explicit_force`]),
-//!    or a moved damping anchor (the rotation-preserving Laplacian variant,
-//!    `rotation_preserving.rs`);
+//!    force folded into the inertial target ([`Damping::add_explicit_force`]);
 //! 4. at the **end of the step** ([`Damping::end_step`]): a velocity filter
 //!    after the solve ([`Damping::filter_velocities`]: explicit ether drag,
-//!    PBD) or the variant's spin restoration.
+//!    PBD).
+//!
+//! A model may also ask the solver to leave the bodies' rigid rotations out
+//! of its `L_d` term ([`Damping::preserves_rotation`], the
+//! rotation-preserving Laplacian variant).
 //!
 //! How each enters each integrator's global step is derived in
 //! `docs/design/damping.md`. A model of your own is a type implementing [`Damping`]
@@ -38,7 +40,6 @@ pub mod ratio;
 mod rayleigh_lagged;
 pub mod registry;
 pub mod rigid;
-mod rotation_preserving;
 
 pub use error::DampingError;
 pub use ether_drag::EtherDrag;
@@ -246,8 +247,8 @@ pub struct DampingTargets<'a> {
     /// lagged `K(x_n)` (the damping velocity is `gamma (x - x_hat)`).
     pub anchor_displacement: &'a mut [Point],
     /// The damping anchor of the Laplacian term `a2 L_d`, equal to
-    /// `anchor_displacement` on entry: a model that damps only part of the
-    /// motion through `L_d` moves it (the rotation-preserving variant).
+    /// `anchor_displacement` on entry: a model that measures the `L_d` term's
+    /// damping velocity from another anchor moves it.
     pub laplacian_anchor: &'a mut [Point],
     /// Scratch, contents unspecified on entry.
     pub scratch: &'a mut [Point],
@@ -270,15 +271,11 @@ impl<'a> DampingTargets<'a> {
     }
 }
 
-/// What a damping model reports about one step.
+/// What a damping model reports about one step (nothing yet: the type
+/// leaves room for a model's own measures).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[non_exhaustive]
-pub struct DampingReport {
-    /// Principal axes (summed over the bodies) about which the
-    /// rotation-preserving Laplacian damping left the spin alone instead of
-    /// restoring it (`docs/design/damping.md`). 0 for other models.
-    pub spin_axes_left: usize,
-}
+pub struct DampingReport {}
 
 /// A damping model.
 ///
@@ -317,10 +314,20 @@ pub trait Damping: std::fmt::Debug + Send + Sync {
     ) {
     }
 
-    /// Whether the model keeps the free bodies' rigid rotation undamped (the
-    /// rotation-preserving Laplacian variant, `docs/design/damping.md`).
+    /// Whether the model leaves the bodies' rigid rotations out of its
+    /// `L_d` term: the solver then damps `(I - P)^T L_d (I - P)`, `P` the
+    /// mass-orthogonal projection on the rotations each body may perform
+    /// (the rotation-preserving Laplacian variant,
+    /// `docs/design/damping.md`).
     fn preserves_rotation(&self) -> bool {
         false
+    }
+
+    /// Whether the model leaves the rigid rotations of body `body` (scene
+    /// order) out of its `L_d` term; [`Damping::preserves_rotation`] for
+    /// every body by default ([`PerBodyDamping`] asks the body's model).
+    fn preserves_rotation_of_body(&self, _body: usize) -> bool {
+        self.preserves_rotation()
     }
 
     /// Whether [`Damping::add_explicit_force`] does anything, so the step

@@ -7,8 +7,9 @@
 //! scales the mass and Laplacian terms per body
 //! ([`Damping::body_coefficients`]) and factors the result once. The lagged
 //! channel (`a3 K(x_n)`) is not offered per body: [`PerBodyDamping::new`]
-//! refuses it. The explicit channels (ether drag, PBD, the
-//! rotation-preserving variant's anchor and spin) run each body's model on
+//! refuses it. Which bodies keep their rigid rotations out of the `L_d`
+//! term is asked body by body ([`Damping::preserves_rotation_of_body`]).
+//! The explicit channels (ether drag, PBD) run each body's model on
 //! a view of that body alone: its slices of the positions, velocities,
 //! masses and targets, its components and rigid bodies renumbered from 0.
 
@@ -189,6 +190,12 @@ impl Damping for PerBodyDamping {
         self.models.iter().any(|m| m.preserves_rotation())
     }
 
+    fn preserves_rotation_of_body(&self, body: usize) -> bool {
+        self.models
+            .get(body)
+            .is_some_and(|m| m.preserves_rotation())
+    }
+
     fn has_explicit_force(&self) -> bool {
         self.explicit
     }
@@ -226,7 +233,6 @@ impl Damping for PerBodyDamping {
         velocities: &mut [Point],
     ) -> DampingReport {
         self.ensure_views(step);
-        let mut report = DampingReport::default();
         for (b, model) in self.models.iter_mut().enumerate() {
             let Some(range) = step.base.bodies.get(b) else {
                 continue;
@@ -235,9 +241,8 @@ impl Damping for PerBodyDamping {
             // The body is the whole world its model sees.
             let whole = 0..r.len();
             let sub = body_step(step, &r, &self.views[b], std::slice::from_ref(&whole));
-            let body = model.end_step(&sub, &positions[r.clone()], &mut velocities[r]);
-            report.spin_axes_left += body.spin_axes_left;
+            model.end_step(&sub, &positions[r.clone()], &mut velocities[r]);
         }
-        report
+        DampingReport::default()
     }
 }

@@ -15,8 +15,9 @@
 //! solves `I omega = J`; it only drops the spin about the line, which moves no
 //! vertex.
 //!
-//! Used by [`crate::PbdDamping`] and by the solver to restore angular momentum
-//! after rotation-preserving Laplacian damping.
+//! Used by [`crate::PbdDamping`]; [`RigidFreedom`] tells the solver which
+//! rigid rotations the rotation-preserving Laplacian damping leaves
+//! undamped.
 //!
 //! ```
 //! use pd_damping::Point;
@@ -42,48 +43,6 @@ use crate::Point;
 /// singular tensor (about `1e-16` relative), far below the smallest eigenvalue
 /// of any body a simulation would hold.
 pub const INERTIA_RELATIVE_CUTOFF: f64 = 1e-12;
-
-/// How much faster than the body's own rotation (its angular speed at the
-/// start of the step plus its angular speed now) a spin restoration may turn
-/// about one principal axis ([`RigidFit::spin_restoring_velocity`]).
-pub const SPIN_RESTORE_SPEED_FACTOR: f64 = 2.0;
-
-/// What a body had at the start of a step, for
-/// [`RigidFit::spin_restoring_velocity`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SpinAtStart {
-    /// Angular momentum about the centre of mass `J` in kg m^2/s.
-    pub angular_momentum: Point,
-    /// Angular speed `|I^+ J|` in rad/s.
-    pub angular_speed: f64,
-    /// Kinetic energy in J.
-    pub kinetic_energy: f64,
-}
-
-impl SpinAtStart {
-    /// All zero: no spin, no motion.
-    pub const ZERO: Self = Self {
-        angular_momentum: Point::new(0.0, 0.0, 0.0),
-        angular_speed: 0.0,
-        kinetic_energy: 0.0,
-    };
-}
-
-/// The result of [`RigidFit::spin_restoring_velocity`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SpinRestoration {
-    /// Angular velocity in rad/s of the rigid rotation about the centre of
-    /// mass to add.
-    pub angular_velocity: Point,
-    /// Principal axes about which the spin was left alone.
-    pub axes_left: usize,
-}
-
-/// Which fraction of a body's kinetic energy at the start of the step a
-/// spin restoration about one principal axis may add even when it turns
-/// faster than [`SPIN_RESTORE_SPEED_FACTOR`] allows
-/// ([`RigidFit::spin_restoring_velocity`]).
-pub const SPIN_RESTORE_ENERGY_FRACTION: f64 = 1e-3;
 
 /// Iteration cap of the 3 x 3 symmetric eigensolver; it converges in a
 /// handful, the cap only guards against non-convergence.
@@ -327,95 +286,6 @@ impl RigidFit {
         solution
     }
 
-    /// The angular velocity (rad/s) of the rigid rotation about the centre
-    /// that gives the body back the spin it had at `start`, about every
-    /// principal axis where that is a rotation the body can carry.
-    ///
-    /// In the principal axes `u_k` of `I` (eigenvalues `lambda_k` above
-    /// [`INERTIA_RELATIVE_CUTOFF`] of the largest) the exact restoration
-    /// turns about `u_k` at `delta_k = (J_start - J) . u_k / lambda_k` and
-    /// changes the kinetic energy by `cost_k = (t_k^2 - j_k^2) / (2 lambda_k)`
-    /// (`t_k = J_start . u_k`, `j_k = J . u_k`). An axis is left alone (it
-    /// keeps its spin) when both
-    /// - `|delta_k|` exceeds [`SPIN_RESTORE_SPEED_FACTOR`] times the body's
-    ///   angular speed at the start plus its angular speed now: giving back
-    ///   rotation the body lost turns at most at `|omega_start - omega|`
-    ///   while the inertia holds, and
-    /// - `cost_k` exceeds [`SPIN_RESTORE_ENERGY_FRACTION`] of the body's
-    ///   kinetic energy at the start.
-    ///
-    /// The rotation adds no linear momentum.
-    ///
-    /// Why: when a body has almost no inertia about an axis (a nearly
-    /// straight chain, about itself), a spin component that the axis's
-    /// turning during the step moved onto it takes an angular velocity of
-    /// order `|J| theta / lambda_k`, and unbounded energy, to restore
-    /// (docs/design/damping.md). The energy condition keeps the exact restoration
-    /// where the speed is only nominally high and the energy negligible.
-    ///
-    /// ```
-    /// use pd_damping::Point;
-    /// use pd_damping::rigid::{RigidFit, SpinAtStart};
-    ///
-    /// // Two unit masses 2 m apart, now at rest; they spun about z at 2 rad/s
-    /// // (J = 4 kg m^2/s, 4 J) at the start of the step.
-    /// let positions = [Point::new(-1.0, 0.0, 0.0), Point::new(1.0, 0.0, 0.0)];
-    /// let fit = RigidFit::of(&[0, 1], &[1.0, 1.0], &positions, &[Point::zeros(); 2]);
-    /// let start = SpinAtStart {
-    ///     angular_momentum: Point::new(0.0, 0.0, 4.0),
-    ///     angular_speed: 2.0,
-    ///     kinetic_energy: 4.0,
-    /// };
-    /// let restoration = fit.spin_restoring_velocity(&start);
-    /// assert!((restoration.angular_velocity - Point::new(0.0, 0.0, 2.0)).norm() < 1e-14);
-    /// assert_eq!(restoration.axes_left, 0);
-    /// // A body that turned at 0.5 rad/s cannot have lost a 2 rad/s rotation
-    /// // (2 > 2 x 0.5), and restoring it would cost 4 J, more than the 1 J
-    /// // it had.
-    /// let start = SpinAtStart { angular_speed: 0.5, kinetic_energy: 1.0, ..start };
-    /// let restoration = fit.spin_restoring_velocity(&start);
-    /// assert_eq!(restoration.angular_velocity, Point::zeros());
-    /// assert_eq!(restoration.axes_left, 1);
-    /// ```
-    pub fn spin_restoring_velocity(&self, start: &SpinAtStart) -> SpinRestoration {
-        let Some((axes, eigenvalues)) = self.principal_axes() else {
-            return SpinRestoration {
-                angular_velocity: Point::zeros(),
-                axes_left: 0,
-            };
-        };
-        let cutoff = INERTIA_RELATIVE_CUTOFF * eigenvalues.max();
-        let mut speed_now_squared = 0.0;
-        // (turn, cost) per axis; zero for axes below the cutoff.
-        let mut turns = [(Point::zeros(), 0.0); 3];
-        for ((turn, axis), &lambda) in turns.iter_mut().zip(axes.column_iter()).zip(&eigenvalues) {
-            if lambda > cutoff {
-                let current = axis.dot(&self.angular_momentum);
-                let wanted = axis.dot(&start.angular_momentum);
-                speed_now_squared += (current / lambda).powi(2);
-                *turn = (
-                    axis * ((wanted - current) / lambda),
-                    (wanted * wanted - current * current) / (2.0 * lambda),
-                );
-            }
-        }
-        let speed_limit =
-            SPIN_RESTORE_SPEED_FACTOR * (start.angular_speed + speed_now_squared.sqrt());
-        let energy_limit = SPIN_RESTORE_ENERGY_FRACTION * start.kinetic_energy;
-        let mut restoration = SpinRestoration {
-            angular_velocity: Point::zeros(),
-            axes_left: 0,
-        };
-        for (turn, cost) in &turns {
-            if turn.norm() <= speed_limit || *cost <= energy_limit {
-                restoration.angular_velocity += turn;
-            } else {
-                restoration.axes_left += 1;
-            }
-        }
-        restoration
-    }
-
     /// The principal axes (columns) and moments of `I`, or `None` when `I`
     /// is zero, not finite or the eigensolver fails.
     fn principal_axes(&self) -> Option<(Matrix3<f64>, Point)> {
@@ -525,31 +395,6 @@ mod tests {
         let solved = fit.solve_inertia(&Point::new(5.0, 3.0, -4.0));
         let error = (solved - Point::new(0.0, 1.5, -2.0)).norm();
         assert!(error <= 8.0 * f64::EPSILON * 2.0, "{solved:?}");
-    }
-
-    #[test]
-    fn fast_but_cheap_restoration_is_kept_and_fast_costly_one_left() {
-        // Two unit masses 2 m apart at rest (inertia 2 kg m^2 about z) that
-        // had J = 4 kg m^2/s: restoring it turns at 2 rad/s and costs 4 J.
-        let positions = [Point::new(-1.0, 0.0, 0.0), Point::new(1.0, 0.0, 0.0)];
-        let fit = RigidFit::of(&[0, 1], &[1.0, 1.0], &positions, &[Point::zeros(); 2]);
-        let slow = SpinAtStart {
-            angular_momentum: Point::new(0.0, 0.0, 4.0),
-            angular_speed: 0.5,
-            kinetic_energy: 4.0 / SPIN_RESTORE_ENERGY_FRACTION,
-        };
-        // 2 rad/s > 2 x 0.5 rad/s, but 4 J is within the energy fraction.
-        let kept = fit.spin_restoring_velocity(&slow);
-        assert_eq!(kept.axes_left, 0);
-        assert!((kept.angular_velocity - Point::new(0.0, 0.0, 2.0)).norm() < 1e-14);
-        // Just over the fraction: left alone.
-        let costly = SpinAtStart {
-            kinetic_energy: 0.99 * slow.kinetic_energy,
-            ..slow
-        };
-        let left = fit.spin_restoring_velocity(&costly);
-        assert_eq!(left.axes_left, 1);
-        assert_eq!(left.angular_velocity, Point::zeros());
     }
 
     #[test]

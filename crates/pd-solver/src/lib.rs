@@ -47,6 +47,7 @@ mod method_choice;
 mod model;
 mod phases;
 mod projection_scatter;
+mod rotation;
 mod settings;
 mod simulation;
 mod step;

@@ -59,11 +59,6 @@ pub struct StepStats {
     pub factor_seconds: f64,
     /// Wall time of the whole step, s.
     pub total_seconds: f64,
-    /// Principal axes (summed over the bodies) about which the
-    /// rotation-preserving Laplacian damping left the spin alone instead of
-    /// restoring it, because restoring it would have turned the body far
-    /// faster than it turns (docs/design/damping.md). Always 0 with other models.
-    pub spin_axes_left: usize,
     /// Contacts active at the end of the step (0 without colliders).
     pub contacts: usize,
     /// Deepest penetration of a vertex into a collider thickened by the
@@ -261,6 +256,15 @@ impl Simulation {
             global.set_damping_weights(per_body, d, &bodies)?;
         }
         let topology = Topology::of(&model, local.blocks());
+        if damping.preserves_rotation() {
+            let body_of = |rigid: usize| {
+                let first = topology.rigid_bodies[rigid].vertices[0];
+                topology.bodies.iter().position(|b| b.contains(&first))
+            };
+            global.set_rotation_projection(&topology.rigid_bodies, |rigid| {
+                body_of(rigid).is_some_and(|b| damping.preserves_rotation_of_body(b))
+            })?;
+        }
         let setup = SetupStats {
             analysis_seconds: analysis_start.elapsed().as_secs_f64(),
             ..SetupStats::default()
@@ -713,10 +717,9 @@ impl Simulation {
         {
             self.setup.factorisations += 1;
         }
-        self.global.solve(rhs);
-        for (f, out) in rhs.iter_mut().enumerate() {
-            *out = self.global.solution(f);
-        }
+        // `A` itself: a rotation-preserving damping's projection belongs to
+        // the step's own coefficients.
+        self.global.solve_unprojected(rhs);
         Ok(())
     }
 }

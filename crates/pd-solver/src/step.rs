@@ -9,7 +9,7 @@
 //! 3. the iteration ([`PositionSolver`]): how the step's positions are
 //!    found, local-global by default;
 //! 4. [`Simulation::finish_step`]: the integrator's velocity update, the
-//!    damping model's end of step (velocity filters, spin restoration), the
+//!    damping model's end of step (velocity filters), the
 //!    divergence check, and the new state.
 
 pub(crate) mod anderson;
@@ -37,7 +37,7 @@ use std::time::Instant;
 
 use divergence::StepState;
 use pd_constraints::EnergyBound;
-use pd_damping::{DampingContext, DampingReport, DampingTargets, StepContext};
+use pd_damping::{DampingContext, DampingTargets, StepContext};
 use pd_integrators::StepTargets;
 use pd_mesh::Point;
 
@@ -207,6 +207,17 @@ impl Simulation {
                 &mut s.forces,
             ),
         );
+        let motion = crate::rotation::StepMotion {
+            positions: x_n,
+            masses,
+            inertial_displacement: &s.targets.inertial_displacement,
+            turn_time: c.c2,
+        };
+        self.global.prepare_rotation(
+            &self.topology.rigid_bodies,
+            motion,
+            SystemCoefficients::of(c, self.damping.implicit_matrix(), h),
+        );
         let input = RhsInput {
             masses,
             positions: x_n,
@@ -239,8 +250,14 @@ impl Simulation {
             // With an accuracy target, the collider contacts are solved
             // against the constant matrix's response (docs/design/contact.md,
             // "Friction with an accuracy target"); a fixed iteration count
-            // keeps the one Uzawa step per iteration.
-            contact.set_delassus(self.settings.accuracy > 0.0 && self.global.is_constant());
+            // keeps the one Uzawa step per iteration, and so does a step
+            // whose matrix carries the rotation-preserving projection (its
+            // response is not the factor's alone).
+            contact.set_delassus(
+                self.settings.accuracy > 0.0
+                    && self.global.is_constant()
+                    && !self.global.projects_rotations(),
+            );
         }
     }
 
@@ -347,23 +364,21 @@ impl Simulation {
         let stencil = self.integrator.damping_stencil();
         let context = step_context(&self.topology, (masses, fixed), h, c, stencil);
         // The integrator sees what the damping model changed (a velocity
-        // filter, the variant's spin restoration), so that a multistep
+        // filter), so that a multistep
         // history follows it (docs/design/integrators.md).
         let damping = &mut self.damping;
         let iterate = &s.iterate;
         #[cfg(feature = "contact")]
         let contact = self.contact.as_ref();
-        let mut report = DampingReport::default();
         self.integrator
             .filter_velocities(h, &mut s.velocities, &mut |velocities| {
-                report = damping.end_step(&context, iterate, velocities);
+                damping.end_step(&context, iterate, velocities);
                 #[cfg(feature = "contact")]
                 if let Some(contact) = contact {
                     contact.filter_velocities(velocities);
                 }
                 zero_fixed(velocities, fixed);
             });
-        stats.spin_axes_left = report.spin_axes_left;
         // An impact sets its vertices' end velocity (from the restitution,
         // or to rest against the collider), not the motion a multistep
         // history remembers: that history would carry the approach velocity

@@ -18,6 +18,7 @@ use crate::SolverError;
 use crate::global::{GlobalSystem, MatrixCoefficients};
 use crate::lagged::LaggedSystem;
 use crate::local::LocalStep;
+use crate::rotation::{RotationProjection, StepMotion};
 use crate::weights::DampingWeights;
 
 /// The matrix of the coming step and its factorisation.
@@ -87,6 +88,9 @@ pub(crate) struct GlobalStep {
     /// Columns of the constant matrix's inverse, for the contact solve of
     /// steps with an accuracy target.
     columns: InverseColumns,
+    /// The rotation-preserving damping's projection, when the damping model
+    /// asks for it (`rotation.rs`).
+    rotation: Option<RotationProjection>,
 }
 
 /// Columns of `A^-1` kept beyond the current contacts'
@@ -132,7 +136,68 @@ impl GlobalStep {
             system,
             matrix,
             columns: InverseColumns::default(),
+            rotation: None,
         })
+    }
+
+    /// Makes the step damp `(I - P)^T L_d (I - P)` instead of `L_d` for the
+    /// components among `rigid` for which `projected` says yes
+    /// (`rotation.rs`); each step then builds `P` at its start
+    /// ([`GlobalStep::prepare_rotation`]).
+    ///
+    /// # Errors
+    /// [`SolverError::Unsupported`] naming `damping.preserve_rotation` for a
+    /// lagged step matrix or constraints coupling components.
+    pub fn set_rotation_projection(
+        &mut self,
+        rigid: &[pd_damping::rigid::RigidBody],
+        projected: impl Fn(usize) -> bool,
+    ) -> Result<(), SolverError> {
+        if matches!(self.matrix, StepMatrix::Lagged(_)) {
+            return Err(SolverError::Unsupported {
+                what: "damping.preserve_rotation with a lagged damping term: the projection \
+                       needs the prefactored step matrix"
+                    .into(),
+            });
+        }
+        self.rotation = Some(RotationProjection::new(&self.system, rigid, projected)?);
+        Ok(())
+    }
+
+    /// Whether the step damps the projected `L_d` (a rotation-preserving
+    /// damping model).
+    pub fn projects_rotations(&self) -> bool {
+        self.rotation.is_some()
+    }
+
+    /// Builds this step's projection from `motion` for the step matrix
+    /// `coefficients` (prepared). Does nothing without
+    /// [`GlobalStep::set_rotation_projection`].
+    pub fn prepare_rotation(
+        &mut self,
+        rigid: &[pd_damping::rigid::RigidBody],
+        motion: StepMotion<'_>,
+        coefficients: SystemCoefficients,
+    ) {
+        let Some(rotation) = &mut self.rotation else {
+            return;
+        };
+        let StepMatrix::Constant { factor, .. } = &self.matrix else {
+            return;
+        };
+        let factor = *factor;
+        let system = &mut self.system;
+        let weights = system.weights.as_ref();
+        let solves = rotation.begin_update(system, rigid, motion, coefficients.matrix, |v| {
+            weights.map_or((1.0, 1.0), |w| (w.mass[v], w.laplacian[v]))
+        });
+        if let Some((m, l)) = solves {
+            system.solve_points(factor, m);
+            if let Some(l) = l {
+                system.solve_points(factor, l);
+            }
+            rotation.finish_update();
+        }
     }
 
     /// Scales the damping terms per body (a per-body damping model:
@@ -346,6 +411,10 @@ impl GlobalStep {
             }
             *out = b;
         });
+        if use_damping_laplacian && let Some(rotation) = &self.rotation {
+            // The projected operator: c (I - P)^T L_d (I - P) on the anchor.
+            rotation.add_product_correction(system, laplacian_anchor, out);
+        }
         if let StepMatrix::Lagged(lagged) = &self.matrix {
             // + c1 c2 gamma a3 K(x_n) (x_hat - x_n), on every vertex, then
             // gathered to the free ones.
@@ -380,6 +449,23 @@ impl GlobalStep {
             .rhs(constant, projections, energy_factor, out);
     }
 
+    /// Solves with the step matrix `A` alone, without the rotation-preserving
+    /// damping's projection (for another matrix than the step's, whose
+    /// projection would not match), in place; as [`GlobalStep::solve`]
+    /// otherwise. Constant matrices only: a lagged one is solved as
+    /// [`GlobalStep::solve`] does.
+    pub fn solve_unprojected(&mut self, rhs: &mut [Point]) {
+        match &mut self.matrix {
+            StepMatrix::Constant { factor, .. } => self.system.solve_points(*factor, rhs),
+            StepMatrix::Lagged(lagged) => {
+                lagged.solve(rhs);
+                for (f, out) in rhs.iter_mut().enumerate() {
+                    *out = lagged.solution(f);
+                }
+            }
+        }
+    }
+
     /// Solves the step's system for `rhs` (one point per free vertex);
     /// [`GlobalStep::solution`] reads the result. Requires a
     /// [`GlobalStep::prepare`] since the last change of coefficients.
@@ -391,6 +477,9 @@ impl GlobalStep {
             } => {
                 points.copy_from_slice(rhs);
                 self.system.solve_points(*factor, points);
+                if let Some(rotation) = &self.rotation {
+                    rotation.correct_solution(points);
+                }
             }
             StepMatrix::Lagged(lagged) => lagged.solve(rhs),
         }
@@ -443,6 +532,24 @@ impl GlobalStep {
         match &self.matrix {
             StepMatrix::Constant { rhs, .. } => rhs[f],
             StepMatrix::Lagged(lagged) => lagged.solution(f),
+        }
+    }
+
+    /// `w <- (I - P) w` (`w` by vertex) with the rotation-preserving
+    /// damping's projection of this step; nothing without one.
+    pub fn project_rotations(&self, w: &mut [Point]) {
+        if let Some(rotation) = &self.rotation {
+            rotation.project(w);
+        }
+    }
+
+    /// `out <- out - c U C U^T w` on the free rows: turns a product `A w`
+    /// (one point per free vertex; `w` by vertex, zero at fixed vertices)
+    /// into the projected step matrix's `A' w`; nothing without a
+    /// rotation-preserving damping.
+    pub fn correct_product(&self, w: &[Point], out: &mut [Point]) {
+        if let Some(rotation) = &self.rotation {
+            rotation.add_product_correction(&self.system, w, out);
         }
     }
 

@@ -26,17 +26,13 @@
 //!   `c2` in the local step) breaks the match. PBD damping
 //!   keeps `J` exactly (`prop_velocity_filters.rs`: the filter keeps each
 //!   component's momenta, and it runs after the positions are final).
-//! - **Rotation-preserving Laplacian damping** (any integrator, any
-//!   iteration count): the solver gives each free body back the spin it had
-//!   at the start of the step, and `L_d`'s zero column sums keep each body's
-//!   momentum `P_b`; each integrator moves the body's centre of mass along
-//!   `P_b` (`sum m x1 = sum m x0 + h P_b`, for BDF-2 from its recurrence), so
-//!   the orbital part `x_cm x P_b` is constant too: `J` is kept to round-off.
-//!   Except where the solver's guard leaves an axis alone
-//!   (`StepStats::spin_axes_left`): restoring a spin component about an axis
-//!   where a nearly straight chain has almost no inertia would take
-//!   unbounded energy (docs/design/damping.md). Such runs are exempt from the
-//!   check, and the test asserts that the guard never acts on a tet box.
+//! - **Rotation-preserving Laplacian damping** (implicit midpoint solved to
+//!   convergence): the projected damping exerts no torque about the lever
+//!   arms of the rotation the step predicts, and none at all on a rigid
+//!   rotation, so `J` is kept up to the torque that the deformation within a
+//!   step (between those lever arms and the body's own) leaves: the test
+//!   bounds the relative drift over 6 steps by 1e-3, where plain Laplacian
+//!   damping loses far more on a tet box.
 //! - **Plain Laplacian damping** loses spin: `v^T L_d v > 0` for a rigid
 //!   rotation (docs/design/formulation.md, "Rigid rotation under Laplacian
 //!   damping"), so the damping torque opposes the rotation.
@@ -49,10 +45,8 @@
 mod common;
 mod prop_common;
 
-use common::{SCHEMES, U, laplacian_norm};
-use nalgebra::SymmetricEigen;
+use common::{U, laplacian_norm};
 use pd_constraints::assembly::{self, LaplacianKind};
-use pd_damping::rigid::RigidFit;
 use pd_damping::{LaplacianDamping, NoDamping};
 use pd_integrators::{BackwardEuler, ImplicitMidpoint, Integrator};
 use pd_mesh::Point;
@@ -245,31 +239,6 @@ fn angular_momentum(masses: &[f64], positions: &[Point], velocities: &[Point]) -
         .sum()
 }
 
-/// Largest condition number of the non-zero part of a body's inertia over
-/// the current state (1 for none).
-fn worst_inertia_condition(sim: &Simulation) -> f64 {
-    let masses = sim.model().masses();
-    let state = sim.state();
-    sim.model()
-        .bodies()
-        .iter()
-        .map(|b| {
-            let vertices: Vec<usize> = b.vertices().collect();
-            let fit = RigidFit::of(&vertices, masses, &state.positions, &state.velocities);
-            let eigen = SymmetricEigen::new(fit.inertia);
-            let largest = eigen.eigenvalues.max();
-            let cutoff = pd_damping::rigid::INERTIA_RELATIVE_CUTOFF * largest;
-            let smallest = eigen
-                .eigenvalues
-                .iter()
-                .copied()
-                .filter(|&e| e > cutoff)
-                .fold(f64::INFINITY, f64::min);
-            largest / smallest
-        })
-        .fold(1.0, f64::max)
-}
-
 /// `sum m |x| |v|`: the scale of `J`'s round-off.
 fn moment_scale(sim: &Simulation) -> f64 {
     let s = sim.state();
@@ -318,24 +287,27 @@ proptest! {
 
     #[test]
     fn rotation_preserving_laplacian_damping_keeps_angular_momentum(
-        scene in scene(1e1..1e4, 2.0),
+        cells in (1usize..=2, 1usize..=2, 1usize..=2),
+        seed in 0u64..1000,
+        stiffness in 1e2..1e4f64,
+        masses in proptest::collection::vec(0.1..10.0f64, 27),
+        velocities in prop_common::points(27, 0.5),
         spin in prop_common::points(1, 3.0),
         damping_stiffness in 0.0..0.1f64,
         dt in 1e-3..0.02f64,
-        iterations in 1usize..=10,
     ) {
-        for scheme in SCHEMES {
-            let (ratio, axes_left) =
-                spin_error_ratio(&scene, scheme, spin[0], damping_stiffness, true, dt, iterations)?;
-            if axes_left == 0 {
-                prop_assert!(ratio <= 1.0, "{scheme:?}: |J - J0| is {ratio} times its tolerance");
-            } else {
-                prop_assert!(
-                    !matches!(scene.shape, Shape::Box { .. }),
-                    "{scheme:?}: the guard left {axes_left} spin axes of a tet box alone"
-                );
-            }
-        }
+        // Tet boxes: bodies with a rigid motion to keep (a chain of springs
+        // bends freely, so the rotation a step predicts says little of its
+        // motion within the step).
+        let scene = Scene {
+            shape: Shape::Box { cells: [cells.0, cells.1, cells.2] },
+            seed,
+            stiffness,
+            masses,
+            velocities,
+        };
+        let drift = spin_drift(&scene, spin[0], damping_stiffness, true, dt)?;
+        prop_assert!(drift <= SPIN_DRIFT_BOUND, "|J - J0| / |J0| = {drift:e}");
     }
 
     #[test]
@@ -401,30 +373,35 @@ fn converged_midpoint_bound_is_far_below_backward_euler_loss() {
     );
 }
 
-/// Runs 6 steps of `scene` plus a rigid `spin` (rad/s) with Laplacian
-/// damping and returns the largest `|J - J0|` over its round-off tolerance,
-/// and how many spin axes the solver's guard left alone.
-fn spin_error_ratio(
+/// The bound on the relative angular momentum drift of the rotation-
+/// preserving variant over 6 converged implicit-midpoint steps: the torque
+/// the deformation within a step leaves is of the order of the damping
+/// force times the deformation: measured at most 2.2e-4 over 240 random
+/// boxes (3e-5 on the spinning, wobbling beam of
+/// `rotation_preserving_damping.rs`); plain Laplacian damping drifts by 0.17
+/// on the control box below.
+const SPIN_DRIFT_BOUND: f64 = 1e-3;
+
+/// Runs 6 converged implicit-midpoint steps of `scene` plus a rigid `spin`
+/// (rad/s) with Laplacian damping and returns the largest `|J - J0| /
+/// |J0|` (`J` about the origin).
+fn spin_drift(
     scene: &Scene,
-    scheme: common::Scheme,
     spin: Point,
     damping_stiffness: f64,
     preserve_rotation: bool,
     dt: f64,
-    iterations: usize,
-) -> Result<(f64, usize), TestCaseError> {
+) -> Result<f64, TestCaseError> {
     let model = scene.model(Material::Elastic, false);
     let n = model.num_vertices();
     let bodies = model.bodies().len();
     let damping =
         Box::new(LaplacianDamping::new(damping_stiffness, 0.0, preserve_rotation).unwrap());
-    let mut sim = Simulation::new(
-        model,
-        scheme.integrator(),
-        damping,
-        settings(dt, iterations, false),
-    )
-    .unwrap();
+    let converged = Settings {
+        tolerance: 1e-12,
+        ..settings(dt, 5000, false)
+    };
+    let mut sim = Simulation::new(model, Box::new(ImplicitMidpoint), damping, converged).unwrap();
     let positions = sim.state().positions.clone();
     sim.set_state(State {
         positions,
@@ -436,33 +413,17 @@ fn spin_error_ratio(
     }
     let j0 = sim.angular_momentum();
     let mut worst = 0.0f64;
-    let mut axes_left = 0;
     for step in 1..=6 {
-        let kappa_before = worst_inertia_condition(&sim);
-        let scale_before = moment_scale(&sim);
-        axes_left += sim
-            .step()
-            .map_err(|e| TestCaseError::fail(format!("{scheme:?} step {step}: {e}")))?
-            .spin_axes_left;
-        // The restoration solves with the inertia after the step, which for
-        // a chain straight at the start is no longer singular.
-        let kappa = kappa_before.max(worst_inertia_condition(&sim));
-        // J's sums and the spin restoration `I^+ (S0 - S)`, whose solve
-        // rounds by `kappa u` relatively, accumulated over the steps.
-        let tolerance = 64.0
-            * U
-            * n as f64
-            * (1.0 + kappa)
-            * scale_before.max(moment_scale(&sim))
-            * step as f64;
-        worst = worst.max((sim.angular_momentum() - j0).norm() / tolerance);
+        sim.step()
+            .map_err(|e| TestCaseError::fail(format!("step {step}: {e}")))?;
+        worst = worst.max((sim.angular_momentum() - j0).norm());
     }
-    Ok((worst, axes_left))
+    Ok(worst / j0.norm().max(f64::MIN_POSITIVE))
 }
 
 #[test]
 fn plain_laplacian_damping_fails_the_rotation_preserving_check() {
-    // The control: without the restoration the same check fails by far.
+    // The control: without the projection the same check fails by far.
     let scene = Scene {
         shape: Shape::Box { cells: [2, 1, 1] },
         seed: 8,
@@ -471,14 +432,9 @@ fn plain_laplacian_damping_fails_the_rotation_preserving_check() {
         velocities: vec![Point::zeros(); 27],
     };
     let spin = Point::new(0.3, 1.0, -0.5);
-    for scheme in SCHEMES {
-        let (kept, axes_left) =
-            spin_error_ratio(&scene, scheme, spin, 0.01, true, 0.01, 5).unwrap();
-        assert!(
-            kept <= 1.0 && axes_left == 0,
-            "{scheme:?}: {kept}, {axes_left}"
-        );
-        let (lost, _) = spin_error_ratio(&scene, scheme, spin, 0.01, false, 0.01, 5).unwrap();
-        assert!(lost > 1e3, "{scheme:?}: {lost}");
-    }
+    let kept = spin_drift(&scene, spin, 0.01, true, 0.01).unwrap();
+    let lost = spin_drift(&scene, spin, 0.01, false, 0.01).unwrap();
+    eprintln!("drift: variant {kept:e}, plain {lost:e}");
+    assert!(kept <= SPIN_DRIFT_BOUND, "variant drift {kept:e}");
+    assert!(lost > 10.0 * SPIN_DRIFT_BOUND, "plain drift {lost:e}");
 }

@@ -58,6 +58,17 @@ impl Simulation {
                 ),
             });
         }
+        if self.global.projects_rotations()
+            && !self.position_solver.handles_rotation_preserving_damping()
+        {
+            return Err(SolverError::Unsupported {
+                what: format!(
+                    "solver method \"{name}\" with rotation-preserving damping \
+                     (damping.preserve_rotation = true): its own matrix does not hold the \
+                     projected damping; use another method or preserve_rotation = false"
+                ),
+            });
+        }
         if self.damping.implicit_matrix().has_series()
             && !self.position_solver.handles_series_damping()
         {

@@ -73,6 +73,16 @@ pub trait PositionSolver: std::fmt::Debug + Send + Sync {
         true
     }
 
+    /// Whether the method runs with rotation-preserving Laplacian damping
+    /// (`preserve_rotation`), whose step matrix is the prefactored one
+    /// minus a low-rank term per body, applied inside the global solve
+    /// (docs/design/damping.md). A method that only solves with the step
+    /// matrix, or also corrects its own products with it, does (the
+    /// default); one that assembles its own matrix must say no.
+    fn handles_rotation_preserving_damping(&self) -> bool {
+        true
+    }
+
     /// Whether the method runs with a Caughey series damping (`a3 L_d
     /// M^-1 L_d + ...`), whose terms live only in the prefactored matrix's
     /// wider pattern. The default says yes.

@@ -505,6 +505,11 @@ impl PositionSolver for KrylovProbe {
         "krylov-probe"
     }
 
+    /// Its products use the plain step matrix and Hessian.
+    fn handles_rotation_preserving_damping(&self) -> bool {
+        false
+    }
+
     fn find_positions(&mut self, step: &mut StepProblem<'_>) -> Result<(), SolverError> {
         let record = Arc::clone(&self.record);
         let mut record = record.lock().map_err(|_| SolverError::Unsupported {

@@ -136,6 +136,8 @@ impl Lbfgs {
     fn gradient(&mut self, step: &StepProblem<'_>) {
         let system = step.global.system();
         super::newton::symmetric_product(system, &self.values, &self.update[0], &mut self.product);
+        step.global
+            .correct_product(&self.update[0], &mut self.product);
         let gradient = &mut self.gradient[0];
         gradient.iter_mut().for_each(|g| *g = Point::zeros());
         for (f, &v) in system.free.iter().enumerate() {

@@ -180,6 +180,12 @@ impl PositionSolver for Newton {
         false
     }
 
+    /// Its Hessian holds the plain `L_d`, and its gradient the plain step
+    /// matrix's product, not the projected ones.
+    fn handles_rotation_preserving_damping(&self) -> bool {
+        false
+    }
+
     /// Its Hessian is built on the `L_sys` pattern from the three base
     /// parts, without the series' terms.
     fn handles_series_damping(&self) -> bool {

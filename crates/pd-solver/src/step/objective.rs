@@ -50,6 +50,8 @@ pub(crate) fn objective_with(
         mass_form += masses[v] * offset[v].norm_squared() * mass_weight(v);
     }
     let laplacian_form = if d.damping_laplacian != 0.0 {
+        // Rotation-preserving damping measures (I - P)(x - x_hat) instead.
+        problem.global.project_rotations(laplacian_offset);
         problem.global.damping_laplacian_form(laplacian_offset)
     } else {
         0.0

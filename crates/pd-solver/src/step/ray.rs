@@ -113,6 +113,7 @@ impl RayCheck {
         }
         let dx = &step.buffers.displacement;
         super::newton::symmetric_product(system, &self.values, dx, &mut self.product);
+        step.global.correct_product(dx, &mut self.product);
         step.rhs_from_projections();
         let b = &*step.buffers;
         let system = step.global.system();

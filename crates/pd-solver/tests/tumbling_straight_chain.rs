@@ -1,27 +1,26 @@
-//! The guard of the rotation-preserving Laplacian variant (docs/design/damping.md):
-//! a nearly straight chain has almost no inertia about itself, and giving
-//! back a spin component that the chain's turning moved onto that axis takes
-//! an unbounded angular velocity.
+//! A nearly straight chain under rotation-preserving Laplacian damping
+//! (docs/design/damping.md): it has almost no inertia about itself
+//! (`lambda = 2e-8 kg m^2` against 0.56), so the projection on its rotations
+//! has a column of nearly zero length, which `P = R G^-1 R^T M` must handle
+//! without blowing up.
 //!
-//! The scene is the counterexample proptest found in CI
+//! The scene is a counterexample proptest found in CI
 //! (`damped_momentum.proptest-regressions`): a 3-vertex spring chain with
 //! masses 5.44, 3.77 and 0.01 kg, thrown with a tumble, backward Euler with
-//! 6 iterations, Laplacian damping `a2 = 0.06 s`, `a1 = 29.3 1/s`. Before the
-//! guard, restoring the spin exactly took the energy from 15.2 J to
-//! 2.7e5 J in three steps and the run stopped with the divergence error.
+//! 6 iterations, Laplacian damping `a2 = 0.06 s`, `a1 = 29.3 1/s`. Restoring
+//! the spin after the step, as an earlier form of the variant did, took the
+//! energy from 15.2 J to 2.7e5 J in three steps.
 //!
-//! What is asserted: the run completes, the guard acts (it is the guard, not
-//! luck, that keeps the run finite), and, since backward Euler with a
-//! dissipative model, and a restoration that only gives back lost spin,
-//! should not gain energy, the total energy never rises above its starting
-//! value (tolerance zero: the measured margin is large, see below).
+//! What is asserted: the run completes and, backward Euler with a
+//! dissipative model, the total energy never rises above its starting value
+//! (tolerance zero: the measured margin is large, see below).
 
 use pd_damping::{Damping, LaplacianDamping};
 use pd_integrators::BackwardEuler;
 use pd_mesh::{Point, generators};
 use pd_solver::{Model, Settings, Simulation, State};
 
-fn run(mass_rate: f64, steps: usize) -> (Vec<f64>, usize) {
+fn run(mass_rate: f64, steps: usize) -> Vec<f64> {
     let mut model = Model::new();
     let chain = generators::chain(3, 1.0).unwrap();
     let body = model
@@ -49,26 +48,24 @@ fn run(mass_rate: f64, steps: usize) -> (Vec<f64>, usize) {
     })
     .unwrap();
     let mut energies = vec![sim.energies().total()];
-    let mut axes_left = 0;
     for step in 1..=steps {
-        let stats = sim
-            .step()
+        sim.step()
             .unwrap_or_else(|e| panic!("a1 = {mass_rate}, step {step}: {e}"));
-        axes_left += stats.spin_axes_left;
         energies.push(sim.energies().total());
     }
-    (energies, axes_left)
+    energies
 }
 
 #[test]
 fn nearly_straight_tumbling_chain_neither_diverges_nor_gains_energy() {
-    // With the mass term (the counterexample) and without it. Measured over
-    // 200 steps: the guard left the chain's own axis alone in 198 steps of
-    // each run; the energy never exceeded the initial 15.214 J and ended at
-    // 9.99 J (a1 = 29.3) and 14.11 J (a1 = 0).
+    // With the mass term (the counterexample) and without it.
     for mass_rate in [29.267851564150007, 0.0] {
-        let (energies, axes_left) = run(mass_rate, 200);
-        assert!(axes_left > 0, "a1 = {mass_rate}: the guard never acted");
+        let energies = run(mass_rate, 200);
+        eprintln!(
+            "a1 = {mass_rate}: energy {:.4} J at the start, {:.4} J at the end",
+            energies[0],
+            energies[energies.len() - 1]
+        );
         let start = energies[0];
         for (step, energy) in energies.iter().enumerate() {
             assert!(
