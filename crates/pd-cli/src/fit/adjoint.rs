@@ -60,7 +60,7 @@ fn ratio_chain(problem: &Problem) -> Result<(Vec<Parameter>, Vec<Vec<f64>>), Str
         .collect();
     if !others.is_empty() {
         return Err(format!(
-            "damping ratios are fitted together with {}: a stiffness or a density moves the              modes the ratios are fitted on, and another damping value enters the same fit              (their derivatives through the modes are not implemented)",
+            "damping ratios are fitted together with {}: a stiffness or a density moves the modes the ratios are fitted on, and another damping value enters the same fit (their derivatives through the modes are not implemented)",
             others.join(", ")
         ));
     }
@@ -71,7 +71,7 @@ fn ratio_chain(problem: &Problem) -> Result<(Vec<Parameter>, Vec<Vec<f64>>), Str
         .is_some()
     {
         return Err(
-            "a band's ratio: which series terms the band fit keeps changes with the ratio, so              the coefficients are not a smooth function of it"
+            "a band's ratio: which series terms the band fit keeps changes with the ratio, so the coefficients are not a smooth function of it"
                 .into(),
         );
     }
