@@ -173,11 +173,13 @@ fn probe_ms(run: &TargetRun, method: &str) -> Option<f64> {
 }
 
 /// The section's Markdown.
-pub fn markdown(runs: &[AccuracyTarget]) -> String {
+/// `note` (from `bench_report::remeasured_note`) goes under the heading.
+pub fn markdown(runs: &[AccuracyTarget], note: &str) -> String {
     let mut md = String::from("## Speed against an accuracy target\n\n");
     if runs.is_empty() {
         return md;
     }
+    md.push_str(note);
     let _ = writeln!(
         md,
         "With `[simulation] accuracy = e` each step iterates until its own estimate of its \
@@ -501,7 +503,7 @@ mod tests {
             }],
             ..AccuracyTarget::default()
         };
-        let md = markdown(&[run]);
+        let md = markdown(&[run], "");
         assert!(
             md.contains(
                 "| beam 20 | 0.01 | chebyshev | 12 | anderson | 3.00 | 2.00 | 1.50 | **no** |"

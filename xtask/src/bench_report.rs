@@ -57,7 +57,7 @@ pub struct SectionRun {
 
 /// The sections `bench-report --only` can measure again on their own,
 /// keeping the rest of the stored report.
-pub const SECTIONS_ALONE: &[&str] = &["python", "gradients"];
+pub const SECTIONS_ALONE: &[&str] = &["python", "gradients", "accuracy-target"];
 
 /// One pair of `pd-probe phases` runs, on 1 and on 2 threads.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -452,7 +452,7 @@ pub fn run(root: &Path, quick: bool, meshes: &[PathBuf]) -> Result<PathBuf, Stri
 ///
 /// # Errors
 /// An unknown section, no stored report, or a failed measurement.
-pub fn run_only(root: &Path, names: &[String]) -> Result<PathBuf, String> {
+pub fn run_only(root: &Path, names: &[String], meshes: &[PathBuf]) -> Result<PathBuf, String> {
     if let Some(unknown) = names.iter().find(|n| !SECTIONS_ALONE.contains(&n.as_str())) {
         return Err(format!(
             "--only: unknown section {unknown:?}; sections measured alone: {}",
@@ -479,6 +479,11 @@ pub fn run_only(root: &Path, names: &[String]) -> Result<PathBuf, String> {
         match name.as_str() {
             "python" => report.python = Some(crate::bench_python::measure(root, 9)),
             "gradients" => report.gradients = crate::bench_gradients::measure(root, false)?,
+            "accuracy-target" => {
+                let probe_path = build_probe(root)?;
+                let p = |a: Vec<String>| probe(&probe_path, &a);
+                report.accuracy_target = crate::bench_accuracy_target::measure(&p, false, meshes)?;
+            }
             _ => {}
         }
         report.remeasured.insert(name.clone(), run);
@@ -716,7 +721,10 @@ fn markdown(r: &Report) -> String {
 
     md.push_str(&crate::bench_methods::markdown(&r.methods));
     if !r.accuracy_target.is_empty() {
-        md.push_str(&crate::bench_accuracy_target::markdown(&r.accuracy_target));
+        md.push_str(&crate::bench_accuracy_target::markdown(
+            &r.accuracy_target,
+            &remeasured_note(r, "accuracy-target"),
+        ));
     }
     md.push_str(&crate::bench_contact::markdown(&r.contact));
     if !r.gradients.is_empty() {

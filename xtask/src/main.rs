@@ -32,7 +32,7 @@ mod stability_contact;
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 
-const USAGE: &str = "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy and docs (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/reports/damping-table.md\n  bench-report [--quick] [--mesh BASE]...\n                            speed/accuracy/scaling/limits report: docs/reports/bench-report.md\n  bench-report --only SECTION[,SECTION]\n                            measure those sections again (python, gradients), keep the rest\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N] [--mesh BASE]...\n                            pd vs the C++ reference: docs/reports/cpp-comparison.md\n  stability [--quick] [--shard I/N [--out DIR] | --merge DIR]\n                            run the matrix of extreme parameters (or one shard of it, or merge shards), write docs/reports/stability.md (use --release)\n  stability --only contact  the contact axis alone (dev profile), write docs/reports/stability-contact.md\n  stability --only methods [--integrator I] [--predictor P]\n                            the method axis (docs/reports/stability-methods.md)";
+const USAGE: &str = "usage: cargo xtask <task>\n\ntasks:\n  ci                        format check, clippy and docs (warnings are errors), all tests\n  damping-table [--quick]   measure every damping model, write docs/reports/damping-table.md\n  bench-report [--quick] [--mesh BASE]...\n                            speed/accuracy/scaling/limits report: docs/reports/bench-report.md\n  bench-report --only SECTION[,SECTION]\n                            measure those sections again (python, gradients, accuracy-target), keep the rest\n  cpp-compare --reference PATH_TO_PDREF [--quick] [--repeat N] [--mesh BASE]...\n                            pd vs the C++ reference: docs/reports/cpp-comparison.md\n  stability [--quick] [--shard I/N [--out DIR] | --merge DIR]\n                            run the matrix of extreme parameters (or one shard of it, or merge shards), write docs/reports/stability.md (use --release)\n  stability --only contact  the contact axis alone (dev profile), write docs/reports/stability-contact.md\n  stability --only methods [--integrator I] [--predictor P]\n                            the method axis (docs/reports/stability-methods.md)";
 
 /// The options each task takes: those without a value, and those whose
 /// value is the next argument.
@@ -117,13 +117,9 @@ fn main() -> ExitCode {
         )),
         "bench-report" => {
             let root = workspace_root();
-            // `--only a,b`: measure those sections again, keep the rest.
-            if let Some(only) = args.windows(2).find(|w| w[0] == "--only") {
-                let names: Vec<String> = only[1].split(',').map(str::to_string).collect();
-                return report(bench_report::run_only(&root, &names));
-            }
             // `--mesh BASE` (repeatable): TetGen meshes for the "Real meshes"
-            // section; the shared armadillo by default.
+            // and "Speed against an accuracy target" sections; the shared
+            // armadillo by default.
             let mut meshes: Vec<PathBuf> = args
                 .windows(2)
                 .filter(|w| w[0] == "--mesh")
@@ -131,6 +127,11 @@ fn main() -> ExitCode {
                 .collect();
             if meshes.is_empty() {
                 meshes = bench_limits::default_meshes(&root);
+            }
+            // `--only a,b`: measure those sections again, keep the rest.
+            if let Some(only) = args.windows(2).find(|w| w[0] == "--only") {
+                let names: Vec<String> = only[1].split(',').map(str::to_string).collect();
+                return report(bench_report::run_only(&root, &names, &meshes));
             }
             report(bench_report::run(
                 &root,

@@ -289,6 +289,7 @@ fn execute(
     };
     catch_interrupts();
     let mut failure = None;
+    let mut fallback_logged = false;
     while sim.steps() < scene.steps {
         if INTERRUPTED.load(Ordering::SeqCst) {
             // A checkpoint at this step, unless the last one is at it.
@@ -314,6 +315,19 @@ fn execute(
         }
         match sim.step() {
             Ok(stats) => {
+                if stats.contact_solve_fallback && !fallback_logged {
+                    fallback_logged = true;
+                    warn!(
+                        "step {}: its {} collider contacts do not fit the contact solve's memory \
+                         budget ({} MiB for the columns of the step matrix's inverse it caches); \
+                         such steps take one Uzawa step per contact and iteration instead, which \
+                         converges more slowly (docs/design/contact.md, \"Friction with an \
+                         accuracy target\")",
+                        sim.steps(),
+                        stats.contacts,
+                        pd_solver::contact::DEFAULT_DELASSUS_MEMORY >> 20
+                    );
+                }
                 if let Err(e) = recorder.record(sim, &stats) {
                     failure = Some(Failure::Output(e.to_string()));
                     break;

@@ -41,12 +41,22 @@ pub(crate) const SWEEPS: usize = 4;
 /// displacement of a contact vertex in the step ends the sweeps.
 pub(crate) const SETTLED: f64 = 1e-10;
 
+/// The memory the Delassus solve of one step may hold by default, bytes
+/// ([`ContactState::set_delassus_memory`]): 1 GiB. The armadillo drop of
+/// docs/design/contact.md holds at most 102 MB (868 contacts over 14,779
+/// free vertices).
+pub const DEFAULT_DELASSUS_MEMORY: usize = 1 << 30;
+
 /// The Delassus operator of the current contacts and the scratch of the
 /// solve; sized as contacts appear (not per iteration).
 #[derive(Debug, Default)]
 pub(crate) struct Delassus {
     /// Whether the step solves its contacts this way (set by the solver).
     pub on: bool,
+    /// The memory budget in bytes; `None`: [`DEFAULT_DELASSUS_MEMORY`].
+    budget: Option<usize>,
+    /// Whether this step's contacts did not fit the budget.
+    fell_back: bool,
     /// `(vertex, free index)` of every collider contact of the iteration.
     pub vertices: Vec<(usize, usize)>,
     /// The contacts `w` was built for.
@@ -67,7 +77,59 @@ impl ContactState {
     /// may have changed with the step's coefficients).
     pub fn set_delassus(&mut self, on: bool) {
         self.delassus.on = on;
+        self.delassus.fell_back = false;
         self.delassus.built.clear();
+    }
+
+    /// Caps the memory the Delassus solve may hold in one step at `bytes`:
+    /// the columns of `A^-1` it caches (8 bytes per free vertex for each
+    /// contact vertex) and the operator itself (8 bytes per pair of
+    /// contacts). A step whose contacts would need more falls back to one
+    /// projected Uzawa step per contact and iteration
+    /// ([`ContactState::delassus_fell_back`]).
+    pub fn set_delassus_memory(&mut self, bytes: usize) {
+        self.delassus.budget = Some(bytes);
+    }
+
+    /// The memory budget of the Delassus solve, bytes
+    /// ([`ContactState::set_delassus_memory`]).
+    pub fn delassus_memory(&self) -> usize {
+        self.delassus.budget.unwrap_or(DEFAULT_DELASSUS_MEMORY)
+    }
+
+    /// Whether the collider contacts of the iteration (every slot of a free
+    /// vertex) fit the memory budget: `n` contacts over `free` free
+    /// vertices hold `8 n (free + n)` bytes.
+    pub(crate) fn delassus_fits_slots(&self) -> bool {
+        let free = self.free_index.iter().filter(|&&f| f != usize::MAX).count();
+        let n = (self.slots.iter().zip(&self.free_index))
+            .filter(|(slot, f)| slot.is_some() && **f != usize::MAX)
+            .count();
+        let bytes = n
+            .checked_add(free)
+            .and_then(|width| width.checked_mul(n))
+            .and_then(|entries| entries.checked_mul(std::mem::size_of::<f64>()));
+        bytes.is_some_and(|b| b <= self.delassus_memory())
+    }
+
+    /// Turns the Delassus solve off for the rest of the step (its contacts
+    /// do not fit the budget) and releases its operator; the step reports
+    /// it ([`ContactState::delassus_fell_back`]).
+    pub(crate) fn fall_back_to_uzawa(&mut self) {
+        let d = &mut self.delassus;
+        d.on = false;
+        d.fell_back = true;
+        d.built.clear();
+        d.vertices.clear();
+        d.w = Vec::new();
+        d.y = Vec::new();
+    }
+
+    /// Whether this step's contacts did not fit the Delassus solve's memory
+    /// budget, so that it took one projected Uzawa step per contact and
+    /// iteration; the caller may then drop the columns of `A^-1` it cached.
+    pub fn delassus_fell_back(&self) -> bool {
+        self.delassus.fell_back
     }
 
     /// Whether [`ContactState::set_delassus`] turned the Delassus solve on

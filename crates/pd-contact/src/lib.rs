@@ -57,6 +57,7 @@ mod surface;
 
 pub use bodies::BodySurface;
 pub use checkpoint::{ContactCheckpoint, SavedContact};
+pub use delassus::DEFAULT_DELASSUS_MEMORY;
 pub use error::ContactError;
 pub use geometry::ColliderShape;
 pub use mesh::TriangleSurface;
@@ -300,27 +301,46 @@ impl ContactState {
             if self.delassus.on {
                 continue;
             }
-            // Updated in place (no copy of the slot in and out).
-            let Some(slot) = &mut self.slots[v] else {
-                continue;
-            };
-            // The first iterate is the inertial target, reached without the
-            // warm-started force: that force is applied as is once, and
-            // updated from the first solve on.
-            if !(first && slot.warm) {
-                let mut rho = RELAXATION * masses[v] / (h * h);
-                if let Some(bodies) = &self.bodies {
-                    rho /= f64::from(bodies.count[v].max(1));
+            self.uzawa_step(v, x, masses[v], first, &mut rhs[f]);
+        }
+        // Contacts beyond the Delassus solve's memory budget: this
+        // iteration and the rest of the step take the Uzawa step.
+        if self.delassus.on && !self.delassus_fits_slots() {
+            self.fall_back_to_uzawa();
+            for v in 0..self.slots.len() {
+                let f = self.free_index[v];
+                if self.slots[v].is_some() && f != usize::MAX {
+                    self.uzawa_step(v, x_n[v] + dx[v], masses[v], first, &mut rhs[f]);
                 }
-                let collider = &self.settings.colliders[slot.collider];
-                slot.force = collider_force::update_force(slot, collider, &x, rho, h);
             }
-            rhs[f] += slot.force;
         }
         if let Some(bodies) = &mut self.bodies {
             let settings = (h, RELAXATION, self.settings.thickness);
             bodies.apply(x_n, dx, settings, first, &self.free_index, rhs);
         }
+    }
+
+    /// One projected Uzawa step of vertex `v`'s collider contact at its
+    /// iterate `x` (mass `mass`), whose force is then added to `rhs` (its
+    /// row). The first iterate is the inertial target, reached without the
+    /// warm-started force: that force is applied as is once, and updated
+    /// from the first solve on.
+    #[inline]
+    fn uzawa_step(&mut self, v: usize, x: Point, mass: f64, first: bool, rhs: &mut Point) {
+        let h = self.h;
+        let mut rho = RELAXATION * mass / (h * h);
+        if let Some(bodies) = &self.bodies {
+            rho /= f64::from(bodies.count[v].max(1));
+        }
+        // Updated in place (no copy of the slot in and out).
+        let Some(slot) = &mut self.slots[v] else {
+            return;
+        };
+        if !(first && slot.warm) {
+            let collider = &self.settings.colliders[slot.collider];
+            slot.force = collider_force::update_force(slot, collider, &x, rho, h);
+        }
+        *rhs += slot.force;
     }
 
     /// Whether the segment `a -> b` surely hits no collider

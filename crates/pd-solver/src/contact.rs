@@ -37,6 +37,27 @@ impl Simulation {
         Ok(())
     }
 
+    /// Caps the memory the collider contacts' Delassus solve (the contact
+    /// solve of a step with an accuracy target) may hold in one step at
+    /// `bytes` ([`DEFAULT_DELASSUS_MEMORY`] by default); a step whose
+    /// contacts would need more takes one projected Uzawa step per contact
+    /// and iteration instead and says so in
+    /// [`crate::StepStats::contact_solve_fallback`]. Call it after
+    /// [`Simulation::set_contact`], which resets it.
+    ///
+    /// # Errors
+    /// [`SolverError::InvalidSetting`] without contact.
+    pub fn set_delassus_memory(&mut self, bytes: usize) -> Result<(), SolverError> {
+        let Some(contact) = &mut self.contact else {
+            return Err(SolverError::InvalidSetting {
+                field: "contact",
+                reason: "set_delassus_memory needs contact (set_contact first)".into(),
+            });
+        };
+        contact.set_delassus_memory(bytes);
+        Ok(())
+    }
+
     /// Turns on contact between bodies: every vertex of a body's surface
     /// against the surface triangles (tet boundary faces; cloth triangles,
     /// two-sided) of every other body, with the thickness of the contact

@@ -64,6 +64,11 @@ pub struct StepStats {
     /// Deepest penetration of a vertex into a collider thickened by the
     /// contact thickness at the end of the step, m (0 without colliders).
     pub penetration: f64,
+    /// Whether the step's collider contacts, to be solved against the
+    /// Delassus operator (an accuracy target), did not fit its memory
+    /// budget ([`Simulation::set_delassus_memory`]), so that the step took
+    /// one projected Uzawa step per contact and iteration instead.
+    pub contact_solve_fallback: bool,
 }
 
 /// What building the simulation cost.

@@ -334,6 +334,10 @@ impl Simulation {
             let measured = contact.report(&s.iterate);
             (stats.contacts, stats.penetration) = (measured.contacts, measured.penetration);
             contact.project(&mut s.iterate);
+            if contact.delassus_fell_back() {
+                stats.contact_solve_fallback = true;
+                self.global.drop_columns();
+            }
         }
         let step = self.steps + 1;
         // From the step count, so that time does not drift by round-off.

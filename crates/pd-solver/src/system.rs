@@ -526,6 +526,12 @@ impl GlobalStep {
         }
     }
 
+    /// Drops every column [`GlobalStep::inverse_entry`] holds and releases
+    /// their memory.
+    pub fn drop_columns(&mut self) {
+        self.columns.by_row = Default::default();
+    }
+
     /// Free vertex `f`'s entry of the last solution.
     #[inline]
     pub fn solution(&self, f: usize) -> Point {

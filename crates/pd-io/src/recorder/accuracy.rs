@@ -163,10 +163,33 @@ impl AccuracyWatch {
         if let Some(energy) = self.energy_created(sim)
             && energy.warns()
         {
+            // Every step met its target: more iterations would not change
+            // the trajectory, the time step would.
+            let cause = if target > 0.0 && self.largest_error() <= target {
+                let dt = sim.settings().dt;
+                let other = if IntegratorKind::parse(sim.integrator_name())
+                    == Some(IntegratorKind::ImplicitMidpoint)
+                {
+                    format!(
+                        " (implicit midpoint conserves only quadratic energies), or use \
+                         `integrator = \"{}\"`",
+                        IntegratorKind::Bdf2.name()
+                    )
+                } else {
+                    String::new()
+                };
+                format!(
+                    "every step met `accuracy = {target}` (largest estimated error {:.3}), so \
+                     the energy is the time step's: halve `dt` (now {dt} s){other}",
+                    self.largest_error()
+                )
+            } else {
+                format!("the steps are not converged enough; {remedy}")
+            };
             warnings.push(format!(
                 "the run created {:.3e} J of energy ({:.1}% of its largest kinetic plus \
                  elastic energy, {:.3e} J) where {} with damping `{}` should only dissipate: \
-                 the steps are not converged enough; {remedy}",
+                 {cause}",
                 energy.created,
                 100.0 * energy.fraction(),
                 energy.largest,
@@ -195,5 +218,71 @@ impl AccuracyWatch {
             }),
             "iterations_median": number(median(&self.iterations)),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+    use crate::scene::{Scene, Syntax};
+
+    /// A damped implicit-midpoint cube, with `accuracy` in [simulation]
+    /// when given.
+    fn cube(accuracy: Option<f64>) -> Simulation {
+        let target = accuracy.map_or(String::new(), |a| format!("accuracy = {a}\n"));
+        let text = format!(
+            "[simulation]\ndt = 0.01\nsteps = 2\nintegrator = \"implicit-midpoint\"\n{target}\n\
+             [damping]\nmodel = \"laplacian\"\nratio = 0.05\n\n[[body]]\n\
+             mesh = {{ generator = \"box\", size = [0.1, 0.1, 0.1], cells = [1, 1, 1] }}\n\
+             density = 1000.0\nconstraints = [ {{ kind = \"tet-strain\", stiffness = 1.0e5 }} ]\n"
+        );
+        Scene::parse(&text, Syntax::Toml, Path::new("cube.toml"))
+            .unwrap()
+            .build()
+            .unwrap()
+    }
+
+    /// Rows whose total energy rises by 5 J of 100 J (5%) after step 1,
+    /// each step with `error` as its estimated error.
+    fn watch(error: f64) -> AccuracyWatch {
+        let mut watch = AccuracyWatch::default();
+        for (step, total) in [(0, 0.0), (1, -10.0), (2, -5.0)] {
+            watch.observe(&MetricsRow {
+                step,
+                kinetic: 100.0,
+                total,
+                iterations: 20,
+                estimated_error: if step == 0 { 0.0 } else { error },
+                ..MetricsRow::default()
+            });
+        }
+        watch
+    }
+
+    /// Energy created by a run whose every step met its accuracy target is
+    /// the time step's: the warning says so and names `dt`, not iterations.
+    /// Where a step missed the target, it names the iteration budget.
+    #[test]
+    fn the_energy_warning_names_the_cause() {
+        let met = watch(0.005).warnings(&cube(Some(0.01)));
+        assert_eq!(met.len(), 1, "{met:?}");
+        assert!(
+            met[0].contains("5.000e0 J") && met[0].contains("the energy is the time step's"),
+            "{met:?}"
+        );
+        assert!(
+            met[0].contains("halve `dt` (now 0.01 s)") && met[0].contains("bdf2"),
+            "{met:?}"
+        );
+        assert!(!met[0].contains("not converged"), "{met:?}");
+        let missed = watch(0.05).warnings(&cube(Some(0.01)));
+        assert!(missed[0].contains("not converged enough"), "{missed:?}");
+        let fixed = watch(0.05).warnings(&cube(None));
+        assert!(
+            fixed[0].contains("not converged enough") && fixed[0].contains("accuracy = 0.01"),
+            "{fixed:?}"
+        );
     }
 }
