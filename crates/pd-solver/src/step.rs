@@ -272,9 +272,14 @@ impl Simulation {
             && self.carried_contraction == 0.0
             && self.position_solver.estimate_needs_contraction()
             && self.local.blocks().iter().all(|b| !b.is_energy_element());
+        // A step with nothing to correct (a body in free fall) reaches
+        // round-off at once, and its changes do not shrink from there: the
+        // measurement stops at round-off ([`estimate::ROUNDOFF`]) rather
+        // than run its whole budget on nothing.
         let measuring = measure.then(|| crate::Settings {
             iterations: MEASURING_ITERATIONS.min(self.settings.iterations),
             accuracy: 0.0,
+            tolerance: estimate::ROUNDOFF,
             ..self.settings.clone()
         });
         let mut problem = StepProblem {
