@@ -31,8 +31,8 @@ use nalgebra::{Matrix3, SMatrix, SVector, SymmetricEigen};
 use pd_damping::rigid::{INERTIA_RELATIVE_CUTOFF, RigidBody, RigidFreedom};
 use pd_mesh::Point;
 
-use crate::SolverError;
-use crate::global::{FIXED, GlobalSystem, MatrixCoefficients};
+use crate::{RotationState, SolverError};
+use crate::global::{COEFFICIENT_COUNT, FIXED, GlobalSystem, MatrixCoefficients};
 
 /// Rows and columns of a body's Woodbury system: `2 k`, `k <= 3` rotation
 /// axes; unused axes get an identity row.
@@ -43,6 +43,15 @@ type Pair = SVector<f64, WIDTH>;
 /// Iteration cap of the 3 x 3 symmetric eigensolver (it converges in a
 /// handful; the cap only guards against non-convergence).
 const EIGEN_MAX_ITERATIONS: usize = 256;
+
+/// Largest mass-weighted relative mismatch `|r - Q r_ref|_M / |r|_M`
+/// between a body's lever arms and its reference arms turned by the fitted
+/// rotation `Q` at which the reference is kept; beyond it the step rebuilds
+/// the reference from its own arms (one solve). The damping exerts no
+/// torque about the turned arms, so the mismatch bounds the lever arm error
+/// of its torque about the body's own (docs/design/damping.md, "Cost,
+/// measured").
+pub(crate) const ARM_MISMATCH_TOLERANCE: f64 = 1e-3;
 
 /// What the step's start tells the projection, all by vertex.
 #[derive(Debug, Clone, Copy)]
@@ -80,20 +89,33 @@ fn pseudo_solve(inertia: &Matrix3<f64>, b: &Point, scale: f64) -> Point {
 struct ProjectedBody {
     /// Index into the simulation's rigid bodies.
     rigid: usize,
+    /// How the body may move (the projection's rotations).
+    freedom: RigidFreedom,
     /// Range of this body's vertices in the projection's per-vertex arrays.
     start: usize,
     end: usize,
     /// The rotation axes of this step (unit, mass-orthogonal columns), the
-    /// first `axes` of them used.
+    /// first `used` of them used: the reference's turned by `turn`.
     axes: [Point; 3],
+    /// The principal axes of the reference arms' inertia.
+    reference_axes: [Point; 3],
+    /// This step's fitted turn `Q` of the reference arms.
+    turn: Matrix3<f64>,
+    /// `sum_i m_i |r_i|^2` of this step's arms (kg m^2).
+    spread: f64,
+    /// `c` of this step with the body's damping weight, whether or not the
+    /// body can turn.
+    damping: f64,
     used: usize,
     /// `1 / lambda_j`, `lambda_j = a_j^T I_p a_j` (kg m^2).
     inverse_inertia: [f64; 3],
     /// `c` of this body (per-body damping weights included), 0 when it is
     /// not damped by `L_d` (nothing to correct).
     coefficient: f64,
-    /// `T(r, L r)`, whose form on the axes is `S = R^T L_ff R`.
+    /// `T(r, L r)`, whose form on the axes is `S = R^T L_ff R`, this step's
+    /// and the reference's.
     laplacian_gram: Matrix3<f64>,
+    reference_gram: Matrix3<f64>,
     /// Whether an anchoring constraint (an attachment) acts on the body:
     /// then `A^-1 L_ff r` takes a solve of its own.
     anchored: bool,
@@ -115,13 +137,29 @@ pub(crate) struct RotationProjection {
     free: Vec<usize>,
     /// Lumped mass (kg).
     mass: Vec<f64>,
-    /// `r = x_n - p` (m).
+    /// This step's lever arms `x_n - p`, turned by the predicted rotation
+    /// (m).
+    current: Vec<Point>,
+    /// The lever arms `r` of the projection: the reference turned by each
+    /// body's fitted `Q` (m).
     r: Vec<Point>,
     /// `L_ff r`.
     lr: Vec<Point>,
     /// `A^-1 M r` and `A^-1 L_ff r`.
     ym: Vec<Point>,
     yl: Vec<Point>,
+    /// The reference arms `r_ref` (the lever arms of the last step that
+    /// rebuilt them), `L_ff r_ref`, `A^-1 M r_ref` and `A^-1 L_ff r_ref`.
+    reference: Vec<Point>,
+    reference_lr: Vec<Point>,
+    reference_ym: Vec<Point>,
+    reference_yl: Vec<Point>,
+    /// The bits of the step matrix's coefficients the reference was solved
+    /// with (`None`: no reference yet).
+    key: Option<[u64; COEFFICIENT_COUNT]>,
+    /// Whether the reference arms are newer than what was solved with them
+    /// (set by a rebuild and by a restored checkpoint).
+    rebuild: bool,
     /// `r` by vertex (zero elsewhere), to apply `L_ff` to it.
     r_by_vertex: Vec<Point>,
     /// Two right-hand sides over the free vertices.
@@ -195,9 +233,15 @@ impl RotationProjection {
             }
             projection.bodies.push(ProjectedBody {
                 rigid: b,
+                freedom: body.freedom,
                 start,
                 end: projection.vertex.len(),
                 axes: [Point::zeros(); 3],
+                reference_axes: [Point::zeros(); 3],
+                turn: Matrix3::identity(),
+                spread: 0.0,
+                damping: 0.0,
+                reference_gram: Matrix3::zeros(),
                 used: 0,
                 inverse_inertia: [0.0; 3],
                 coefficient: 0.0,
@@ -210,10 +254,15 @@ impl RotationProjection {
         }
         let m = projection.vertex.len();
         for buffer in [
+            &mut projection.current,
             &mut projection.r,
             &mut projection.lr,
             &mut projection.ym,
             &mut projection.yl,
+            &mut projection.reference,
+            &mut projection.reference_lr,
+            &mut projection.reference_ym,
+            &mut projection.reference_yl,
         ] {
             *buffer = vec![Point::zeros(); m];
         }
@@ -222,6 +271,69 @@ impl RotationProjection {
         projection.solve_m = vec![Point::zeros(); system.free.len()];
         projection.solve_l = vec![Point::zeros(); system.free.len()];
         Ok(projection)
+    }
+
+    /// The reference arms and the coefficients they were solved with, for a
+    /// checkpoint (both empty when there is no reference).
+    pub fn save(&self) -> RotationState {
+        match self.key {
+            Some(key) => RotationState {
+                arms: self.reference.clone(),
+                key: key.iter().map(|&b| f64::from_bits(b)).collect(),
+            },
+            None => RotationState::default(),
+        }
+    }
+
+    /// Checks a checkpoint's [`RotationState`] against this projection.
+    ///
+    /// # Errors
+    /// The reason, naming the field, when the arms are not one per
+    /// projected vertex, the key not one value per coefficient, or a value
+    /// is not finite.
+    pub fn check(&self, state: &RotationState) -> Result<(), String> {
+        if state.arms.is_empty() && state.key.is_empty() {
+            return Ok(());
+        }
+        if state.arms.len() != self.vertex.len() {
+            return Err(format!(
+                "rotation.arms holds {} points; the projection has {} vertices",
+                state.arms.len(),
+                self.vertex.len()
+            ));
+        }
+        if state.key.len() != COEFFICIENT_COUNT {
+            return Err(format!(
+                "rotation.key holds {} values; it must hold {COEFFICIENT_COUNT}",
+                state.key.len()
+            ));
+        }
+        if let Some(k) = state.arms.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            return Err(format!("rotation.arms[{k}] is not finite"));
+        }
+        if let Some(k) = state.key.iter().position(|c| !c.is_finite()) {
+            return Err(format!("rotation.key[{k}] is not finite"));
+        }
+        Ok(())
+    }
+
+    /// Takes a checked [`RotationState`]: the next step solves with the
+    /// restored reference arms (or rebuilds them, as the saved run would
+    /// have).
+    pub fn load(&mut self, state: &RotationState) {
+        self.active = false;
+        if state.arms.is_empty() {
+            self.key = None;
+            self.rebuild = false;
+            return;
+        }
+        self.reference.copy_from_slice(&state.arms);
+        let mut key = [0; COEFFICIENT_COUNT];
+        for (k, v) in key.iter_mut().zip(&state.key) {
+            *k = v.to_bits();
+        }
+        self.key = Some(key);
+        self.rebuild = true;
     }
 
     /// `(L_ff w)` on the row of free vertex `f` (`w` by vertex; columns of
@@ -237,12 +349,14 @@ impl RotationProjection {
     }
 
     /// Starts this step's projection from `motion`.
-    /// Returns the right-hand sides `M r` and, when an attachment acts on a
-    /// projected body, `L_ff r` on those bodies (one point per free vertex)
+    /// Returns the right-hand sides `M r_ref` and, when an attachment acts
+    /// on a projected body, `L_ff r_ref` on those bodies (one point per
+    /// free vertex) when the reference arms `r_ref` are rebuilt this step,
     /// for the caller to solve with `A` in place before
-    /// [`RotationProjection::finish_update`], or `None` when nothing is
-    /// projected this step. `coefficients` are the step matrix's, `weight(v)`
-    /// the per-body damping weights (mass, Laplacian) of vertex `v`.
+    /// [`RotationProjection::finish_update`]; `None` when the step turns the
+    /// reference instead (the projection is then ready) or when nothing is
+    /// projected. `coefficients` are the step matrix's, `weight(v)` the
+    /// per-body damping weights (mass, Laplacian) of vertex `v`.
     pub fn begin_update(
         &mut self,
         system: &GlobalSystem,
@@ -278,12 +392,15 @@ impl RotationProjection {
             };
             let mut inertia = Matrix3::zeros();
             let mut spread = 0.0;
-            for (r, &v) in self.r[range.clone()].iter_mut().zip(vertices) {
+            for ((r, m), &v) in self.current[range.clone()]
+                .iter_mut()
+                .zip(&mut self.mass[range.clone()])
+                .zip(vertices)
+            {
                 *r = positions[v] - centre;
-                self.r_by_vertex[v] = *r;
-                let m = masses[v];
-                inertia -= *r * r.transpose() * m;
-                spread += m * r.norm_squared();
+                *m = masses[v];
+                inertia -= *r * r.transpose() * *m;
+                spread += *m * r.norm_squared();
             }
             for k in 0..3 {
                 inertia[(k, k)] += spread;
@@ -292,7 +409,7 @@ impl RotationProjection {
             // `turn_time`: the lever arms of the integrator's angular
             // momentum balance, where the damping force must exert no torque.
             let mut moment = Point::zeros();
-            for (r, &v) in self.r[range.clone()].iter().zip(vertices) {
+            for (r, &v) in self.current[range.clone()].iter().zip(vertices) {
                 moment += r.cross(&inertial_displacement[v]) * masses[v];
             }
             let omega = match rigid[body.rigid].freedom {
@@ -309,23 +426,88 @@ impl RotationProjection {
             };
             // `inertial_displacement` is a displacement over the step, so
             // `omega` is the turn over one step (rad).
-            let turn = nalgebra::Rotation3::new(omega * turn_time);
             if turn_time != 0.0 && omega != Point::zeros() {
-                for (r, &v) in self.r[range.clone()].iter_mut().zip(vertices) {
+                let turn = nalgebra::Rotation3::new(omega * turn_time);
+                for r in &mut self.current[range.clone()] {
                     *r = turn * *r;
-                    self.r_by_vertex[v] = *r;
                 }
-                inertia = turn.matrix() * inertia * turn.matrix().transpose();
+            }
+            body.spread = spread;
+            let (w_mass, w_laplacian) = weight(vertices.first().copied().unwrap_or(0));
+            body.damping = coefficient * w_laplacian;
+            // A = (1/h^2 + c a1 W1) M + c1 c2^2 L_sys + c W2 L_d on the body
+            // (weights.rs), L_sys = L_d where nothing anchors it.
+            body.alpha = coefficients.mass + coefficients.mass_damping * (w_mass - 1.0);
+            body.stiffness = coefficients.system + coefficient * w_laplacian;
+        }
+        let key = coefficients.bits();
+        let mut refresh = self.key != Some(key);
+        if !refresh {
+            for b in 0..self.bodies.len() {
+                refresh |= self.fit_turn(b) > std::env::var("PD_RC_TOL").ok().and_then(|t| t.parse().ok()).unwrap_or(ARM_MISMATCH_TOLERANCE);
+            }
+        }
+        if std::env::var_os("PD_RC_DEBUG").is_some() {
+            let worst = (0..self.bodies.len()).map(|b| self.fit_turn(b)).fold(0.0, f64::max);
+            eprintln!("RCDEBUG refresh={refresh} worst={worst:e}");
+        }
+        if refresh {
+            self.reference.copy_from_slice(&self.current);
+            self.key = Some(key);
+            self.rebuild = true;
+        }
+        if !self.rebuild {
+            self.turn_reference();
+            return None;
+        }
+        self.build_reference_axes();
+        for (k, r) in self.reference.iter().enumerate() {
+            self.r_by_vertex[self.vertex[k]] = *r;
+        }
+        self.solve_m.iter_mut().for_each(|p| *p = Point::zeros());
+        self.solve_l.iter_mut().for_each(|p| *p = Point::zeros());
+        let mut second = false;
+        for body in &self.bodies {
+            for k in body.start..body.end {
+                let f = self.free[k];
+                let lr = Self::laplacian_at(system, f, &self.r_by_vertex);
+                self.reference_lr[k] = lr;
+                self.solve_m[f] = self.reference[k] * self.mass[k];
+                if body.anchored {
+                    self.solve_l[f] = lr;
+                    second = true;
+                }
+            }
+        }
+        for k in 0..self.vertex.len() {
+            self.r_by_vertex[self.vertex[k]] = Point::zeros();
+        }
+        Some((&mut self.solve_m, second.then_some(&mut self.solve_l[..])))
+    }
+
+    /// The rotation axes, inertias and damping coefficient of every body from
+    /// the inertia of its reference arms.
+    fn build_reference_axes(&mut self) {
+        for body in &mut self.bodies {
+            let range = body.start..body.end;
+            let mut inertia = Matrix3::zeros();
+            let mut spread = 0.0;
+            for (r, &m) in self.reference[range.clone()].iter().zip(&self.mass[range]) {
+                inertia -= *r * r.transpose() * m;
+                spread += m * r.norm_squared();
+            }
+            for k in 0..3 {
+                inertia[(k, k)] += spread;
             }
             body.used = 0;
             let keep = |axis: Point, lambda: f64, body: &mut ProjectedBody| {
                 if lambda > INERTIA_RELATIVE_CUTOFF * spread && lambda > 0.0 {
-                    body.axes[body.used] = axis;
+                    body.reference_axes[body.used] = axis;
                     body.inverse_inertia[body.used] = 1.0 / lambda;
                     body.used += 1;
                 }
             };
-            match rigid[body.rigid].freedom {
+            match body.freedom {
                 RigidFreedom::Hinge { axis, .. } => {
                     let a = axis.normalize();
                     keep(a, a.dot(&(inertia * a)), body);
@@ -341,51 +523,98 @@ impl RotationProjection {
                     }
                 }
             }
-            let (w_mass, w_laplacian) = weight(vertices.first().copied().unwrap_or(0));
-            body.coefficient = if body.used == 0 {
-                0.0
-            } else {
-                coefficient * w_laplacian
-            };
-            // A = (1/h^2 + c a1 W1) M + c1 c2^2 L_sys + c W2 L_d on the body
-            // (weights.rs), L_sys = L_d where nothing anchors it.
-            body.alpha = coefficients.mass + coefficients.mass_damping * (w_mass - 1.0);
-            body.stiffness = coefficients.system + coefficient * w_laplacian;
+            body.coefficient = if body.used == 0 { 0.0 } else { body.damping };
         }
-        self.solve_m.iter_mut().for_each(|p| *p = Point::zeros());
-        self.solve_l.iter_mut().for_each(|p| *p = Point::zeros());
-        let mut second = false;
-        for body in &self.bodies {
-            for k in body.start..body.end {
-                let (v, f) = (self.vertex[k], self.free[k]);
-                self.lr[k] = Self::laplacian_at(system, f, &self.r_by_vertex);
-                self.mass[k] = masses[v];
-                self.solve_m[f] = self.r[k] * masses[v];
-                if body.anchored {
-                    self.solve_l[f] = self.lr[k];
-                    second = true;
+    }
+
+    /// Fits body `b`'s turn `Q` from its reference arms to this step's
+    /// (the rotation, about the hinge's axis for a hinged body, that
+    /// minimises `sum_i m_i |r_i - Q r_ref,i|^2`) and returns the
+    /// mass-weighted relative mismatch `|r - Q r_ref|_M / |r|_M`.
+    fn fit_turn(&mut self, b: usize) -> f64 {
+        let body = &mut self.bodies[b];
+        let range = body.start..body.end;
+        let (current, reference) = (&self.current[range.clone()], &self.reference[range.clone()]);
+        let masses = &self.mass[range];
+        body.turn = Matrix3::identity();
+        if body.spread <= 0.0 {
+            return 0.0;
+        }
+        let turn = match body.freedom {
+            RigidFreedom::Hinge { axis, .. } => {
+                let a = axis.normalize();
+                let (mut sine, mut cosine) = (0.0, 0.0);
+                for ((r, q), &m) in current.iter().zip(reference).zip(masses) {
+                    sine += m * a.dot(&q.cross(r));
+                    cosine += m * (q.dot(r) - a.dot(q) * a.dot(r));
                 }
+                *nalgebra::Rotation3::from_axis_angle(
+                    &nalgebra::Unit::new_unchecked(a),
+                    sine.atan2(cosine),
+                )
+                .matrix()
             }
+            _ => {
+                let mut h = Matrix3::zeros();
+                for ((r, q), &m) in current.iter().zip(reference).zip(masses) {
+                    h += r * (q * m).transpose();
+                }
+                let svd = h.svd(true, true);
+                let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+                    return f64::INFINITY;
+                };
+                let mut u = u;
+                if (u * v_t).determinant() < 0.0 {
+                    // A reflection: flip the direction of the smallest
+                    // singular value (sorted last).
+                    u.column_mut(2).neg_mut();
+                }
+                u * v_t
+            }
+        };
+        body.turn = turn;
+        let mut gap = 0.0;
+        for ((r, q), &m) in current.iter().zip(reference).zip(masses) {
+            gap += m * (r - turn * q).norm_squared();
         }
-        for k in 0..self.vertex.len() {
-            self.r_by_vertex[self.vertex[k]] = Point::zeros();
+        (gap / body.spread).sqrt()
+    }
+
+    /// This step's arms, their Laplacian, `A^-1 M r`, `A^-1 L_ff r`, axes and
+    /// `S`: the reference's turned by each body's fitted turn `Q` (`A`
+    /// commutes with a rotation of every vertex, so `A^-1 M (Q r_ref) = Q
+    /// A^-1 M r_ref`, and `K` does not change).
+    fn turn_reference(&mut self) {
+        for body in &mut self.bodies {
+            let q = body.turn;
+            for k in body.start..body.end {
+                self.r[k] = q * self.reference[k];
+                self.lr[k] = q * self.reference_lr[k];
+                self.ym[k] = q * self.reference_ym[k];
+                self.yl[k] = q * self.reference_yl[k];
+            }
+            for j in 0..body.used {
+                body.axes[j] = q * body.reference_axes[j];
+            }
+            body.laplacian_gram = q * body.reference_gram * q.transpose();
         }
-        Some((&mut self.solve_m, second.then_some(&mut self.solve_l[..])))
+        self.active = true;
     }
 
     /// Ends [`RotationProjection::begin_update`] once its right-hand sides
-    /// hold `A^-1 M r` and `A^-1 L_ff r`: the capacitance matrices.
+    /// hold `A^-1 M r_ref` and `A^-1 L_ff r_ref`: the capacitance matrices,
+    /// then this step's turn of the reference.
     pub fn finish_update(&mut self) {
         for body in &self.bodies {
             for k in body.start..body.end {
                 let f = self.free[k];
-                self.ym[k] = self.solve_m[f];
+                self.reference_ym[k] = self.solve_m[f];
                 // Where nothing anchors the body, `A r = alpha M r +
                 // stiffness L_ff r` gives `A^-1 L_ff r` without a solve.
-                self.yl[k] = if body.anchored {
+                self.reference_yl[k] = if body.anchored {
                     self.solve_l[f]
                 } else {
-                    (self.r[k] - self.ym[k] * body.alpha) / body.stiffness
+                    (self.reference[k] - self.reference_ym[k] * body.alpha) / body.stiffness
                 };
             }
         }
@@ -395,8 +624,14 @@ impl RotationProjection {
                 continue;
             }
             let range = body.start..body.end;
-            let (r, lr) = (&self.r[range.clone()], &self.lr[range.clone()]);
-            let (ym, yl) = (&self.ym[range.clone()], &self.yl[range.clone()]);
+            let (r, lr) = (
+                &self.reference[range.clone()],
+                &self.reference_lr[range.clone()],
+            );
+            let (ym, yl) = (
+                &self.reference_ym[range.clone()],
+                &self.reference_yl[range.clone()],
+            );
             let masses_of = &self.mass[range.clone()];
             // T(m r, .) = sum_i m_i T_i(r, .): weight r by the masses.
             let mut t_mr_ym = Matrix3::zeros();
@@ -407,12 +642,14 @@ impl RotationProjection {
                 t_mr_yl += cross_gram(&[mr], &[*yl]);
             }
             let s = cross_gram(r, lr);
-            body.laplacian_gram = s;
+            body.reference_gram = s;
             let t_lr_yl = cross_gram(lr, yl);
             let t_lr_ym = cross_gram(lr, ym);
             let c = body.coefficient;
             let mut k = Capacitance::identity();
-            let form = |t: &Matrix3<f64>, j: usize, l: usize| body.axes[j].dot(&(t * body.axes[l]));
+            let form = |t: &Matrix3<f64>, j: usize, l: usize| {
+                body.reference_axes[j].dot(&(t * body.reference_axes[l]))
+            };
             for j in 0..body.used {
                 let gj = body.inverse_inertia[j];
                 for l in 0..body.used {
@@ -426,7 +663,11 @@ impl RotationProjection {
             }
             body.capacitance = Some(k.lu());
         }
-        self.active = true;
+        self.rebuild = false;
+        for b in 0..self.bodies.len() {
+            self.fit_turn(b);
+        }
+        self.turn_reference();
     }
 
     /// `x <- x + Z K^-1 U^T x` for the solution `x = A^-1 b` (one point per
@@ -496,16 +737,17 @@ impl RotationProjection {
     /// `out -= c U C U^T w` on the free rows (`w` by vertex, zero at fixed
     /// vertices; `out` one point per free vertex): turns `A w` into
     /// `A' w`, and `c L_d w` into `c (I - P)^T L_d (I - P) w`.
-    pub fn add_product_correction(&self, system: &GlobalSystem, w: &[Point], out: &mut [Point]) {
+    pub fn add_product_correction(&self, w: &[Point], out: &mut [Point]) {
         if !self.active {
             return;
         }
         for body in self.bodies.iter().filter(|b| b.coefficient != 0.0) {
-            // u1 = R^T L w, u2 = G^-1 R^T M w (as vectors on the axes).
+            // u1 = R^T L w = (L R)^T w (L_ff symmetric, and it couples the
+            // body to no other free vertex), u2 = G^-1 R^T M w (as vectors
+            // on the axes).
             let mut moment_l = Point::zeros();
             for k in body.start..body.end {
-                let lw = Self::laplacian_at(system, self.free[k], w);
-                moment_l += self.r[k].cross(&lw);
+                moment_l += self.lr[k].cross(&w[self.vertex[k]]);
             }
             let turn = self.rotation_part(body, |k| w[self.vertex[k]]);
             // C [u1; u2] = [u2; u1 - S u2]; U times it.
