@@ -188,9 +188,11 @@ impl GlobalStep {
         match &self.rotation {
             Some(rotation) => rotation.check(state),
             None if state.is_empty() => Ok(()),
-            None => Err("the checkpoint has rotation-preserving reference arms (rotation), \
+            None => Err(
+                "the checkpoint has rotation-preserving reference arms (rotation), \
                          the simulation does not project rotations"
-                .into()),
+                    .into(),
+            ),
         }
     }
 
