@@ -156,7 +156,8 @@ pub(crate) struct RotationProjection {
     /// The lever arms `r` of the projection: the reference turned by each
     /// body's fitted `Q` (m).
     r: Vec<Point>,
-    /// `L_ff r`.
+    /// `M r` (kg m) and `L_ff r`.
+    mr: Vec<Point>,
     lr: Vec<Point>,
     /// `A^-1 M r` and `A^-1 L_ff r`.
     ym: Vec<Point>,
@@ -261,6 +262,7 @@ impl RotationProjection {
         for buffer in [
             &mut projection.current,
             &mut projection.r,
+            &mut projection.mr,
             &mut projection.lr,
             &mut projection.ym,
             &mut projection.yl,
@@ -544,6 +546,7 @@ impl RotationProjection {
             let mapped = |w: &Matrix3<f64>| f * w * f.transpose();
             for k in body.start..body.end {
                 self.r[k] = f * self.reference[k];
+                self.mr[k] = self.r[k] * self.mass[k];
                 self.lr[k] = f * self.reference_lr[k];
                 self.ym[k] = f * self.reference_ym[k];
                 self.yl[k] = f * self.reference_yl[k];
@@ -650,11 +653,16 @@ impl RotationProjection {
                 continue;
             };
             let range = body.start..body.end;
+            let free = &self.free[range.clone()];
             let (mut t1, mut t2) = (Point::zeros(), Point::zeros());
-            for k in range.clone() {
-                let xi = x[self.free[k]];
-                t1 += self.lr[k].cross(&xi);
-                t2 += self.r[k].cross(&xi) * self.mass[k];
+            for ((&f, lr), mr) in free
+                .iter()
+                .zip(&self.lr[range.clone()])
+                .zip(&self.mr[range.clone()])
+            {
+                let xi = x[f];
+                t1 += lr.cross(&xi);
+                t2 += mr.cross(&xi);
             }
             let mut t = Pair::zeros();
             for j in 0..body.used {
@@ -669,8 +677,12 @@ impl RotationProjection {
                 turn_l += body.axes[j] * s[j];
                 turn_m += body.axes[j] * (s[3 + j] * body.inverse_inertia[j]);
             }
-            for k in range {
-                x[self.free[k]] += turn_l.cross(&self.yl[k]) + turn_m.cross(&self.ym[k]);
+            for ((&f, yl), ym) in free
+                .iter()
+                .zip(&self.yl[range.clone()])
+                .zip(&self.ym[range])
+            {
+                x[f] += turn_l.cross(yl) + turn_m.cross(ym);
             }
         }
     }
@@ -680,7 +692,7 @@ impl RotationProjection {
     fn rotation_part(&self, body: &ProjectedBody, w: impl Fn(usize) -> Point) -> Point {
         let mut moment = Point::zeros();
         for k in body.start..body.end {
-            moment += self.r[k].cross(&w(k)) * self.mass[k];
+            moment += self.mr[k].cross(&w(k));
         }
         let mut omega = Point::zeros();
         for j in 0..body.used {
@@ -729,7 +741,7 @@ impl RotationProjection {
             }
             let c = body.coefficient;
             for k in body.start..body.end {
-                let correction = turn.cross(&self.lr[k]) + second.cross(&self.r[k]) * self.mass[k];
+                let correction = turn.cross(&self.lr[k]) + second.cross(&self.mr[k]);
                 out[self.free[k]] -= correction * c;
             }
         }
