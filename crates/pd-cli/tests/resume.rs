@@ -163,6 +163,22 @@ fn check_resume_with_edits(integrator: &str, damping: &str, every: &str, edits: 
     assert_eq!(resumed["warnings"], straight["warnings"]);
 }
 
+/// A free spinning body under the rotation-preserving damping: its
+/// projection maps reference lever arms from step to step, which the
+/// checkpoint carries (`rotation`).
+#[test]
+fn implicit_midpoint_with_rotation_preserving_damping_of_a_free_body() {
+    check_resume_with_edits(
+        "implicit-midpoint",
+        "model = \"laplacian\"\nstiffness = 0.01\npreserve_rotation = true",
+        "4",
+        &[(
+            "fixed = { box = { min = [-1.0, -1.0, -1.0], max = [0.001, 1.0, 1.0] } }",
+            "angular_velocity = [0.5, 1.0, 4.0]",
+        )],
+    );
+}
+
 #[test]
 fn backward_euler_without_damping() {
     check_resume("backward-euler", "model = \"none\"", "4");

@@ -23,9 +23,11 @@
 //! ```
 //!
 //! Optional keys, written only when there is something to keep: `contact`
-//! (the active contacts), `predictor` (the predictor's corrections) and
-//! `solver` (what the iteration method carries between steps: `[rho]`, the
-//! estimate of Chebyshev with `rho = "auto"`), e.g.
+//! (the active contacts), `predictor` (the predictor's corrections),
+//! `rotation` (the rotation-preserving damping's reference lever arms,
+//! `{ "arms": [[x, y, z], ...], "key": [...] }`, `pd_solver::RotationState`)
+//! and `solver` (what the iteration method carries between steps: `[rho]`,
+//! the estimate of Chebyshev with `rho = "auto"`), e.g.
 //!
 //! ```json
 //! { "...": "...", "solver": [0.7712] }
@@ -149,6 +151,10 @@ struct Raw {
     /// there is one (pd_solver::PredictorState).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     predictor: Option<RawPredictor>,
+    /// The rotation-preserving damping's reference lever arms, written
+    /// only when there are some (pd_solver::RotationState).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    rotation: Option<RawRotation>,
     /// What the iteration method carries between steps (Chebyshev's
     /// estimated `rho`), written only when there is something.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -183,6 +189,15 @@ struct RawPredictor {
     /// The fitted predictor's older corrections, newest first.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     history: Vec<Vec<[f64; 3]>>,
+}
+
+/// `pd_solver::RotationState`: the reference lever arms (m per projected
+/// vertex) and the step matrix's coefficients they were solved with.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRotation {
+    arms: Vec<[f64; 3]>,
+    key: Vec<f64>,
 }
 
 const FORMAT: &str = "pd-checkpoint";
@@ -250,6 +265,8 @@ pub fn checkpoint_to_json(path: &Path, file: &CheckpointFile) -> Result<String> 
         && finite(&c.predictor.previous)
         && c.predictor.history.iter().all(|h| finite(h))
         && c.predictor.key.iter().all(|x| x.is_finite())
+        && finite(&c.rotation.arms)
+        && c.rotation.key.iter().all(|x| x.is_finite())
         && c.solver.iter().all(|x| x.is_finite()))
     {
         return Err(Error::Content {
@@ -295,6 +312,10 @@ pub fn checkpoint_to_json(path: &Path, file: &CheckpointFile) -> Result<String> 
             key: c.predictor.key,
             previous: arrays(&c.predictor.previous),
             history: c.predictor.history.iter().map(|h| arrays(h)).collect(),
+        }),
+        rotation: (!c.rotation.is_empty()).then(|| RawRotation {
+            arms: arrays(&c.rotation.arms),
+            key: c.rotation.key.clone(),
         }),
         solver: c.solver.clone(),
         method: file.method.clone(),
@@ -495,6 +516,13 @@ fn into_file(raw: Raw, scene: SceneText, model: u64) -> CheckpointFile {
                 .unwrap_or_default(),
             solver: raw.solver,
             contraction: raw.contraction,
+            rotation: raw
+                .rotation
+                .map(|r| pd_solver::RotationState {
+                    arms: points(&r.arms),
+                    key: r.key,
+                })
+                .unwrap_or_default(),
         },
     }
 }
@@ -536,6 +564,10 @@ mod tests {
                 predictor: Default::default(),
                 solver: vec![0.7234567890123457],
                 contraction: 0.9987654321,
+                rotation: pd_solver::RotationState {
+                    arms: awkward.to_vec(),
+                    key: vec![1e4, 0.25, 1.0 / 3.0, 0.0, 0.0, 0.0],
+                },
             },
         }
     }

@@ -4,13 +4,15 @@
 //!
 //! The model, settings and damping model are not part of a checkpoint: they
 //! come from the scene, which a checkpoint file stores next to this (the
-//! `pd-io` crate). Damping models keep no state from one step to the next
-//! (what the rotation-preserving variant records at the start of a step it
-//! uses by the end of the same step); the cached factorisations are
-//! recomputed on demand and are deterministic functions of the matrix
-//! coefficients, so neither needs saving.
+//! `pd-io` crate). Damping models keep no state from one step to the next;
+//! the rotation-preserving variant's projection keeps its reference lever
+//! arms, which a checkpoint saves ([`RotationState`]; what it solved with
+//! them is recomputed on the first step after a restore, bit for bit). The
+//! cached factorisations are recomputed on demand and are deterministic
+//! functions of the matrix coefficients, so they need no saving.
 
 use pd_integrators::History;
+use pd_mesh::Point;
 
 use crate::{Simulation, SolverError, State};
 
@@ -51,6 +53,29 @@ pub struct Checkpoint {
     /// from (0: none yet; step/estimate.rs). With an accuracy target it
     /// decides where steps stop.
     pub contraction: f64,
+    /// The rotation-preserving damping's reference lever arms (empty
+    /// without `preserve_rotation` or before the first step).
+    pub rotation: RotationState,
+}
+
+/// The rotation-preserving damping's reference: the lever arms its
+/// projection turns from step to step instead of solving for new ones
+/// (docs/design/damping.md, "The rotation-preserving variant").
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RotationState {
+    /// The reference lever arms (m), one per projected vertex, the bodies'
+    /// vertices one body after the other; empty when there is none.
+    pub arms: Vec<Point>,
+    /// The step matrix's coefficients they were solved with (mass, system,
+    /// damping, mass damping, then the Caughey series'); empty with `arms`.
+    pub key: Vec<f64>,
+}
+
+impl RotationState {
+    /// Whether no reference is stored.
+    pub fn is_empty(&self) -> bool {
+        self.arms.is_empty() && self.key.is_empty()
+    }
 }
 
 impl Simulation {
@@ -103,6 +128,7 @@ impl Simulation {
             predictor: self.predictor_state.clone(),
             solver: self.position_solver.carried(),
             contraction: self.carried_contraction,
+            rotation: self.global.rotation_state(),
         }
     }
 
@@ -122,8 +148,9 @@ impl Simulation {
     /// integrator or another model (its [`Checkpoint::model`] is not this
     /// model's fingerprint), has the wrong number of vertices, a non-finite value, a
     /// history the integrator cannot hold, a predictor correction of the
-    /// wrong length, or a method state the method cannot take; the
-    /// simulation is then unchanged.
+    /// wrong length, a method state the method cannot take, or
+    /// rotation-preserving reference arms that do not fit the simulation's
+    /// projection; the simulation is then unchanged.
     pub fn restore(&mut self, checkpoint: &Checkpoint) -> Result<(), SolverError> {
         let invalid = |reason: String| SolverError::InvalidState { reason };
         if checkpoint.integrator != self.integrator.name() {
@@ -181,6 +208,9 @@ impl Simulation {
             )));
         }
         Self::check_predictor_state(&checkpoint.predictor, n)?;
+        self.global
+            .check_rotation_state(&checkpoint.rotation)
+            .map_err(invalid)?;
         self.position_solver
             .check_carried(&checkpoint.solver)
             .map_err(|reason| invalid(format!("solver: {reason}")))?;
@@ -216,6 +246,7 @@ impl Simulation {
         self.steps = checkpoint.steps;
         self.time = checkpoint.time;
         self.carried_contraction = checkpoint.contraction;
+        self.global.restore_rotation_state(&checkpoint.rotation);
         self.divergence.reference = checkpoint.energy_reference;
         self.divergence.scale = checkpoint.energy_scale;
         Ok(())

@@ -32,9 +32,14 @@ pub(crate) struct MatrixCoefficients {
     pub series: [f64; HIGHER_SERIES_TERMS],
 }
 
+/// How many values [`MatrixCoefficients::bits`] holds.
+pub(crate) const COEFFICIENT_COUNT: usize = 4 + HIGHER_SERIES_TERMS;
+
 impl MatrixCoefficients {
-    fn bits(&self) -> [u64; 4 + HIGHER_SERIES_TERMS] {
-        let mut bits = [0; 4 + HIGHER_SERIES_TERMS];
+    /// Every coefficient's bits (mass, system, damping, mass damping, then
+    /// the series').
+    pub(crate) fn bits(&self) -> [u64; COEFFICIENT_COUNT] {
+        let mut bits = [0; COEFFICIENT_COUNT];
         bits[..4].copy_from_slice(&[
             self.mass.to_bits(),
             self.system.to_bits(),

@@ -55,7 +55,7 @@ mod system;
 mod weights;
 
 pub use builder::SimulationBuilder;
-pub use checkpoint::Checkpoint;
+pub use checkpoint::{Checkpoint, RotationState};
 pub use method_choice::{MethodChoice, PROBE_STEPS, ProbeOutcome, ProbeResult};
 pub use model::{Body, BodyId, ConstraintGroup, Model};
 pub use settings::Settings;

@@ -170,6 +170,40 @@ impl GlobalStep {
         self.rotation.is_some()
     }
 
+    /// The rotation-preserving projection's reference lever arms, for a
+    /// checkpoint (empty without one).
+    pub fn rotation_state(&self) -> crate::RotationState {
+        self.rotation
+            .as_ref()
+            .map_or_else(Default::default, RotationProjection::save)
+    }
+
+    /// Checks a checkpoint's [`crate::RotationState`] against the
+    /// projection.
+    ///
+    /// # Errors
+    /// The reason, naming the field, when it does not fit (arms for a
+    /// simulation without the projection, or of another count).
+    pub fn check_rotation_state(&self, state: &crate::RotationState) -> Result<(), String> {
+        match &self.rotation {
+            Some(rotation) => rotation.check(state),
+            None if state.is_empty() => Ok(()),
+            None => Err(
+                "the checkpoint has rotation-preserving reference arms (rotation), \
+                         the simulation does not project rotations"
+                    .into(),
+            ),
+        }
+    }
+
+    /// Takes a checkpoint's [`crate::RotationState`], checked by
+    /// [`GlobalStep::check_rotation_state`].
+    pub fn restore_rotation_state(&mut self, state: &crate::RotationState) {
+        if let Some(rotation) = &mut self.rotation {
+            rotation.load(state);
+        }
+    }
+
     /// Builds this step's projection from `motion` for the step matrix
     /// `coefficients` (prepared). Does nothing without
     /// [`GlobalStep::set_rotation_projection`].
@@ -413,7 +447,7 @@ impl GlobalStep {
         });
         if use_damping_laplacian && let Some(rotation) = &self.rotation {
             // The projected operator: c (I - P)^T L_d (I - P) on the anchor.
-            rotation.add_product_correction(system, laplacian_anchor, out);
+            rotation.add_product_correction(laplacian_anchor, out);
         }
         if let StepMatrix::Lagged(lagged) = &self.matrix {
             // + c1 c2 gamma a3 K(x_n) (x_hat - x_n), on every vertex, then
@@ -555,7 +589,7 @@ impl GlobalStep {
     /// rotation-preserving damping.
     pub fn correct_product(&self, w: &[Point], out: &mut [Point]) {
         if let Some(rotation) = &self.rotation {
-            rotation.add_product_correction(&self.system, w, out);
+            rotation.add_product_correction(w, out);
         }
     }
 
