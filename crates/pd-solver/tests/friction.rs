@@ -184,8 +184,8 @@ fn integrators() -> [(&'static str, MakeIntegrator); 3] {
 /// small difference of two large terms (`g sin a` = 4.76 and `mu g cos a`
 /// = 4.29 m/s^2 at 29 degrees), so a relative error `r` of the friction
 /// force is `9 r` in it: 2% of the acceleration is 0.2% of the friction
-/// force. Measured (60 iterations): at most 8.4e-4 on the slab and 2.7e-4
-/// on the box and the mesh with backward Euler and BDF-2, 6.8e-3 on the
+/// force. Measured (60 iterations): at most 8.4e-4 on the slab and 8.2e-5
+/// on the box and the mesh with backward Euler and BDF-2, 9.2e-5 on the
 /// sphere; implicit midpoint 7.0e-3, bound 5%.
 fn slide_tolerance(name: &str) -> f64 {
     if name == "implicit-midpoint" {
@@ -424,12 +424,12 @@ fn a_cube_on_a_box_a_sphere_and_a_mesh_slips_above_and_sticks_below_the_friction
 /// On the sphere, the acceleration beyond Coulomb's law on the local slope
 /// is the lean of the normal force (`sphere_slide`), proportional to the
 /// height of the centre of mass: 2.7e-3 m/s^2 for the cube, 1.3e-3 for a
-/// block half as tall. Measured within 1.5% of it (and within 3.3% from
+/// block half as tall. Measured 1.6% and 1.1% below it (within 3.5% from
 /// R = 10 m to 1000 m, for both blocks); the rigid-block law neglects the
-/// block's deformation. Bound 5%. A vertex held up by the end-of-step
-/// projection rather than by its contact force slides without friction
-/// unless the projection has friction of its own: then the excess was 13%
-/// above the lean for the cube and 2.3 times it for the half-height block.
+/// block's deformation. Bound 5%. Fails with a frictionless end-of-step
+/// projection (a vertex held up by the projection rather than by its
+/// contact force then slides freely): 13% above the lean for the cube,
+/// 2.3 times it for the half-height block.
 #[test]
 fn a_block_sliding_on_a_sphere_gains_the_lean_of_its_normal_force() {
     for height in [SIDE, SIDE / 2.0] {
