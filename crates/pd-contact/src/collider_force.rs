@@ -1,8 +1,8 @@
 //! The forces of collider contacts: one projected Uzawa step
 //! ([`update_force`]), the projection onto Coulomb's cone that the pairs
 //! between surfaces share ([`coulomb`]), the end-of-step projection onto
-//! the contact plane with its friction ([`project_onto_plane`]), and the frozen-force mode of
-//! [`ContactState::freeze_forces`], a measurement aid
+//! the contact plane with its friction ([`project_onto_plane`]), and the
+//! frozen-force mode of [`ContactState::freeze_forces`], a measurement aid
 //! (docs/design/contact.md, "Contact's own cost").
 
 use pd_mesh::Point;
