@@ -1,7 +1,8 @@
 //! The forces of collider contacts: one projected Uzawa step
 //! ([`update_force`]), the projection onto Coulomb's cone that the pairs
-//! between surfaces share ([`coulomb`]), and the frozen-force mode of
-//! [`ContactState::freeze_forces`], a measurement aid
+//! between surfaces share ([`coulomb`]), the end-of-step projection onto
+//! the contact plane with its friction ([`project_onto_plane`]), and the
+//! frozen-force mode of [`ContactState::freeze_forces`], a measurement aid
 //! (docs/design/contact.md, "Contact's own cost").
 
 use pd_mesh::Point;
@@ -33,6 +34,34 @@ pub(super) fn update_force(slot: &Slot, collider: &Collider, x: &Point, rho: f64
     let tangential_error = to_anchor - n * n.dot(&to_anchor);
     let trial = slot.force + (tangential_error + n * normal_error) * rho;
     coulomb(&trial, &n, collider.friction)
+}
+
+/// The end-of-step projection ([`ContactState::project`]) of a contact
+/// vertex `x` that the iterations left `depth` (m, > 0) behind its contact
+/// plane: moved onto the plane along the normal. That move is a normal
+/// impulse (`m depth / h`) the contact force did not carry, so it gets
+/// Coulomb friction of its own: the vertex's displacement from its anchor
+/// along the plane is shortened by at most `friction * depth`, never
+/// reversed. Without it, a vertex held by the projection rather than by
+/// its force slides without friction (docs/design/contact.md, "Sliding on
+/// a curved collider").
+#[inline]
+pub(super) fn project_onto_plane(
+    slot: &Slot,
+    collider: &Collider,
+    x: &mut Point,
+    depth: f64,
+    h: f64,
+) {
+    let n = slot.hit.normal;
+    *x += n * depth;
+    let anchor = slot.hit.point + collider.velocity(&slot.hit.point) * h;
+    let from_anchor = *x - anchor;
+    let along = from_anchor - n * n.dot(&from_anchor);
+    let length = along.norm();
+    if length > 0.0 {
+        *x -= along * ((collider.friction * depth).min(length) / length);
+    }
 }
 
 /// The projection of a trial force onto Coulomb's cone of coefficient

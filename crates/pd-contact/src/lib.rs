@@ -404,7 +404,8 @@ impl ContactState {
             let depth = slot.lift - slot.hit.normal.dot(&(*x - slot.hit.point));
             slot.projected = depth > 0.0;
             if slot.projected {
-                *x += slot.hit.normal * depth;
+                let collider = &self.settings.colliders[slot.collider];
+                collider_force::project_onto_plane(slot, collider, x, depth, self.h);
                 deepest = deepest.max(depth);
             }
         }
@@ -433,7 +434,8 @@ impl ContactState {
             if let Some(slot) = &mut self.slots[v] {
                 let depth = slot.lift - slot.hit.normal.dot(&(*x - slot.hit.point));
                 if depth > 0.0 {
-                    *x += slot.hit.normal * depth;
+                    let collider = &self.settings.colliders[slot.collider];
+                    collider_force::project_onto_plane(slot, collider, x, depth, self.h);
                     slot.projected = true;
                     deepest = deepest.max(depth);
                 }
