@@ -33,11 +33,13 @@ pub fn measure(
     Ok(runs)
 }
 
-/// The section's markdown.
-pub fn markdown(contact: &[Contact]) -> String {
-    let mut md = String::from(
-        "## Contact\n\n\
-         Median step time with contact against the same scene with no contact at all (the \
+/// The section's markdown; `note` (from `bench_report::remeasured_note`)
+/// goes under the heading.
+pub fn markdown(contact: &[Contact], note: &str) -> String {
+    let mut md = String::from("## Contact\n\n");
+    md.push_str(note);
+    md.push_str(
+        "Median step time with contact against the same scene with no contact at all (the \
          body then falls freely: same matrix, same 20 iterations, no contact work), backward \
          Euler, 1 thread: a 0.2 m cube resting on a floor plane, and two stacked on it with \
          `contact.bodies = true` (`benches/src/contact.rs`). The two scenes run in alternating \

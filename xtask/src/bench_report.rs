@@ -57,7 +57,7 @@ pub struct SectionRun {
 
 /// The sections `bench-report --only` can measure again on their own,
 /// keeping the rest of the stored report.
-pub const SECTIONS_ALONE: &[&str] = &["python", "gradients", "accuracy-target"];
+pub const SECTIONS_ALONE: &[&str] = &["python", "gradients", "accuracy-target", "contact"];
 
 /// One pair of `pd-probe phases` runs, on 1 and on 2 threads.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -479,10 +479,15 @@ pub fn run_only(root: &Path, names: &[String], meshes: &[PathBuf]) -> Result<Pat
         match name.as_str() {
             "python" => report.python = Some(crate::bench_python::measure(root, 9)),
             "gradients" => report.gradients = crate::bench_gradients::measure(root, false)?,
-            "accuracy-target" => {
+            "accuracy-target" | "contact" => {
                 let probe_path = build_probe(root)?;
                 let p = |a: Vec<String>| probe(&probe_path, &a);
-                report.accuracy_target = crate::bench_accuracy_target::measure(&p, false, meshes)?;
+                if name == "contact" {
+                    report.contact = crate::bench_contact::measure(&p, false)?;
+                } else {
+                    report.accuracy_target =
+                        crate::bench_accuracy_target::measure(&p, false, meshes)?;
+                }
             }
             _ => {}
         }
@@ -726,7 +731,10 @@ fn markdown(r: &Report) -> String {
             &remeasured_note(r, "accuracy-target"),
         ));
     }
-    md.push_str(&crate::bench_contact::markdown(&r.contact));
+    md.push_str(&crate::bench_contact::markdown(
+        &r.contact,
+        &remeasured_note(r, "contact"),
+    ));
     if !r.gradients.is_empty() {
         md.push('\n');
         md.push_str(&crate::bench_gradients::markdown(

@@ -131,7 +131,7 @@ fn resumed_and_threaded_runs_are_bit_identical() {
 /// landing at `accuracy = 1e-6`, every step with a contact falls back and
 /// its positions lie within `2e-6 |y - x*|_M` of the reference (as in
 /// `steps_converge_to_the_contact_problems_solution`: twice the target,
-/// the estimate reporting at least half the true error; measured 3.9e-7,
+/// the estimate reporting at least half the true error; measured 3.8e-7,
 /// in 128 to 163 iterations a step against 7 to 9 with the Delassus
 /// solve). With the default budget (1 GiB; this cube needs kilobytes) no
 /// step falls back.

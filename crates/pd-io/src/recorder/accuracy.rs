@@ -167,20 +167,19 @@ impl AccuracyWatch {
             // the trajectory, the time step would.
             let cause = if target > 0.0 && self.largest_error() <= target {
                 let dt = sim.settings().dt;
-                let other = if IntegratorKind::parse(sim.integrator_name())
+                let (why, other) = if IntegratorKind::parse(sim.integrator_name())
                     == Some(IntegratorKind::ImplicitMidpoint)
                 {
-                    format!(
-                        " (implicit midpoint conserves only quadratic energies), or use \
-                         `integrator = \"{}\"`",
-                        IntegratorKind::Bdf2.name()
+                    (
+                        " (implicit midpoint conserves only quadratic energies)".to_string(),
+                        format!(" or use `integrator = \"{}\"`", IntegratorKind::Bdf2.name()),
                     )
                 } else {
-                    String::new()
+                    (String::new(), String::new())
                 };
                 format!(
                     "every step met `accuracy = {target}` (largest estimated error {:.3}), so \
-                     the energy is the time step's: halve `dt` (now {dt} s){other}",
+                     the energy is the time step's{why}: halve `dt` (now {dt} s){other}",
                     self.largest_error()
                 )
             } else {
