@@ -101,7 +101,7 @@ impl ContactState {
     /// vertex) fit the memory budget: `n` contacts over `free` free
     /// vertices hold `8 n (free + n)` bytes.
     pub(crate) fn delassus_fits_slots(&self) -> bool {
-        let free = self.free_index.iter().filter(|&&f| f != usize::MAX).count();
+        let free = self.free_count;
         let n = (self.slots.iter().zip(&self.free_index))
             .filter(|(slot, f)| slot.is_some() && **f != usize::MAX)
             .count();

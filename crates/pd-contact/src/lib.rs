@@ -115,6 +115,8 @@ pub struct ContactState {
     slots: Vec<Option<Slot>>,
     /// Free-vertex index of each vertex (`usize::MAX` for fixed ones).
     free_index: Vec<usize>,
+    /// How many vertices are free (the global step's unknowns).
+    free_count: usize,
     velocities: Vec<Point>,
     anchor: Vec<Point>,
     h: f64,
@@ -165,6 +167,7 @@ impl ContactState {
             settings,
             slots: vec![None; vertices],
             free_index,
+            free_count: free.len(),
             velocities: vec![Point::zeros(); vertices],
             anchor: vec![Point::zeros(); vertices],
             h: 0.0,

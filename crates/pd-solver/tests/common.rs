@@ -16,6 +16,18 @@ pub fn bits(points: &[Point]) -> Vec<u64> {
         .collect()
 }
 
+/// The free block of the rotation-preserving damping's tests: a jittered
+/// 0.4 x 0.2 x 0.1 m box of 4 x 2 x 2 cells, 500 kg/m^3, `tet-strain` 1e6
+/// Pa (spun by the tests about an axis off its principal axes).
+pub fn spinning_block_model() -> Model {
+    let mesh = jittered_box([4, 2, 2], [0.4, 0.2, 0.1], 0.1, 5);
+    let masses = mesh.lumped_masses(500.0).unwrap();
+    let mut model = Model::new();
+    let body = model.add_body(mesh, masses).unwrap();
+    model.add_tet_strain(body, 1e6, None).unwrap();
+    model
+}
+
 /// Unit round-off of f64.
 pub const U: f64 = f64::EPSILON / 2.0;
 

@@ -15,7 +15,7 @@ use std::path::Path;
 
 use pd_io::scene::Scene;
 use pd_mesh::Point;
-use pd_solver::Simulation;
+use pd_solver::{Simulation, StepStats};
 
 /// Steps before the cube's landing (it lands at step 49; the estimate test
 /// of `tests/accuracy_estimate.rs` starts at the same step).
@@ -44,6 +44,29 @@ fn mass_distance(sim: &Simulation, a: &[Point], b: &[Point]) -> f64 {
         .sqrt()
 }
 
+/// One step of `sim` and of `reference` restored to `sim`'s state: the
+/// step's stats and its relative error `|x - x*|_M / |y - x*|_M` against
+/// the reference's `x*` (`y = x_n + h v_n + h^2 g` the inertial prediction
+/// of backward Euler), 0 in free fall (nothing to correct: the step stops
+/// at once).
+fn step_against(sim: &mut Simulation, reference: &mut Simulation) -> (StepStats, f64) {
+    reference.restore(&sim.checkpoint()).unwrap();
+    let (h, g) = (sim.settings().dt, sim.settings().gravity);
+    let y: Vec<Point> = (sim.state().positions.iter().zip(&sim.state().velocities))
+        .map(|(x, v)| x + v * h + g * (h * h))
+        .collect();
+    let stats = sim.step().unwrap();
+    reference.step().unwrap();
+    let exact = &reference.state().positions;
+    let correction = mass_distance(sim, exact, &y);
+    let error = if correction > 0.0 {
+        mass_distance(sim, &sim.state().positions, exact) / correction
+    } else {
+        0.0
+    };
+    (stats, error)
+}
+
 /// Through the landing (20 steps), with `accuracy = 1e-6`, each step
 /// converges, and its positions `x` lie within `2e-6 |y - x*|_M` of the
 /// reference step's `x*` (the fixed-iteration mode's Uzawa iteration to a
@@ -66,24 +89,10 @@ fn steps_converge_to_the_contact_problems_solution() {
     let mut worst = 0.0_f64;
     let mut contacts = 0;
     for _ in 0..20 {
-        reference.restore(&sim.checkpoint()).unwrap();
-        let x_n = sim.state().positions.clone();
-        let h = sim.settings().dt;
-        let g = sim.settings().gravity;
-        let y: Vec<Point> = (x_n.iter().zip(&sim.state().velocities))
-            .map(|(x, v)| x + v * h + g * (h * h))
-            .collect();
-        let stats = sim.step().unwrap();
-        reference.step().unwrap();
+        let (stats, error) = step_against(&mut sim, &mut reference);
         assert!(stats.converged, "{stats:?}");
         contacts = contacts.max(stats.contacts);
-        let exact = &reference.state().positions;
-        let correction = mass_distance(&sim, exact, &y);
-        // Free fall: nothing to correct (the step stops at once).
-        if correction > 0.0 {
-            let off = mass_distance(&sim, &sim.state().positions, exact);
-            worst = worst.max(off / correction);
-        }
+        worst = worst.max(error);
     }
     eprintln!("largest relative error against the reference: {worst:.2e}");
     assert!(contacts > 10, "the cube did not land: {contacts} contacts");
@@ -146,26 +155,13 @@ fn over_its_memory_budget_the_contact_solve_falls_back() {
     let mut worst = 0.0_f64;
     let mut fell_back = 0;
     for _ in 0..20 {
-        reference.restore(&sim.checkpoint()).unwrap();
-        let x_n = sim.state().positions.clone();
-        let h = sim.settings().dt;
-        let g = sim.settings().gravity;
-        let y: Vec<Point> = (x_n.iter().zip(&sim.state().velocities))
-            .map(|(x, v)| x + v * h + g * (h * h))
-            .collect();
-        let stats = sim.step().unwrap();
-        reference.step().unwrap();
+        let (stats, error) = step_against(&mut sim, &mut reference);
         assert!(stats.converged, "{stats:?}");
         if stats.contacts > 0 {
             assert!(stats.contact_solve_fallback, "{stats:?}");
             fell_back += 1;
         }
-        let exact = &reference.state().positions;
-        let correction = mass_distance(&sim, exact, &y);
-        if correction > 0.0 {
-            let off = mass_distance(&sim, &sim.state().positions, exact);
-            worst = worst.max(off / correction);
-        }
+        worst = worst.max(error);
         let roomy_stats = roomy.step().unwrap();
         assert!(!roomy_stats.contact_solve_fallback, "{roomy_stats:?}");
     }

@@ -1,15 +1,15 @@
 //! The rotation-preserving damping keeps reference lever arms from step to
-//! step (turned by each step's fitted rotation, rebuilt when the body has
+//! step (mapped by each step's fitted linear map, rebuilt when the body has
 //! deformed away from them), so a checkpoint must carry them: a restored
 //! run continues bit for bit, and one restored without them does not.
 
 mod common;
 
-use common::jittered_box;
+use common::{bits, spinning_block_model};
 use pd_damping::LaplacianDamping;
 use pd_integrators::ImplicitMidpoint;
 use pd_mesh::Point;
-use pd_solver::{Checkpoint, Model, RotationState, Settings, Simulation};
+use pd_solver::{Checkpoint, RotationState, Settings, Simulation};
 
 /// A free block (1e6 Pa) spun about an axis off its principal axes, no
 /// gravity, damped by the rotation-preserving Laplacian damping: its arms
@@ -21,11 +21,7 @@ fn spinning_block() -> Simulation {
 
 /// [`spinning_block`] with the local step on `threads` threads.
 fn spinning_block_on(threads: usize) -> Simulation {
-    let mesh = jittered_box([4, 2, 2], [0.4, 0.2, 0.1], 0.1, 5);
-    let masses = mesh.lumped_masses(500.0).unwrap();
-    let mut model = Model::new();
-    let body = model.add_body(mesh, masses).unwrap();
-    model.add_tet_strain(body, 1e6, None).unwrap();
+    let model = spinning_block_model();
     let settings = Settings {
         dt: 0.005,
         iterations: 10,
@@ -38,13 +34,6 @@ fn spinning_block_on(threads: usize) -> Simulation {
     sim.add_rigid_velocity(0, Point::new(0.5, 0.2, 0.0), Point::new(0.5, 1.0, 4.0))
         .unwrap();
     sim
-}
-
-fn bits(points: &[Point]) -> Vec<[u64; 3]> {
-    points
-        .iter()
-        .map(|p| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()])
-        .collect()
 }
 
 fn resumed(saved: &Checkpoint, steps: usize) -> Simulation {

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::jittered_box;
+use common::{jittered_box, spinning_block_model};
 use pd_damping::rigid::RigidFit;
 use pd_damping::{Damping, LaplacianDamping, NoDamping};
 use pd_integrators::{Bdf2, ImplicitMidpoint, Integrator};
@@ -146,11 +146,7 @@ fn spin_history(
     damping: Box<dyn Damping>,
     steps: usize,
 ) -> Vec<(f64, f64)> {
-    let mesh = jittered_box([4, 2, 2], [0.4, 0.2, 0.1], 0.1, 5);
-    let masses = mesh.lumped_masses(500.0).unwrap();
-    let mut model = Model::new();
-    let body = model.add_body(mesh, masses).unwrap();
-    model.add_tet_strain(body, 1e6, None).unwrap();
+    let model = spinning_block_model();
     let settings = Settings {
         dt: 0.005,
         iterations: 500,
